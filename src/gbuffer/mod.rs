@@ -1,0 +1,217 @@
+//! Primary visibility: the G-buffer every later pass reads (design §3).
+//!
+//! CPU twin of the GPU G-buffer pass: one `f64` ray per pixel centre against
+//! the real geometry. Per pixel it stores the hit triangle, the view depth,
+//! the eye-relative hit point, the geometric normal flipped to face the
+//! camera, whether the pixel is shadow-tested, and the µQuad axes
+//! `Ex = dP/dx`, `Ey = dP/dy` (seed 002 §4: the pixel's footprint on its
+//! tangent plane, the base of its shadow frustum).
+
+use crate::reference::bvh::SceneBvh;
+use crate::scene::{CameraFrame, Light, Scene};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+/// Triangle id of a pixel whose centre ray hits nothing.
+pub const NO_HIT: u32 = u32::MAX;
+
+/// Largest µQuad axis length, in units of the pixel's footprint on a plane
+/// facing the ray. At grazing views (N·V → 0) the exact axes grow without
+/// bound; beyond 64× (N·V < 1/64, 89.1° from the normal) they are scaled
+/// down to this length. The same clamp must be used by every consumer of
+/// µQuads (design §5); clamped pixels are counted in [`GBufferStats`].
+pub const MAX_MICROQUAD_STRETCH: f64 = 64.0;
+
+/// Per-pixel flags.
+pub mod flags {
+    /// The centre ray hit a triangle within [near, far].
+    pub const HIT: u32 = 1;
+    /// Hit and N·L > 0: the pixel's shadow is computed.
+    pub const SHADOW_TESTED: u32 = 2;
+    /// The µQuad axes were clamped to [`super::MAX_MICROQUAD_STRETCH`].
+    pub const AXES_CLAMPED: u32 = 4;
+}
+
+/// The primary hit of one ray, in `f64`, eye-relative.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    pub triangle: u32,
+    /// Ray parameter along the unnormalised camera direction: equal to the
+    /// view depth, since that direction has unit component along `forward`.
+    pub t: f64,
+    pub position: DVec3,
+    /// Unit geometric normal, flipped to face the camera.
+    pub normal: DVec3,
+}
+
+/// Closest hit of the camera ray through image point (`px`, `py`), with view
+/// depth inside [near, far].
+pub fn trace_primary(
+    bvh: &SceneBvh,
+    frame: &CameraFrame,
+    near: f64,
+    far: f64,
+    px: f64,
+    py: f64,
+) -> Option<SurfaceHit> {
+    let direction = frame.direction(px, py);
+    let hit = bvh.closest_hit(DVec3::ZERO, direction, near, far, NO_HIT)?;
+    let tri = bvh.triangle(hit.triangle);
+    let mut normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+    if normal.dot(direction) > 0.0 {
+        normal = -normal;
+    }
+    Some(SurfaceHit {
+        triangle: hit.triangle,
+        t: hit.t,
+        position: direction * hit.t,
+        normal,
+    })
+}
+
+/// Exact µQuad axes at the pixel whose centre ray hit `hit`: the derivatives
+/// with respect to pixel x and y of the intersection of the ray with the
+/// hit's tangent plane. With D(x, y) the unnormalised ray direction (affine
+/// in x, y) and P = s·D, s = (n·P₀)/(n·D):
+/// `dP/dx = s · (dD/dx − (n·dD/dx)/(n·D) · D)` (and likewise for y).
+/// Returns the axes after the grazing clamp and whether it applied.
+pub fn microquad_axes(frame: &CameraFrame, px: f64, py: f64, hit: &SurfaceHit) -> (DVec3, DVec3, bool) {
+    let d = frame.direction(px, py);
+    let n = hit.normal;
+    let n_dot_d = n.dot(d);
+    let axis = |dd: DVec3| hit.t * (dd - d * (n.dot(dd) / n_dot_d));
+    let (mut ex, mut ey) = (axis(frame.direction_dx()), axis(frame.direction_dy()));
+    // Footprint of one pixel on a plane facing the ray at this distance.
+    let facing = hit.t * frame.direction_dx().length() * d.length();
+    let limit = MAX_MICROQUAD_STRETCH * facing;
+    let mut clamped = false;
+    for a in [&mut ex, &mut ey] {
+        let len = a.length();
+        if !(len <= limit) {
+            *a = if len.is_finite() { *a * (limit / len) } else { DVec3::ZERO };
+            clamped = true;
+        }
+    }
+    (ex, ey, clamped)
+}
+
+/// Whether a surface point with camera-facing normal `normal` faces the light.
+pub fn faces_light(light: &Light, position: DVec3, normal: DVec3) -> bool {
+    normal.dot(light.toward(position).0) > 0.0
+}
+
+/// Counts over the image.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GBufferStats {
+    pub pixels: usize,
+    pub hits: usize,
+    pub shadow_tested: usize,
+    pub clamped_microquads: usize,
+}
+
+/// Struct-of-arrays G-buffer, row-major, `f32` and eye-relative so a GPU
+/// buffer can mirror it one array per binding.
+#[derive(Clone, Debug)]
+pub struct GBuffer {
+    pub width: u32,
+    pub height: u32,
+    /// Hit triangle id, [`NO_HIT`] for a miss.
+    pub triangle_id: Vec<u32>,
+    /// View depth of the hit, +inf for a miss.
+    pub depth: Vec<f32>,
+    /// Eye-relative hit point.
+    pub position: Vec<Vec3>,
+    /// Unit geometric normal facing the camera.
+    pub normal: Vec<Vec3>,
+    /// µQuad axis along +x pixels (`dP/dx`).
+    pub axis_x: Vec<Vec3>,
+    /// µQuad axis along +y pixels (`dP/dy`, y down).
+    pub axis_y: Vec<Vec3>,
+    /// [`flags`] bits.
+    pub flags: Vec<u32>,
+    pub stats: GBufferStats,
+}
+
+/// One pixel's G-buffer entry in `f64` (the form the reference uses).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelSurface {
+    pub hit: SurfaceHit,
+    pub axis_x: DVec3,
+    pub axis_y: DVec3,
+    pub axes_clamped: bool,
+    pub shadow_tested: bool,
+}
+
+/// The `f64` G-buffer entry of pixel (`x`, `y`), or `None` for a miss.
+pub fn pixel_surface(bvh: &SceneBvh, scene: &Scene, frame: &CameraFrame, x: u32, y: u32) -> Option<PixelSurface> {
+    let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+    let hit = trace_primary(bvh, frame, scene.camera.near, scene.camera.far, px, py)?;
+    let (axis_x, axis_y, axes_clamped) = microquad_axes(frame, px, py, &hit);
+    let light = scene.light.relative_to(scene.camera.eye);
+    Some(PixelSurface {
+        hit,
+        axis_x,
+        axis_y,
+        axes_clamped,
+        shadow_tested: faces_light(&light, hit.position, hit.normal),
+    })
+}
+
+/// Primary visibility for the whole image (rayon over rows).
+pub fn gbuffer(scene: &Scene, bvh: &SceneBvh) -> GBuffer {
+    let [w, h] = scene.resolution;
+    let frame = scene.camera.frame(scene.resolution);
+    let rows: Vec<Vec<Option<PixelSurface>>> = (0..h)
+        .into_par_iter()
+        .map(|y| (0..w).map(|x| pixel_surface(bvh, scene, &frame, x, y)).collect())
+        .collect();
+    let n = scene.pixel_count();
+    let mut g = GBuffer {
+        width: w,
+        height: h,
+        triangle_id: Vec::with_capacity(n),
+        depth: Vec::with_capacity(n),
+        position: Vec::with_capacity(n),
+        normal: Vec::with_capacity(n),
+        axis_x: Vec::with_capacity(n),
+        axis_y: Vec::with_capacity(n),
+        flags: Vec::with_capacity(n),
+        stats: GBufferStats {
+            pixels: n,
+            ..Default::default()
+        },
+    };
+    for s in rows.into_iter().flatten() {
+        match s {
+            Some(s) => {
+                let mut f = flags::HIT;
+                g.stats.hits += 1;
+                if s.shadow_tested {
+                    f |= flags::SHADOW_TESTED;
+                    g.stats.shadow_tested += 1;
+                }
+                if s.axes_clamped {
+                    f |= flags::AXES_CLAMPED;
+                    g.stats.clamped_microquads += 1;
+                }
+                g.triangle_id.push(s.hit.triangle);
+                g.depth.push(s.hit.t as f32);
+                g.position.push(s.hit.position.as_vec3());
+                g.normal.push(s.hit.normal.as_vec3());
+                g.axis_x.push(s.axis_x.as_vec3());
+                g.axis_y.push(s.axis_y.as_vec3());
+                g.flags.push(f);
+            }
+            None => {
+                g.triangle_id.push(NO_HIT);
+                g.depth.push(f32::INFINITY);
+                g.position.push(Vec3::ZERO);
+                g.normal.push(Vec3::ZERO);
+                g.axis_x.push(Vec3::ZERO);
+                g.axis_y.push(Vec3::ZERO);
+                g.flags.push(0);
+            }
+        }
+    }
+    g
+}

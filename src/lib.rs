@@ -1,0 +1,14 @@
+//! # izb
+//!
+//! Analytic, antialiased hard shadows with a compute irregular z-buffer
+//! (IZB), and the ray-traced ground truth they are measured against.
+//!
+//! Module map (design §2): [`scene`] loads glTF, scene specs and procedural
+//! scenes; [`gbuffer`] computes primary visibility with µQuad footprints;
+//! [`reference`] traces supersampled ground truth; [`output`] writes images
+//! and reports atomically.
+
+pub mod gbuffer;
+pub mod output;
+pub mod reference;
+pub mod scene;

@@ -1,0 +1,103 @@
+//! Output files (design §3): `visibility.exr`, `visibility.png`,
+//! `report.json`. Every file is written under a temporary name in the same
+//! folder and renamed into place, so a crash leaves the old file or the new
+//! one, never half of one.
+
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+
+/// Colour of pixels that are not shadow-tested in the PNG (sky, surfaces
+/// facing away from the light): a blue no grey visibility value can take.
+pub const UNTESTED_RGB: [u8; 3] = [40, 70, 140];
+
+/// Writes `path` through `write(tmp_path)` and renames the result into
+/// place. On any error the temporary file is removed and `path` untouched.
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let name = path.file_name().context("output path has no file name")?;
+    let tmp: PathBuf = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+    let result = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, path).with_context(|| format!("renaming into {}", path.display()))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.with_context(|| format!("writing {}", path.display()))
+}
+
+/// Writes a single-layer EXR of `f32` channels, each `width × height`,
+/// row-major.
+pub fn write_exr(path: &Path, width: u32, height: u32, channels: &[(&str, &[f32])]) -> Result<()> {
+    use exr::prelude::*;
+    let n = width as usize * height as usize;
+    let list: Vec<AnyChannel<FlatSamples>> = channels
+        .iter()
+        .map(|(name, data)| {
+            assert_eq!(data.len(), n, "channel {name} has the wrong size");
+            AnyChannel::new(*name, FlatSamples::F32(data.to_vec()))
+        })
+        .collect();
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list.into()),
+    );
+    write_atomically(path, |tmp| {
+        Image::from_layer(layer)
+            .write()
+            .to_file(tmp)
+            .map_err(|e| anyhow::anyhow!("EXR encoding: {e}"))
+    })
+}
+
+/// Reads the named `f32` channel of a single-layer EXR (row-major).
+pub fn read_exr_channel(path: &Path, channel: &str) -> Result<(u32, u32, Vec<f32>)> {
+    use exr::prelude::*;
+    let image = read_all_flat_layers_from_file(path)
+        .map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
+    let layer = image.layer_data.first().context("EXR has no layer")?;
+    let size = layer.size;
+    let ch = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name == Text::from(channel))
+        .with_context(|| format!("{}: no channel '{channel}'", path.display()))?;
+    let values = ch.sample_data.values_as_f32().collect();
+    Ok((size.width() as u32, size.height() as u32, values))
+}
+
+/// Writes lit fraction as an 8-bit grey PNG; NaN (untested) pixels in
+/// [`UNTESTED_RGB`].
+pub fn write_visibility_png(path: &Path, width: u32, height: u32, visibility: &[f32]) -> Result<()> {
+    let mut img = image::RgbImage::new(width, height);
+    for (p, &v) in img.pixels_mut().zip(visibility) {
+        *p = if v.is_nan() {
+            image::Rgb(UNTESTED_RGB)
+        } else {
+            let g = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+            image::Rgb([g, g, g])
+        };
+    }
+    write_png(path, &img)
+}
+
+/// Writes any RGB image as PNG, atomically.
+pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
+    write_atomically(path, |tmp| {
+        let file = std::fs::File::create(tmp)?;
+        let mut w = std::io::BufWriter::new(file);
+        img.write_to(&mut w, image::ImageFormat::Png)?;
+        use std::io::Write;
+        w.flush()?;
+        Ok(())
+    })
+}
+
+/// Writes a serialisable value as pretty JSON, atomically.
+pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
+    let bytes = serde_json::to_vec_pretty(value)?;
+    write_atomically(path, |tmp| Ok(std::fs::write(tmp, &bytes)?))
+}

@@ -1,0 +1,243 @@
+//! Ray-traced ground truth (design §8).
+//!
+//! Per pixel, `k × k` stratified jittered sub-pixel primary rays hit the real
+//! geometry; each hit sends one shadow ray toward the light. The pixel's
+//! value is lit hits / all hits: sub-rays that miss are ignored, hits on
+//! surfaces facing away from the light count as shadowed, and pixels whose
+//! *centre* is not shadow-tested are NaN (excluded from every metric).
+//!
+//! Everything is `f64` and eye-relative; see [`bvh`] for the ray caster and
+//! [`bvh::self_hit_offset`] for how shadow rays leave their surface.
+
+pub mod analytic;
+pub mod bvh;
+
+use crate::gbuffer::{faces_light, pixel_surface, trace_primary};
+use crate::scene::{CameraFrame, Light, Scene};
+use bvh::{self_hit_offset, SceneBvh};
+use glam::DVec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg32;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Side of the square tiles the image is split into for the thread pool.
+const TILE: u32 = 16;
+
+/// What the ground truth is traced with.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct ReferenceSettings {
+    /// k: the pixel is split into k × k strata, one jittered ray each.
+    pub samples_per_side: u32,
+    /// Seed of the jitter; the output is a pure function of it.
+    pub seed: u64,
+}
+
+impl Default for ReferenceSettings {
+    fn default() -> Self {
+        ReferenceSettings {
+            samples_per_side: 16,
+            seed: 1,
+        }
+    }
+}
+
+impl ReferenceSettings {
+    /// Settings for `spp` samples per pixel, which must be a perfect square.
+    pub fn from_spp(spp: u32, seed: u64) -> Result<Self, String> {
+        let k = (spp as f64).sqrt().round() as u32;
+        if spp == 0 || k * k != spp {
+            return Err(format!(
+                "--spp {spp}: the reference stratifies the pixel into k×k cells, so spp must be a \
+                 perfect square (e.g. 64, 256, 1024)"
+            ));
+        }
+        Ok(ReferenceSettings {
+            samples_per_side: k,
+            seed,
+        })
+    }
+
+    pub fn spp(&self) -> u32 {
+        self.samples_per_side * self.samples_per_side
+    }
+}
+
+/// Counters of one reference run.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ReferenceStats {
+    pub pixels: usize,
+    pub shadow_tested_pixels: usize,
+    pub smooth_pixels: usize,
+    pub primary_rays: u64,
+    pub shadow_rays: u64,
+    pub seconds: f64,
+    /// (primary + shadow rays) / seconds.
+    pub rays_per_second: f64,
+}
+
+/// The ground-truth image.
+#[derive(Clone, Debug)]
+pub struct ReferenceImage {
+    pub width: u32,
+    pub height: u32,
+    /// Lit fraction per pixel, NaN where the centre is not shadow-tested.
+    pub visibility: Vec<f32>,
+    /// 1 where every sub-pixel hit lies on the centre hit's plane (a
+    /// *smooth* pixel, design §8), 0 otherwise, NaN where not shadow-tested.
+    pub smooth: Vec<f32>,
+    pub settings: ReferenceSettings,
+    pub stats: ReferenceStats,
+}
+
+/// Per-pixel result of the estimator.
+#[derive(Clone, Copy, Debug)]
+struct PixelResult {
+    visibility: f32,
+    smooth: f32,
+    primary_rays: u32,
+    shadow_rays: u32,
+}
+
+const UNTESTED: PixelResult = PixelResult {
+    visibility: f32::NAN,
+    smooth: f32::NAN,
+    primary_rays: 1,
+    shadow_rays: 0,
+};
+
+/// Shared state of one run.
+struct Tracer<'a> {
+    scene: &'a Scene,
+    bvh: &'a SceneBvh,
+    frame: CameraFrame,
+    light: Light,
+    settings: ReferenceSettings,
+}
+
+impl Tracer<'_> {
+    /// Whether the surface point `p` (eye-relative, on triangle `triangle`,
+    /// camera-facing normal `normal`) receives light.
+    fn lit(&self, p: DVec3, normal: DVec3, triangle: u32) -> bool {
+        if !faces_light(&self.light, p, normal) {
+            return false;
+        }
+        let (toward, distance) = self.light.toward(p);
+        !self
+            .bvh
+            .occluded(p, toward, self_hit_offset(p), distance, triangle)
+    }
+
+    fn pixel(&self, x: u32, y: u32) -> PixelResult {
+        let Some(centre) = pixel_surface(self.bvh, self.scene, &self.frame, x, y) else {
+            return UNTESTED;
+        };
+        if !centre.shadow_tested {
+            return UNTESTED;
+        }
+        // A sub-pixel hit is on the centre's plane when its distance to the
+        // plane is below 1e-3 of the µQuad: coplanar neighbours (~1e-12) pass,
+        // any other surface in the footprint (~the footprint) fails.
+        let plane_tolerance = 1e-3 * centre.axis_x.length().max(centre.axis_y.length());
+        let k = self.settings.samples_per_side;
+        let pixel_index = y as u64 * self.frame.width as u64 + x as u64;
+        let mut rng = Pcg32::seed_from_u64(
+            self.settings.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ pixel_index,
+        );
+        let (mut hits, mut lit, mut shadow_rays) = (0u32, 0u32, 0u32);
+        let mut smooth = true;
+        let (near, far) = (self.scene.camera.near, self.scene.camera.far);
+        for j in 0..k {
+            for i in 0..k {
+                let u = (i as f64 + rng.random::<f64>()) / k as f64;
+                let v = (j as f64 + rng.random::<f64>()) / k as f64;
+                let sub = trace_primary(self.bvh, &self.frame, near, far, x as f64 + u, y as f64 + v);
+                let Some(sub) = sub else {
+                    smooth = false;
+                    continue;
+                };
+                hits += 1;
+                smooth &= centre.hit.normal.dot(sub.position - centre.hit.position).abs() <= plane_tolerance;
+                shadow_rays += 1;
+                lit += self.lit(sub.position, sub.normal, sub.triangle) as u32;
+            }
+        }
+        let visibility = if hits > 0 {
+            lit as f32 / hits as f32
+        } else {
+            // Every sub-ray slipped past a sub-pixel sliver the centre ray
+            // hit: fall back to the centre's own shadow ray.
+            shadow_rays += 1;
+            self.lit(centre.hit.position, centre.hit.normal, centre.hit.triangle) as u32 as f32
+        };
+        PixelResult {
+            visibility,
+            smooth: smooth as u32 as f32,
+            primary_rays: 1 + k * k,
+            shadow_rays,
+        }
+    }
+}
+
+/// Traces the ground truth of `scene`. `on_tile(pixels)` is called after
+/// each finished tile (for a progress bar).
+pub fn reference(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    settings: ReferenceSettings,
+    on_tile: &(dyn Fn(u64) + Sync),
+) -> ReferenceImage {
+    let start = Instant::now();
+    let [w, h] = scene.resolution;
+    let tracer = Tracer {
+        scene,
+        bvh,
+        frame: scene.camera.frame(scene.resolution),
+        light: scene.light.relative_to(scene.camera.eye),
+        settings,
+    };
+    let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
+        .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
+        .collect();
+    let results: Vec<Vec<(u32, u32, PixelResult)>> = tiles
+        .par_iter()
+        .map(|&(x0, y0)| {
+            let mut out = Vec::with_capacity((TILE * TILE) as usize);
+            for y in y0..(y0 + TILE).min(h) {
+                for x in x0..(x0 + TILE).min(w) {
+                    out.push((x, y, tracer.pixel(x, y)));
+                }
+            }
+            on_tile(out.len() as u64);
+            out
+        })
+        .collect();
+    let n = scene.pixel_count();
+    let mut visibility = vec![f32::NAN; n];
+    let mut smooth = vec![f32::NAN; n];
+    let mut stats = ReferenceStats {
+        pixels: n,
+        ..Default::default()
+    };
+    for (x, y, r) in results.into_iter().flatten() {
+        let i = (y * w + x) as usize;
+        visibility[i] = r.visibility;
+        smooth[i] = r.smooth;
+        stats.primary_rays += r.primary_rays as u64;
+        stats.shadow_rays += r.shadow_rays as u64;
+        if !r.visibility.is_nan() {
+            stats.shadow_tested_pixels += 1;
+            stats.smooth_pixels += (r.smooth == 1.0) as usize;
+        }
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    stats.rays_per_second = (stats.primary_rays + stats.shadow_rays) as f64 / stats.seconds.max(1e-9);
+    ReferenceImage {
+        width: w,
+        height: h,
+        visibility,
+        smooth,
+        settings,
+        stats,
+    }
+}

@@ -1,0 +1,217 @@
+//! Scenes: the world-space triangle soup, the camera and the light.
+//!
+//! Conventions (design §3): right-handed, +Y up, the camera looks along -Z in
+//! view space; pixel (x, y) has x to the right and y down, its centre at
+//! (x + 0.5, y + 0.5). World positions are kept in `f64` so that a scene
+//! 1e5 units from the origin keeps its sub-millimetre detail; everything that
+//! later goes to `f32` is made relative to the camera first
+//! ([`Scene::eye_relative_triangles`]).
+
+mod camera;
+mod gltf_load;
+mod light;
+pub mod procedural;
+mod spec;
+
+pub use camera::{Camera, CameraFrame};
+pub use gltf_load::{load_gltf, GltfMeshes};
+pub use light::Light;
+pub use spec::{CameraSpec, LightSpec, SceneSpec, MAX_RESOLUTION};
+
+use glam::DVec3;
+use std::path::Path;
+
+/// One triangle in world space, `f64`.
+pub type Triangle = [DVec3; 3];
+
+/// Why a scene could not be built. Every variant names the offending input.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: invalid scene spec: {message}")]
+    Spec { path: String, message: String },
+    #[error("{path}: invalid glTF: {message}")]
+    Gltf { path: String, message: String },
+    #[error("{0}")]
+    Invalid(String),
+    #[error(
+        "unknown scene '{0}': expected a scene spec path (*.scene.json) or one of the \
+         procedural scenes: {names}",
+        names = procedural::NAMES.join(", ")
+    )]
+    Unknown(String),
+}
+
+/// Counts gathered while flattening the source geometry.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GeometryStats {
+    /// Triangles in the source (index count / 3 per primitive instance,
+    /// strips and fans converted), before dropping degenerate ones.
+    pub source_triangles: usize,
+    /// Zero-area or collinear triangles that were dropped (they cannot cast a
+    /// shadow and have no normal to shade with).
+    pub dropped_degenerate: usize,
+    /// Primitives with point or line topology that were skipped.
+    pub skipped_non_triangle_primitives: usize,
+}
+
+/// A scene ready to render: triangles, camera, light and image size.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub name: String,
+    /// Non-degenerate world-space triangles. The index into this array is the
+    /// triangle id used by every pass.
+    pub triangles: Vec<Triangle>,
+    /// For each triangle, its index in the flattened source array (before
+    /// degenerate triangles were dropped): a stable id across runs.
+    pub source_ids: Vec<u32>,
+    pub stats: GeometryStats,
+    pub camera: Camera,
+    pub light: Light,
+    /// Image width and height in pixels.
+    pub resolution: [u32; 2],
+    /// Warnings from loading (skipped primitives, ...), printed once by the CLI.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Assembles a scene from raw triangles, dropping degenerate ones and
+    /// validating camera, light and resolution.
+    pub fn new(
+        name: impl Into<String>,
+        triangles: Vec<Triangle>,
+        camera: Camera,
+        light: Light,
+        resolution: [u32; 2],
+    ) -> Result<Self, SceneError> {
+        let mut stats = GeometryStats {
+            source_triangles: triangles.len(),
+            ..Default::default()
+        };
+        let mut kept = Vec::with_capacity(triangles.len());
+        let mut source_ids = Vec::with_capacity(triangles.len());
+        for (id, tri) in triangles.into_iter().enumerate() {
+            if let Some(bad) = tri.iter().find(|v| !v.is_finite()) {
+                return Err(SceneError::Invalid(format!(
+                    "triangle {id} has a non-finite vertex position {bad}"
+                )));
+            }
+            if is_degenerate(&tri) {
+                stats.dropped_degenerate += 1;
+            } else {
+                kept.push(tri);
+                source_ids.push(id as u32);
+            }
+        }
+        let scene = Scene {
+            name: name.into(),
+            triangles: kept,
+            source_ids,
+            stats,
+            camera,
+            light,
+            resolution,
+            warnings: Vec::new(),
+        };
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Checks everything a renderer relies on; called by every constructor.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        if self.triangles.is_empty() {
+            return Err(SceneError::Invalid(format!(
+                "scene '{}' has no triangles ({} in the source, {} degenerate dropped)",
+                self.name, self.stats.source_triangles, self.stats.dropped_degenerate
+            )));
+        }
+        spec::check_resolution(self.resolution).map_err(SceneError::Invalid)?;
+        self.camera.validate().map_err(SceneError::Invalid)?;
+        self.light.validate().map_err(SceneError::Invalid)?;
+        Ok(())
+    }
+
+    /// Same scene at another image size (the CLI's `--resolution`).
+    pub fn with_resolution(mut self, resolution: [u32; 2]) -> Result<Self, SceneError> {
+        spec::check_resolution(resolution).map_err(SceneError::Invalid)?;
+        self.resolution = resolution;
+        Ok(self)
+    }
+
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.resolution[0] as usize * self.resolution[1] as usize
+    }
+
+    /// Triangles relative to the camera position, computed in `f64`: the
+    /// only form in which coordinates may be rounded to `f32` (design §4).
+    pub fn eye_relative_triangles(&self) -> Vec<Triangle> {
+        let eye = self.camera.eye;
+        self.triangles
+            .iter()
+            .map(|t| [t[0] - eye, t[1] - eye, t[2] - eye])
+            .collect()
+    }
+
+    /// World-space bounds of all triangles.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for v in self.triangles.iter().flatten() {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+        (lo, hi)
+    }
+
+    /// Moves the whole scene (geometry, camera, point light) by `offset`.
+    pub fn translated(mut self, offset: DVec3) -> Self {
+        for v in self.triangles.iter_mut().flatten() {
+            *v += offset;
+        }
+        self.camera.eye += offset;
+        self.camera.target += offset;
+        if let Light::Point { position } = &mut self.light {
+            *position += offset;
+        }
+        self
+    }
+}
+
+/// A triangle is degenerate when its height over its longest edge is below
+/// `4 ε32` of that edge: its normal is then decided by the rounding of the
+/// `f32` input (glTF stores `f32`), so it has no well-defined plane and can
+/// neither be shaded nor cast a shadow distinguishable from its neighbours'.
+/// The test is relative to the triangle's own extent, never its distance
+/// from the origin, so translating a scene does not change what is dropped.
+pub fn is_degenerate(tri: &Triangle) -> bool {
+    let e0 = tri[1] - tri[0];
+    let e1 = tri[2] - tri[0];
+    let e2 = tri[2] - tri[1];
+    let twice_area = e0.cross(e1).length();
+    let longest = e0.length().max(e1.length()).max(e2.length());
+    if twice_area == 0.0 || longest == 0.0 || !twice_area.is_finite() {
+        return true;
+    }
+    let height = twice_area / longest;
+    height <= 4.0 * f32::EPSILON as f64 * longest
+}
+
+/// Loads a scene from a command-line argument: a procedural scene name or a
+/// path to a `*.scene.json` spec.
+pub fn load(arg: &str) -> Result<Scene, SceneError> {
+    if let Some(scene) = procedural::build(arg)? {
+        return Ok(scene);
+    }
+    let path = Path::new(arg);
+    let looks_like_path = arg.ends_with(".json") || arg.contains('/') || path.exists();
+    if !looks_like_path {
+        return Err(SceneError::Unknown(arg.to_string()));
+    }
+    SceneSpec::load(path)?.build()
+}

@@ -1,0 +1,159 @@
+//! The scene spec file (`*.scene.json`, design §3).
+
+use super::{Camera, Light, Scene, SceneError};
+use glam::DVec3;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Largest accepted image side. Beyond it a 32-bit mask image alone would
+/// exceed 1 GiB, and GPU image limits are commonly 16384.
+pub const MAX_RESOLUTION: u32 = 16384;
+
+/// A parsed `*.scene.json`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSpec {
+    /// glTF file (`.gltf` or `.glb`), relative to the spec file.
+    pub gltf: Option<String>,
+    /// Name of a built-in procedural scene providing the geometry.
+    pub procedural: Option<String>,
+    pub camera: CameraSpec,
+    pub light: LightSpec,
+    pub resolution: [u32; 2],
+    /// The file this spec was read from (for relative paths and messages).
+    #[serde(skip)]
+    pub path: PathBuf,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
+    #[serde(default = "default_up")]
+    pub up: [f64; 3],
+    pub fov_y_deg: f64,
+    pub near: f64,
+    pub far: f64,
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum LightSpec {
+    Directional { direction: [f64; 3] },
+    Point { position: [f64; 3] },
+}
+
+pub(crate) fn check_resolution(resolution: [u32; 2]) -> Result<(), String> {
+    let [w, h] = resolution;
+    if w == 0 || h == 0 || w > MAX_RESOLUTION || h > MAX_RESOLUTION {
+        return Err(format!(
+            "resolution {w}x{h} is out of range: each side must be in 1..={MAX_RESOLUTION}"
+        ));
+    }
+    Ok(())
+}
+
+impl CameraSpec {
+    pub fn to_camera(&self) -> Camera {
+        Camera {
+            eye: DVec3::from(self.eye),
+            target: DVec3::from(self.target),
+            up: DVec3::from(self.up),
+            fov_y_deg: self.fov_y_deg,
+            near: self.near,
+            far: self.far,
+        }
+    }
+}
+
+impl LightSpec {
+    pub fn to_light(&self) -> Light {
+        match self {
+            LightSpec::Directional { direction } => Light::directional(DVec3::from(*direction)),
+            LightSpec::Point { position } => Light::Point {
+                position: DVec3::from(*position),
+            },
+        }
+    }
+}
+
+impl SceneSpec {
+    /// Reads and parses a spec file. Errors name the file and the JSON path
+    /// of the offending field (e.g. `camera.eye`).
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let mut spec = Self::parse(&text).map_err(|message| SceneError::Spec {
+            path: path.display().to_string(),
+            message,
+        })?;
+        spec.path = path.to_path_buf();
+        Ok(spec)
+    }
+
+    /// Parses spec text; the error names the field and what was expected.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        serde_path_to_error::deserialize(de).map_err(|e| {
+            let field = e.path().to_string();
+            let inner = e.into_inner();
+            if field == "." {
+                inner.to_string()
+            } else {
+                format!("field `{field}`: {inner}")
+            }
+        })
+    }
+
+    /// Builds the scene this spec describes: loads its glTF (or procedural
+    /// geometry) and validates camera, light and resolution.
+    pub fn build(&self) -> Result<Scene, SceneError> {
+        let spec_error = |message: String| SceneError::Spec {
+            path: self.path.display().to_string(),
+            message,
+        };
+        check_resolution(self.resolution).map_err(|m| spec_error(format!("field `resolution`: {m}")))?;
+        let camera = self.camera.to_camera();
+        camera.validate().map_err(spec_error)?;
+        let light = self.light.to_light();
+        light.validate().map_err(spec_error)?;
+        let name = self
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().trim_end_matches(".scene.json").to_string())
+            .unwrap_or_else(|| "spec".into());
+        match (&self.gltf, &self.procedural) {
+            (Some(gltf), None) => {
+                let base = self.path.parent().unwrap_or(Path::new("."));
+                let meshes = super::load_gltf(&base.join(gltf))?;
+                let mut scene = Scene::new(name, meshes.triangles, camera, light, self.resolution)?;
+                scene.stats.skipped_non_triangle_primitives = meshes.skipped_non_triangle_primitives;
+                scene.warnings = meshes.warnings;
+                Ok(scene)
+            }
+            (None, Some(procedural)) => {
+                let geometry = super::procedural::geometry(procedural).ok_or_else(|| {
+                    spec_error(format!(
+                        "field `procedural`: unknown procedural scene '{procedural}', expected one of {}",
+                        super::procedural::NAMES.join(", ")
+                    ))
+                })?;
+                Scene::new(name, geometry, camera, light, self.resolution)
+            }
+            (Some(_), Some(_)) => Err(spec_error(
+                "fields `gltf` and `procedural` are exclusive: give one".into(),
+            )),
+            (None, None) => Err(spec_error(
+                "no geometry: expected field `gltf` (a .gltf/.glb path) or `procedural` (a scene name)"
+                    .into(),
+            )),
+        }
+    }
+}
