@@ -101,3 +101,33 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
     let bytes = serde_json::to_vec_pretty(value)?;
     write_atomically(path, |tmp| Ok(std::fs::write(tmp, &bytes)?))
 }
+
+/// Sky colour of `shaded.png`.
+pub const SKY_RGB: [f32; 3] = [0.55, 0.7, 0.9];
+
+/// Writes `shaded.png`: a grey Lambert surface lit by the light times the
+/// lit fraction, plus a little ambient so shadows keep their shape. Pixels
+/// facing away from the light get the ambient term only; misses are sky.
+pub fn write_shaded_png(
+    path: &Path,
+    gbuffer: &crate::gbuffer::GBuffer,
+    light: &crate::scene::Light,
+    visibility: &[f32],
+) -> Result<()> {
+    const AMBIENT: f32 = 0.18;
+    let mut img = image::RgbImage::new(gbuffer.width, gbuffer.height);
+    for (i, p) in img.pixels_mut().enumerate() {
+        let rgb = if gbuffer.flags[i] & crate::gbuffer::flags::HIT == 0 {
+            SKY_RGB
+        } else {
+            let position = gbuffer.position[i].as_dvec3();
+            let toward = light.toward(position).0.as_vec3();
+            let lambert = gbuffer.normal[i].dot(toward).max(0.0);
+            let v = if visibility[i].is_nan() { 0.0 } else { visibility[i] };
+            [AMBIENT + (1.0 - AMBIENT) * 0.85 * lambert * v; 3]
+        };
+        // Display gamma 2.2.
+        *p = image::Rgb(rgb.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8));
+    }
+    write_png(path, &img)
+}

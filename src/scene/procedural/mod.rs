@@ -32,7 +32,7 @@ pub mod analytic_params {
     /// "infinite" for the camera below).
     pub const GROUND_HALF_SIDE: f64 = 1000.0;
     /// Direction the light travels (not normalised).
-    pub const LIGHT_DIRECTION: [f64; 3] = [1.5, -1.0, 0.5];
+    pub const LIGHT_DIRECTION: [f64; 3] = [2.5, -1.0, 0.8];
 }
 
 /// A procedural scene before validation: geometry, camera, light, size.
@@ -109,7 +109,7 @@ pub fn default_scene() -> Procedural {
     }
     Procedural {
         triangles: t,
-        camera: camera([9.0, 6.5, 11.0], [0.5, 0.6, 0.0], 50.0),
+        camera: camera([6.5, 4.2, 8.0], [0.8, 0.5, 0.0], 50.0),
         light: Light::directional(sun_direction(35.0, 60.0)),
         resolution: RESOLUTION,
     }
@@ -234,8 +234,8 @@ pub fn analytic() -> Procedural {
     ));
     Procedural {
         triangles: t,
-        camera: camera([7.0, 5.0, -3.0], [1.5, 0.0, 0.5], 40.0),
+        camera: camera([6.0, 3.5, -2.5], [2.2, 0.0, 0.7], 30.0),
         light: Light::directional(DVec3::from(LIGHT_DIRECTION)),
-        resolution: [320, 180],
+        resolution: [480, 270],
     }
 }
