@@ -66,6 +66,12 @@ impl AnalyticShadow {
     /// The exact solution for `scene` (the `analytic` procedural scene or a
     /// copy with another camera, light or resolution).
     pub fn new(scene: &Scene) -> Result<Self, String> {
+        Self::translated(scene, DVec3::ZERO)
+    }
+
+    /// The exact solution for the analytic scene moved by `offset` (with
+    /// [`Scene::translated`]).
+    pub fn translated(scene: &Scene, offset: DVec3) -> Result<Self, String> {
         let Light::Directional { direction } = scene.light else {
             return Err("the analytic solution needs a directional light".into());
         };
@@ -73,7 +79,8 @@ impl AnalyticShadow {
         let h = OCCLUDER_HEIGHT;
         let corners = [(-s, -s), (s, -s), (s, s), (-s, s)].map(|(x, z)| DVec3::new(x, h, z));
         // Follow the light from each corner down to y = 0.
-        let shadow = corners.map(|c| c + direction * (c.y / -direction.y));
+        let shadow = corners.map(|c| c + direction * (c.y / -direction.y) + offset);
+        let corners = corners.map(|c| c + offset);
         let project = |p: &DVec3| {
             project_to_pixels(scene, *p)
                 .ok_or_else(|| format!("corner {p} of the shadow or occluder is behind the camera"))
