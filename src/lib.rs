@@ -12,3 +12,6 @@ pub mod gbuffer;
 pub mod output;
 pub mod reference;
 pub mod scene;
+
+/// Visibility samples per pixel: one bit each in a `u32` occlusion mask.
+pub const SAMPLES_PER_PIXEL: usize = izb_lut::SAMPLES_PER_PIXEL;

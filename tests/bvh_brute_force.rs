@@ -8,7 +8,13 @@ use izb::scene::{self, Scene};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
-fn brute_closest(tris: &[[DVec3; 3]], origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<(u32, f64)> {
+fn brute_closest(
+    tris: &[[DVec3; 3]],
+    origin: DVec3,
+    dir: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(u32, f64)> {
     let ray = WatertightRay::new(origin, dir);
     let mut best: Option<(u32, f64)> = None;
     for (i, t) in tris.iter().enumerate() {
@@ -26,7 +32,8 @@ fn random_rays(scene: &Scene, count: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
     // Endpoints in the box around the ball of hair (centre (0, 2, 0),
     // radius 1.5, wherever the scene was moved), eye-relative.
     let (lo, hi) = scene.bounds();
-    let centre = DVec3::new((lo.x + hi.x) / 2.0, lo.y + 2.0, (lo.z + hi.z) / 2.0) - scene.camera.eye;
+    let centre =
+        DVec3::new((lo.x + hi.x) / 2.0, lo.y + 2.0, (lo.z + hi.z) / 2.0) - scene.camera.eye;
     let (lo, hi) = (centre - 1.6, centre + 1.6);
     (0..count)
         .map(|_| {
@@ -52,27 +59,40 @@ fn closest_hit_and_occlusion_match_brute_force() {
     for (origin, dir) in random_rays(&scene, 4000, 5) {
         let expected = brute_closest(&tris, origin, dir, 0.0, f64::INFINITY);
         let got = bvh.closest_hit(origin, dir, 0.0, f64::INFINITY, u32::MAX);
-        assert_eq!(got.map(|h| (h.triangle, h.t)), expected, "ray {origin} {dir}");
+        assert_eq!(
+            got.map(|h| (h.triangle, h.t)),
+            expected,
+            "ray {origin} {dir}"
+        );
         hits += got.is_some() as usize;
         // Occlusion on a bounded segment, skipping the first hit.
         let skip = expected.map_or(u32::MAX, |(i, _)| i);
         let t_max = 2.0;
         let brute = tris.iter().enumerate().any(|(i, t)| {
-            i as u32 != skip && WatertightRay::new(origin, dir).intersect(t).is_some_and(|t| t > 0.0 && t < t_max)
+            i as u32 != skip
+                && WatertightRay::new(origin, dir)
+                    .intersect(t)
+                    .is_some_and(|t| t > 0.0 && t < t_max)
         });
         let fast = bvh.occluded(origin, dir, 0.0, t_max, skip);
         assert_eq!(fast, brute, "occlusion of ray {origin} {dir}");
         occluded += fast as usize;
     }
     println!("4000 rays: {hits} hits, {occluded} occluded segments");
-    assert!(hits > 1000 && occluded > 200, "rays should exercise both outcomes");
+    assert!(
+        hits > 1000 && occluded > 200,
+        "rays should exercise both outcomes"
+    );
 }
 
 #[test]
 fn far_from_origin_the_bvh_still_matches_brute_force() {
     // 1e5 from the origin, eye-relative f64 coordinates keep the traversal
     // exact; a world-space f32 BVH would misplace these 4 mm wide slivers.
-    let scene = scene::procedural::build("hairball").unwrap().unwrap().translated(DVec3::splat(1e5));
+    let scene = scene::procedural::build("hairball")
+        .unwrap()
+        .unwrap()
+        .translated(DVec3::splat(1e5));
     let bvh = SceneBvh::build(&scene);
     let tris = scene.eye_relative_triangles();
     for (origin, dir) in random_rays(&scene, 2000, 9) {
@@ -95,7 +115,11 @@ fn watertight_rays_through_a_shared_edge_never_slip_between() {
     for _ in 0..10_000 {
         let s: f64 = rng.random();
         let target = DVec3::new(s, 0.0, s);
-        let origin = DVec3::new(rng.random_range(-3.0..3.0), rng.random_range(0.1..3.0), rng.random_range(-3.0..3.0));
+        let origin = DVec3::new(
+            rng.random_range(-3.0..3.0),
+            rng.random_range(0.1..3.0),
+            rng.random_range(-3.0..3.0),
+        );
         let ray = WatertightRay::new(origin, target - origin);
         assert!(
             tris.iter().any(|t| ray.intersect(t).is_some()),

@@ -11,7 +11,10 @@ const RESOLUTION: [u32; 2] = [240, 135];
 const SAMPLES_PER_SIDE: u32 = 8;
 
 fn trace(name: &str) -> ReferenceImage {
-    let scene = scene::load(name).unwrap().with_resolution(RESOLUTION).unwrap();
+    let scene = scene::load(name)
+        .unwrap()
+        .with_resolution(RESOLUTION)
+        .unwrap();
     let bvh = SceneBvh::build(&scene);
     let settings = ReferenceSettings {
         samples_per_side: SAMPLES_PER_SIDE,
@@ -50,11 +53,20 @@ fn far_scene_reference_matches_the_default_scene() {
     // Same rays up to a relative rounding of 1e-16 · 1e5: a sample flips only
     // if it passes within ~1e-11 of an edge. Allow one pixel in 10⁴ to flip
     // one sample (1/k²), nothing more.
-    assert!(tested_differently <= n / 10_000, "{tested_differently} pixels changed shadow-tested status");
+    assert!(
+        tested_differently <= n / 10_000,
+        "{tested_differently} pixels changed shadow-tested status"
+    );
     assert!(differing <= n / 10_000, "{differing} pixels differ");
     let one_sample = 1.0 / (SAMPLES_PER_SIDE * SAMPLES_PER_SIDE) as f32;
-    assert!(max_diff <= one_sample + f32::EPSILON, "max difference {max_diff} > one sample {one_sample}");
-    assert_eq!(near.stats.smooth_pixels, far.stats.smooth_pixels, "smooth-pixel classes differ");
+    assert!(
+        max_diff <= one_sample + f32::EPSILON,
+        "max difference {max_diff} > one sample {one_sample}"
+    );
+    assert_eq!(
+        near.stats.smooth_pixels, far.stats.smooth_pixels,
+        "smooth-pixel classes differ"
+    );
 }
 
 #[test]
@@ -72,5 +84,8 @@ fn analytic_scene_far_from_the_origin_meets_the_exact_bound() {
     let check = exact.check(&image.visibility, scene.resolution[0], 16);
     println!("{check:#?}");
     assert!(check.penumbra_pixels > 500);
-    assert!(check.holds(), "acne or leaks at 1e5 from the origin: {check:#?}");
+    assert!(
+        check.holds(),
+        "acne or leaks at 1e5 from the origin: {check:#?}"
+    );
 }

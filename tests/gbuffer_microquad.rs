@@ -13,7 +13,15 @@ use izb::scene::{self, CameraFrame, Scene};
 
 /// Central differences of the hit point along x and y at the pixel centre
 /// (px, py), or `None` if any of the four rays leaves the centre's triangle.
-fn central_differences(bvh: &SceneBvh, scene: &Scene, frame: &CameraFrame, c: &SurfaceHit, px: f64, py: f64, h: f64) -> Option<(DVec3, DVec3)> {
+fn central_differences(
+    bvh: &SceneBvh,
+    scene: &Scene,
+    frame: &CameraFrame,
+    c: &SurfaceHit,
+    px: f64,
+    py: f64,
+    h: f64,
+) -> Option<(DVec3, DVec3)> {
     let at = |x: f64, y: f64| {
         trace_primary(bvh, frame, scene.camera.near, scene.camera.far, x, y)
             .filter(|s| s.triangle == c.triangle)
@@ -34,7 +42,8 @@ fn worst_relative_error(scene: &Scene, triangles: &[u32], h: f64, stride: u32) -
     for y in (0..scene.resolution[1]).step_by(stride as usize) {
         for x in (0..scene.resolution[0]).step_by(stride as usize) {
             let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
-            let Some(c) = trace_primary(&bvh, &frame, scene.camera.near, scene.camera.far, px, py) else {
+            let Some(c) = trace_primary(&bvh, &frame, scene.camera.near, scene.camera.far, px, py)
+            else {
                 continue;
             };
             if !triangles.is_empty() && !triangles.contains(&c.triangle) {
@@ -47,7 +56,9 @@ fn worst_relative_error(scene: &Scene, triangles: &[u32], h: f64, stride: u32) -
             let Some((dx, dy)) = central_differences(&bvh, scene, &frame, &c, px, py, h) else {
                 continue;
             };
-            worst = worst.max((ex - dx).length() / ex.length()).max((ey - dy).length() / ey.length());
+            worst = worst
+                .max((ex - dx).length() / ex.length())
+                .max((ey - dy).length() / ey.length());
             count += 1;
         }
     }
@@ -67,7 +78,10 @@ fn axes_match_finite_differences_on_a_plane() {
     let (coarse, _) = worst_relative_error(&scene, &[0, 1], 1.0, 3);
     println!("plane, h = 1 (neighbouring pixels): worst relative error {coarse:.3e}");
     assert!(coarse < 1e-3, "h = 1: relative error {coarse:.3e}");
-    assert!(coarse > fine, "the finite difference should converge as h shrinks");
+    assert!(
+        coarse > fine,
+        "the finite difference should converge as h shrinks"
+    );
 }
 
 #[test]
@@ -77,11 +91,18 @@ fn axes_match_finite_differences_on_a_sphere() {
     let scene = scene::load("default").unwrap();
     let sphere: Vec<u32> = (0..scene.triangles.len() as u32)
         .filter(|&i| {
-            let c = (scene.triangles[i as usize][0] + scene.triangles[i as usize][1] + scene.triangles[i as usize][2]) / 3.0;
+            let c = (scene.triangles[i as usize][0]
+                + scene.triangles[i as usize][1]
+                + scene.triangles[i as usize][2])
+                / 3.0;
             (c - DVec3::new(-0.5, 1.0, 0.5)).length() < 1.01
         })
         .collect();
-    assert!(sphere.len() > 2000, "sphere facets not found: {}", sphere.len());
+    assert!(
+        sphere.len() > 2000,
+        "sphere facets not found: {}",
+        sphere.len()
+    );
     let (fine, n) = worst_relative_error(&scene, &sphere, 1.0 / 256.0, 1);
     println!("sphere, h = 1/256: worst relative error {fine:.3e} over {n} pixels");
     assert!(n > 2000, "only {n} pixels compared");
@@ -94,7 +115,10 @@ fn axes_match_finite_differences_on_a_sphere() {
 
 #[test]
 fn grazing_microquads_are_clamped_and_counted() {
-    let scene = scene::load("grazing").unwrap().with_resolution([240, 135]).unwrap();
+    let scene = scene::load("grazing")
+        .unwrap()
+        .with_resolution([240, 135])
+        .unwrap();
     let bvh = SceneBvh::build(&scene);
     let g = izb::gbuffer::gbuffer(&scene, &bvh);
     let limit = izb::gbuffer::MAX_MICROQUAD_STRETCH as f32;

@@ -28,8 +28,16 @@ fn stratified_reference_meets_its_bound_against_the_exact_shadow() {
     let check = exact.check(&visibility, scene.resolution[0], SAMPLES_PER_SIDE);
     println!("{check:#?}");
     // The configuration must exercise the bound: many pixels, a real penumbra.
-    assert!(check.pixels > 40_000, "too few checked pixels: {}", check.pixels);
-    assert!(check.penumbra_pixels > 500, "too few penumbra pixels: {}", check.penumbra_pixels);
+    assert!(
+        check.pixels > 40_000,
+        "too few checked pixels: {}",
+        check.pixels
+    );
+    assert!(
+        check.penumbra_pixels > 500,
+        "too few penumbra pixels: {}",
+        check.penumbra_pixels
+    );
     assert_eq!(
         check.violations, 0,
         "pixels beyond the deterministic bound c/N (worst excess {:.3e})",
@@ -48,7 +56,8 @@ fn stratified_reference_meets_its_bound_against_the_exact_shadow() {
         check.mean_signed_bound
     );
     // A single straight edge cuts at most 2k − 1 of the k×k strata.
-    let single_edge = (2 * SAMPLES_PER_SIDE - 1) as f64 / (SAMPLES_PER_SIDE * SAMPLES_PER_SIDE) as f64;
+    let single_edge =
+        (2 * SAMPLES_PER_SIDE - 1) as f64 / (SAMPLES_PER_SIDE * SAMPLES_PER_SIDE) as f64;
     assert!(
         check.max_abs_error <= 2.0 * single_edge,
         "max error {} above two edges' worth {}",
@@ -71,6 +80,13 @@ fn a_reference_with_a_wrong_light_direction_fails_the_check() {
     wrong_scene.light = Light::directional(wrong);
     let check = exact.check(&trace(&wrong_scene), scene.resolution[0], SAMPLES_PER_SIDE);
     println!("{check:#?}");
-    assert!(!check.holds(), "a 1° light error went unnoticed: {check:#?}");
-    assert!(check.violations > 100, "only {} pixels flagged", check.violations);
+    assert!(
+        !check.holds(),
+        "a 1° light error went unnoticed: {check:#?}"
+    );
+    assert!(
+        check.violations > 100,
+        "only {} pixels flagged",
+        check.violations
+    );
 }

@@ -13,7 +13,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "izb", version, about = "Analytic antialiased hard shadows with a compute irregular z-buffer")]
+#[command(
+    name = "izb",
+    version,
+    about = "Analytic antialiased hard shadows with a compute irregular z-buffer"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -121,7 +125,10 @@ fn trace_reference(scene: &Scene, settings: ReferenceSettings) -> (ReferenceImag
     let t = Instant::now();
     let bvh = SceneBvh::build(scene);
     let bvh_seconds = t.elapsed().as_secs_f64();
-    let bar = progress_bar(scene.pixel_count() as u64, &format!("reference {}", scene.name));
+    let bar = progress_bar(
+        scene.pixel_count() as u64,
+        &format!("reference {}", scene.name),
+    );
     let image = reference(scene, &bvh, settings, &|n| bar.inc(n));
     bar.finish_and_clear();
     (image, bvh_seconds)
@@ -155,7 +162,12 @@ fn run_reference(args: ReferenceArgs) -> Result<()> {
     write_visibility_png(&args.out.join("visibility.png"), w, h, &image.visibility)?;
     let gbuffer = pool.install(|| gbuffer(&scene, &SceneBvh::build(&scene)));
     let light = scene.light.relative_to(scene.camera.eye);
-    write_shaded_png(&args.out.join("shaded.png"), &gbuffer, &light, &image.visibility)?;
+    write_shaded_png(
+        &args.out.join("shaded.png"),
+        &gbuffer,
+        &light,
+        &image.visibility,
+    )?;
     let report = serde_json::json!({
         "command": "reference",
         "scene": scene_summary(&scene),
@@ -185,7 +197,8 @@ fn run_reference(args: ReferenceArgs) -> Result<()> {
 }
 
 fn run_bench(args: BenchArgs) -> Result<()> {
-    let shared_largest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/courtyard.scene.json");
+    let shared_largest =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/courtyard.scene.json");
     let scenes = if args.scenes.is_empty() {
         if shared_largest.exists() {
             vec![shared_largest.display().to_string()]

@@ -75,7 +75,12 @@ pub fn trace_primary(
 /// in x, y) and P = s·D, s = (n·P₀)/(n·D):
 /// `dP/dx = s · (dD/dx − (n·dD/dx)/(n·D) · D)` (and likewise for y).
 /// Returns the axes after the grazing clamp and whether it applied.
-pub fn microquad_axes(frame: &CameraFrame, px: f64, py: f64, hit: &SurfaceHit) -> (DVec3, DVec3, bool) {
+pub fn microquad_axes(
+    frame: &CameraFrame,
+    px: f64,
+    py: f64,
+    hit: &SurfaceHit,
+) -> (DVec3, DVec3, bool) {
     let d = frame.direction(px, py);
     let n = hit.normal;
     let n_dot_d = n.dot(d);
@@ -87,8 +92,13 @@ pub fn microquad_axes(frame: &CameraFrame, px: f64, py: f64, hit: &SurfaceHit) -
     let mut clamped = false;
     for a in [&mut ex, &mut ey] {
         let len = a.length();
-        if !(len <= limit) {
-            *a = if len.is_finite() { *a * (limit / len) } else { DVec3::ZERO };
+        // NaN or infinite axes (a ray exactly in the plane) also clamp.
+        if len.is_nan() || len > limit {
+            *a = if len.is_finite() {
+                *a * (limit / len)
+            } else {
+                DVec3::ZERO
+            };
             clamped = true;
         }
     }
@@ -143,7 +153,13 @@ pub struct PixelSurface {
 }
 
 /// The `f64` G-buffer entry of pixel (`x`, `y`), or `None` for a miss.
-pub fn pixel_surface(bvh: &SceneBvh, scene: &Scene, frame: &CameraFrame, x: u32, y: u32) -> Option<PixelSurface> {
+pub fn pixel_surface(
+    bvh: &SceneBvh,
+    scene: &Scene,
+    frame: &CameraFrame,
+    x: u32,
+    y: u32,
+) -> Option<PixelSurface> {
     let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
     let hit = trace_primary(bvh, frame, scene.camera.near, scene.camera.far, px, py)?;
     let (axis_x, axis_y, axes_clamped) = microquad_axes(frame, px, py, &hit);
@@ -163,7 +179,11 @@ pub fn gbuffer(scene: &Scene, bvh: &SceneBvh) -> GBuffer {
     let frame = scene.camera.frame(scene.resolution);
     let rows: Vec<Vec<Option<PixelSurface>>> = (0..h)
         .into_par_iter()
-        .map(|y| (0..w).map(|x| pixel_surface(bvh, scene, &frame, x, y)).collect())
+        .map(|y| {
+            (0..w)
+                .map(|x| pixel_surface(bvh, scene, &frame, x, y))
+                .collect()
+        })
         .collect();
     let n = scene.pixel_count();
     let mut g = GBuffer {

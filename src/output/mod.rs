@@ -13,10 +13,17 @@ pub const UNTESTED_RGB: [u8; 3] = [40, 70, 140];
 /// Writes `path` through `write(tmp_path)` and renames the result into
 /// place. On any error the temporary file is removed and `path` untouched.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let name = path.file_name().context("output path has no file name")?;
-    let tmp: PathBuf = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+    let tmp: PathBuf = dir.join(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
     let result = write(&tmp).and_then(|()| {
         std::fs::rename(&tmp, path).with_context(|| format!("renaming into {}", path.display()))
     });
@@ -63,7 +70,7 @@ pub fn read_exr_channel(path: &Path, channel: &str) -> Result<(u32, u32, Vec<f32
         .channel_data
         .list
         .iter()
-        .find(|c| c.name == Text::from(channel))
+        .find(|c| c.name == *channel)
         .with_context(|| format!("{}: no channel '{channel}'", path.display()))?;
     let values = ch.sample_data.values_as_f32().collect();
     Ok((size.width() as u32, size.height() as u32, values))
@@ -71,7 +78,12 @@ pub fn read_exr_channel(path: &Path, channel: &str) -> Result<(u32, u32, Vec<f32
 
 /// Writes lit fraction as an 8-bit grey PNG; NaN (untested) pixels in
 /// [`UNTESTED_RGB`].
-pub fn write_visibility_png(path: &Path, width: u32, height: u32, visibility: &[f32]) -> Result<()> {
+pub fn write_visibility_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    visibility: &[f32],
+) -> Result<()> {
     let mut img = image::RgbImage::new(width, height);
     for (p, &v) in img.pixels_mut().zip(visibility) {
         *p = if v.is_nan() {
@@ -123,7 +135,11 @@ pub fn write_shaded_png(
             let position = gbuffer.position[i].as_dvec3();
             let toward = light.toward(position).0.as_vec3();
             let lambert = gbuffer.normal[i].dot(toward).max(0.0);
-            let v = if visibility[i].is_nan() { 0.0 } else { visibility[i] };
+            let v = if visibility[i].is_nan() {
+                0.0
+            } else {
+                visibility[i]
+            };
             [AMBIENT + (1.0 - AMBIENT) * 0.85 * lambert * v; 3]
         };
         // Display gamma 2.2.

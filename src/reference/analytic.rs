@@ -128,7 +128,12 @@ impl AnalyticShadow {
                     for i in 0..k {
                         let sx = x0 + i as f64 / k as f64;
                         let sy = y0 + j as f64 / k as f64;
-                        let f = self.shadowed_fraction(sx, sy, sx + 1.0 / k as f64, sy + 1.0 / k as f64);
+                        let f = self.shadowed_fraction(
+                            sx,
+                            sy,
+                            sx + 1.0 / k as f64,
+                            sy + 1.0 / k as f64,
+                        );
                         if f > 0.0 && f < 1.0 {
                             cut += 1.0;
                             variance += f * (1.0 - f);
@@ -157,7 +162,8 @@ impl AnalyticShadow {
         c.mean_abs_error = sum_abs / p;
         c.mean_signed_error = sum_signed / p;
         // Hoeffding: the |e_p| are independent, each in [0, c_p/N].
-        c.mean_abs_bound = sum_sigma / p + (sum_range_sq * (1.0 / DELTA).ln() / 2.0).sqrt() / p
+        c.mean_abs_bound = sum_sigma / p
+            + (sum_range_sq * (1.0 / DELTA).ln() / 2.0).sqrt() / p
             + f32::EPSILON as f64;
         // Hoeffding over all cut strata, each term with range 1/N.
         c.mean_signed_bound =
@@ -188,12 +194,8 @@ pub fn project_to_pixels(scene: &Scene, world: DVec3) -> Option<DVec2> {
 pub fn clipped_area(polygon: &[DVec2], x0: f64, y0: f64, x1: f64, y1: f64) -> f64 {
     let mut poly = polygon.to_vec();
     // Each clip keeps the side where `inside(p) >= 0`.
-    let sides: [&dyn Fn(DVec2) -> f64; 4] = [
-        &|p| p.x - x0,
-        &|p| x1 - p.x,
-        &|p| p.y - y0,
-        &|p| y1 - p.y,
-    ];
+    let sides: [&dyn Fn(DVec2) -> f64; 4] =
+        [&|p| p.x - x0, &|p| x1 - p.x, &|p| p.y - y0, &|p| y1 - p.y];
     for inside in sides {
         if poly.is_empty() {
             break;

@@ -248,4 +248,3 @@ impl WatertightRay {
 pub fn self_hit_offset(p: DVec3) -> f64 {
     p.abs().max_element().max(f64::MIN_POSITIVE) * (1.0 / (1u64 << 30) as f64)
 }
-

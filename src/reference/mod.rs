@@ -151,13 +151,19 @@ impl Tracer<'_> {
             for i in 0..k {
                 let u = (i as f64 + rng.random::<f64>()) / k as f64;
                 let v = (j as f64 + rng.random::<f64>()) / k as f64;
-                let sub = trace_primary(self.bvh, &self.frame, near, far, x as f64 + u, y as f64 + v);
+                let sub =
+                    trace_primary(self.bvh, &self.frame, near, far, x as f64 + u, y as f64 + v);
                 let Some(sub) = sub else {
                     smooth = false;
                     continue;
                 };
                 hits += 1;
-                smooth &= centre.hit.normal.dot(sub.position - centre.hit.position).abs() <= plane_tolerance;
+                smooth &= centre
+                    .hit
+                    .normal
+                    .dot(sub.position - centre.hit.position)
+                    .abs()
+                    <= plane_tolerance;
                 shadow_rays += 1;
                 lit += self.lit(sub.position, sub.normal, sub.triangle) as u32;
             }
@@ -231,7 +237,8 @@ pub fn reference(
         }
     }
     stats.seconds = start.elapsed().as_secs_f64();
-    stats.rays_per_second = (stats.primary_rays + stats.shadow_rays) as f64 / stats.seconds.max(1e-9);
+    stats.rays_per_second =
+        (stats.primary_rays + stats.shadow_rays) as f64 / stats.seconds.max(1e-9);
     ReferenceImage {
         width: w,
         height: h,

@@ -36,7 +36,10 @@ pub fn load_gltf(path: &Path) -> Result<GltfMeshes, SceneError> {
         .map_err(|e| gltf_error(format!("loading buffers: {e}")))?;
     let document = &gltf.document;
 
-    let roots: Vec<gltf::Node> = match document.default_scene().or_else(|| document.scenes().next()) {
+    let roots: Vec<gltf::Node> = match document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    {
         Some(scene) => scene.nodes().collect(),
         None => {
             let mut is_child = vec![false; document.nodes().len()];
@@ -52,8 +55,11 @@ pub fn load_gltf(path: &Path) -> Result<GltfMeshes, SceneError> {
     let mut out = GltfMeshes::default();
     // Explicit stack: (node, parent transform, depth). Depth guards against
     // a (spec-violating) cyclic node graph.
-    let mut stack: Vec<(gltf::Node, DMat4, usize)> =
-        roots.into_iter().rev().map(|n| (n, DMat4::IDENTITY, 0)).collect();
+    let mut stack: Vec<(gltf::Node, DMat4, usize)> = roots
+        .into_iter()
+        .rev()
+        .map(|n| (n, DMat4::IDENTITY, 0))
+        .collect();
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > document.nodes().len() {
             return Err(gltf_error(format!(
@@ -178,7 +184,8 @@ fn read_primitive(
     match primitive.mode() {
         Mode::Triangles => {
             for t in indices.chunks_exact(3) {
-                out.triangles.push([corner(t[0]), corner(t[1]), corner(t[2])]);
+                out.triangles
+                    .push([corner(t[0]), corner(t[1]), corner(t[2])]);
             }
         }
         Mode::TriangleStrip => {
@@ -193,8 +200,11 @@ fn read_primitive(
         }
         Mode::TriangleFan => {
             for i in 1..indices.len().saturating_sub(1) {
-                out.triangles
-                    .push([corner(indices[0]), corner(indices[i]), corner(indices[i + 1])]);
+                out.triangles.push([
+                    corner(indices[0]),
+                    corner(indices[i]),
+                    corner(indices[i + 1]),
+                ]);
             }
         }
         _ => unreachable!("non-triangle modes returned above"),

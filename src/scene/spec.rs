@@ -119,7 +119,8 @@ impl SceneSpec {
             path: self.path.display().to_string(),
             message,
         };
-        check_resolution(self.resolution).map_err(|m| spec_error(format!("field `resolution`: {m}")))?;
+        check_resolution(self.resolution)
+            .map_err(|m| spec_error(format!("field `resolution`: {m}")))?;
         let camera = self.camera.to_camera();
         camera.validate().map_err(spec_error)?;
         let light = self.light.to_light();
@@ -127,7 +128,11 @@ impl SceneSpec {
         let name = self
             .path
             .file_name()
-            .map(|n| n.to_string_lossy().trim_end_matches(".scene.json").to_string())
+            .map(|n| {
+                n.to_string_lossy()
+                    .trim_end_matches(".scene.json")
+                    .to_string()
+            })
             .unwrap_or_else(|| "spec".into());
         match (&self.gltf, &self.procedural) {
             (Some(gltf), None) => {

@@ -85,26 +85,53 @@ fn camera(eye: [f64; 3], target: [f64; 3], fov_y_deg: f64) -> Camera {
 /// casting stripes; sun 35° above the horizon.
 pub fn default_scene() -> Procedural {
     let mut t = ground(0.0, -15.0, 15.0, -15.0, 15.0);
-    t.extend(cuboid(DVec3::new(-3.5, 0.0, -2.0), DVec3::new(-2.0, 1.5, -0.5)));
-    t.extend(cuboid(DVec3::new(1.0, 0.0, -3.5), DVec3::new(2.0, 3.0, -2.5)));
+    t.extend(cuboid(
+        DVec3::new(-3.5, 0.0, -2.0),
+        DVec3::new(-2.0, 1.5, -0.5),
+    ));
+    t.extend(cuboid(
+        DVec3::new(1.0, 0.0, -3.5),
+        DVec3::new(2.0, 3.0, -2.5),
+    ));
     t.extend(cuboid(DVec3::new(2.5, 0.0, 0.5), DVec3::new(3.3, 0.6, 1.3)));
     t.extend(sphere(DVec3::new(-0.5, 1.0, 0.5), 1.0, 48, 24));
     // Fence: two posts and horizontal wires 5 mm thick.
     let (fx0, fx1, fz) = (-5.0, 1.0, 3.0);
-    t.extend(tube(DVec3::new(fx0, 0.0, fz), DVec3::new(fx0, 1.3, fz), 0.04, 8));
-    t.extend(tube(DVec3::new(fx1, 0.0, fz), DVec3::new(fx1, 1.3, fz), 0.04, 8));
+    t.extend(tube(
+        DVec3::new(fx0, 0.0, fz),
+        DVec3::new(fx0, 1.3, fz),
+        0.04,
+        8,
+    ));
+    t.extend(tube(
+        DVec3::new(fx1, 0.0, fz),
+        DVec3::new(fx1, 1.3, fz),
+        0.04,
+        8,
+    ));
     for k in 0..8 {
         let y = 0.25 + 0.14 * k as f64;
-        t.extend(tube(DVec3::new(fx0, y, fz), DVec3::new(fx1, y, fz), 0.0025, 6));
+        t.extend(tube(
+            DVec3::new(fx0, y, fz),
+            DVec3::new(fx1, y, fz),
+            0.0025,
+            6,
+        ));
     }
     // Pergola: four posts and a roof of slats 6 cm wide with 10 cm gaps.
     let (px0, px1, pz0, pz1, top) = (3.0, 6.0, -1.5, 2.5, 2.4);
     for (x, z) in [(px0, pz0), (px1, pz0), (px0, pz1), (px1, pz1)] {
-        t.extend(cuboid(DVec3::new(x - 0.06, 0.0, z - 0.06), DVec3::new(x + 0.06, top, z + 0.06)));
+        t.extend(cuboid(
+            DVec3::new(x - 0.06, 0.0, z - 0.06),
+            DVec3::new(x + 0.06, top, z + 0.06),
+        ));
     }
     let mut z = pz0;
     while z + 0.06 <= pz1 {
-        t.extend(cuboid(DVec3::new(px0 - 0.2, top, z), DVec3::new(px1 + 0.2, top + 0.08, z + 0.06)));
+        t.extend(cuboid(
+            DVec3::new(px0 - 0.2, top, z),
+            DVec3::new(px1 + 0.2, top + 0.08, z + 0.06),
+        ));
         z += 0.16;
     }
     Procedural {
@@ -122,11 +149,25 @@ pub fn wires() -> Procedural {
     let mut rng = Pcg32::seed_from_u64(7);
     for pole in 0..4 {
         let x = -6.0 + 4.0 * pole as f64;
-        t.extend(tube(DVec3::new(x, 0.0, -4.0), DVec3::new(x, 4.0, -4.0), 0.08, 8));
-        t.extend(tube(DVec3::new(x, 0.0, 4.0), DVec3::new(x, 4.0, 4.0), 0.08, 8));
+        t.extend(tube(
+            DVec3::new(x, 0.0, -4.0),
+            DVec3::new(x, 4.0, -4.0),
+            0.08,
+            8,
+        ));
+        t.extend(tube(
+            DVec3::new(x, 0.0, 4.0),
+            DVec3::new(x, 4.0, 4.0),
+            0.08,
+            8,
+        ));
     }
     for _ in 0..48 {
-        let a = DVec3::new(rng.random_range(-6.0..6.0), rng.random_range(1.0..4.0), -4.0);
+        let a = DVec3::new(
+            rng.random_range(-6.0..6.0),
+            rng.random_range(1.0..4.0),
+            -4.0,
+        );
         let b = DVec3::new(rng.random_range(-6.0..6.0), rng.random_range(1.0..4.0), 4.0);
         t.extend(tube(a, b, 0.0015, 6));
     }
@@ -178,7 +219,10 @@ pub fn city() -> Procedural {
             let x = -66.0 + 12.0 * i as f64;
             let z = -66.0 + 12.0 * j as f64;
             let h = rng.random_range(3.0..30.0);
-            t.extend(cuboid(DVec3::new(x - 4.0, 0.0, z - 4.0), DVec3::new(x + 4.0, h, z + 4.0)));
+            t.extend(cuboid(
+                DVec3::new(x - 4.0, 0.0, z - 4.0),
+                DVec3::new(x + 4.0, h, z + 4.0),
+            ));
         }
     }
     Procedural {
@@ -198,8 +242,16 @@ pub fn grazing() -> Procedural {
             + 0.8 * (-((x + 6.0).powi(2) + (z - 2.0).powi(2)) / 3.0).exp()
     };
     let mut t = height_field(-30.0, 30.0, -30.0, 30.0, 96, hills);
-    t.extend(cuboid(DVec3::new(-1.0, 0.0, -1.0), DVec3::new(0.0, 1.5, 0.0)));
-    t.extend(tube(DVec3::new(2.0, -0.5, 3.0), DVec3::new(2.0, 2.5, 3.0), 0.05, 8));
+    t.extend(cuboid(
+        DVec3::new(-1.0, 0.0, -1.0),
+        DVec3::new(0.0, 1.5, 0.0),
+    ));
+    t.extend(tube(
+        DVec3::new(2.0, -0.5, 3.0),
+        DVec3::new(2.0, 2.5, 3.0),
+        0.05,
+        8,
+    ));
     Procedural {
         triangles: t,
         camera: camera([14.0, 6.0, 16.0], [0.0, 0.0, 0.0], 50.0),

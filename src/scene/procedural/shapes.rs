@@ -23,11 +23,7 @@ pub fn quad(origin: DVec3, u: DVec3, v: DVec3) -> Vec<Triangle> {
 /// Axis-aligned box, 12 triangles.
 pub fn cuboid(min: DVec3, max: DVec3) -> Vec<Triangle> {
     let size = max - min;
-    let (x, y, z) = (
-        DVec3::X * size.x,
-        DVec3::Y * size.y,
-        DVec3::Z * size.z,
-    );
+    let (x, y, z) = (DVec3::X * size.x, DVec3::Y * size.y, DVec3::Z * size.z);
     let mut t = Vec::with_capacity(12);
     t.extend(quad(min, z, y)); // -x
     t.extend(quad(min + x, y, z)); // +x
@@ -44,7 +40,12 @@ pub fn sphere(center: DVec3, radius: f64, segments: u32, rings: u32) -> Vec<Tria
         let phi = TAU * i as f64 / segments as f64;
         let theta = std::f64::consts::PI * j as f64 / rings as f64;
         center
-            + radius * DVec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+            + radius
+                * DVec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                )
     };
     let mut t = Vec::new();
     for j in 0..rings {
@@ -65,7 +66,11 @@ pub fn sphere(center: DVec3, radius: f64, segments: u32, rings: u32) -> Vec<Tria
 /// Open tube of `sides` facets from `a` to `b`: a wire, a post, a branch.
 pub fn tube(a: DVec3, b: DVec3, radius: f64, sides: u32) -> Vec<Triangle> {
     let axis = (b - a).normalize();
-    let helper = if axis.y.abs() < 0.9 { DVec3::Y } else { DVec3::X };
+    let helper = if axis.y.abs() < 0.9 {
+        DVec3::Y
+    } else {
+        DVec3::X
+    };
     let e1 = axis.cross(helper).normalize();
     let e2 = axis.cross(e1);
     let ring = |k: u32| {
@@ -98,7 +103,12 @@ pub fn height_field(
     let mut t = Vec::with_capacity(2 * (n * n) as usize);
     for j in 0..n {
         for i in 0..n {
-            let (a, b, c, d) = (point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+            let (a, b, c, d) = (
+                point(i, j),
+                point(i + 1, j),
+                point(i + 1, j + 1),
+                point(i, j + 1),
+            );
             t.push([a, d, c]);
             t.push([a, c, b]);
         }
