@@ -151,7 +151,7 @@ fn run_reference(args: ReferenceArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
     let settings = ReferenceSettings::from_spp(args.spp, args.seed).map_err(anyhow::Error::msg)?;
     let pool = thread_pool(args.threads)?;
-    let (image, bvh_seconds) = pool.install(|| trace_reference(&scene, settings));
+    let (image, bvh, bvh_seconds) = pool.install(|| trace_reference(&scene, settings));
     let [w, h] = scene.resolution;
     write_exr(
         &args.out.join("visibility.exr"),
@@ -160,7 +160,7 @@ fn run_reference(args: ReferenceArgs) -> Result<()> {
         &[("visibility", &image.visibility), ("smooth", &image.smooth)],
     )?;
     write_visibility_png(&args.out.join("visibility.png"), w, h, &image.visibility)?;
-    let gbuffer = pool.install(|| gbuffer(&scene, &SceneBvh::build(&scene)));
+    let gbuffer = pool.install(|| gbuffer(&scene, &bvh));
     let light = scene.light.relative_to(scene.camera.eye);
     write_shaded_png(
         &args.out.join("shaded.png"),
@@ -217,7 +217,7 @@ fn run_bench(args: BenchArgs) -> Result<()> {
             scene: name.clone(),
             resolution: args.resolution,
         })?;
-        let (image, bvh_seconds) = pool.install(|| trace_reference(&scene, settings));
+        let (image, _, bvh_seconds) = pool.install(|| trace_reference(&scene, settings));
         println!(
             "{}: {} triangles, {}x{} at {} spp: BVH {:.2} s, trace {:.2} s, {:.2} Mrays/s ({} threads)",
             scene.name,
