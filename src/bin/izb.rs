@@ -121,7 +121,7 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
 }
 
 /// Builds the BVH and traces the reference, with a progress bar.
-fn trace_reference(scene: &Scene, settings: ReferenceSettings) -> (ReferenceImage, f64) {
+fn trace_reference(scene: &Scene, settings: ReferenceSettings) -> (ReferenceImage, SceneBvh, f64) {
     let t = Instant::now();
     let bvh = SceneBvh::build(scene);
     let bvh_seconds = t.elapsed().as_secs_f64();
@@ -131,7 +131,7 @@ fn trace_reference(scene: &Scene, settings: ReferenceSettings) -> (ReferenceImag
     );
     let image = reference(scene, &bvh, settings, &|n| bar.inc(n));
     bar.finish_and_clear();
-    (image, bvh_seconds)
+    (image, bvh, bvh_seconds)
 }
 
 fn scene_summary(scene: &Scene) -> serde_json::Value {
