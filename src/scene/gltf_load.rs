@@ -30,26 +30,46 @@ pub fn load_gltf(path: &Path) -> Result<GltfMeshes, SceneError> {
         path: shown.clone(),
         source,
     })?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_error(e.to_string()))?;
+    check_glb_header(&bytes).map_err(&gltf_error)?;
+    // Parsed without validation, then validated once the POSITION accessor
+    // indices are known to exist: gltf-json 1.4's validation indexes the
+    // accessor array with them unchecked and would panic.
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| gltf_error(e.to_string()))?;
+    let json = document.into_json();
+    check_position_accessor_indices(&json).map_err(&gltf_error)?;
+    // Its validation message starts with "invalid glTF:", as ours does.
+    let document = gltf::Document::from_json(json)
+        .map_err(|e| gltf_error(e.to_string().replacen("invalid glTF: ", "", 1)))?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let buffers = gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone())
-        .map_err(|e| gltf_error(format!("loading buffers: {e}")))?;
-    let document = &gltf.document;
+    let buffers = load_buffers(&document, base, blob).map_err(&gltf_error)?;
+    let document = &document;
 
+    // glTF requires the node hierarchy to be disjoint strict trees. A node
+    // with two parents would be instanced once per path to it, and a crafted
+    // file can make the number of paths exponential in the node count.
+    let mut parent: Vec<Option<usize>> = vec![None; document.nodes().len()];
+    for node in document.nodes() {
+        for child in node.children() {
+            if let Some(first) = parent[child.index()].replace(node.index()) {
+                return Err(gltf_error(format!(
+                    "node {} has more than one parent (nodes {first} and {}): the node \
+                     hierarchy must be a tree",
+                    child.index(),
+                    node.index()
+                )));
+            }
+        }
+    }
     let roots: Vec<gltf::Node> = match document
         .default_scene()
         .or_else(|| document.scenes().next())
     {
         Some(scene) => scene.nodes().collect(),
-        None => {
-            let mut is_child = vec![false; document.nodes().len()];
-            for node in document.nodes() {
-                for child in node.children() {
-                    is_child[child.index()] = true;
-                }
-            }
-            document.nodes().filter(|n| !is_child[n.index()]).collect()
-        }
+        None => document
+            .nodes()
+            .filter(|n| parent[n.index()].is_none())
+            .collect(),
     };
 
     let mut out = GltfMeshes::default();
@@ -99,40 +119,177 @@ fn describe(node: &gltf::Node, mesh: &gltf::Mesh, primitive: &gltf::Primitive) -
     )
 }
 
-/// Checks that an accessor's elements lie inside its buffer view and the
-/// view inside the loaded buffer, so reading it cannot go out of bounds.
+/// The `gltf` crate reports a cut-short GLB only as "could not completely
+/// read the object" (and its debug build underflows on a declared length
+/// below the header's): check the header here to say what is wrong.
+fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
+    const HEADER: usize = 12;
+    if !bytes.starts_with(b"glTF") {
+        return Ok(()); // JSON glTF
+    }
+    if bytes.len() < HEADER {
+        return Err(format!(
+            "truncated GLB: the file has {} bytes, less than the {HEADER}-byte header",
+            bytes.len()
+        ));
+    }
+    let declared = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize;
+    if declared < HEADER {
+        return Err(format!(
+            "GLB header declares {declared} bytes, less than the {HEADER}-byte header itself"
+        ));
+    }
+    if declared > bytes.len() {
+        return Err(format!(
+            "truncated GLB: the header declares {declared} bytes but the file has {}",
+            bytes.len()
+        ));
+    }
+    Ok(())
+}
+
+/// Rejects a primitive whose POSITION accessor does not exist, before
+/// gltf-json's validation would panic on it.
+fn check_position_accessor_indices(root: &gltf::json::Root) -> Result<(), String> {
+    use gltf::json::{mesh::Semantic, validation::Checked};
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let Some(index) = primitive
+                .attributes
+                .get(&Checked::Valid(Semantic::Positions))
+            else {
+                continue; // reported as missing by validation
+            };
+            if index.value() >= root.accessors.len() {
+                return Err(format!(
+                    "meshes[{m}].primitives[{p}].attributes.POSITION: accessor {} does not exist \
+                     ({} accessors)",
+                    index.value(),
+                    root.accessors.len()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Reads every buffer (external file, data URI or GLB BIN chunk); an error
+/// names the buffer and its file, which `gltf::import_buffers` does not.
+fn load_buffers(
+    document: &gltf::Document,
+    base: &Path,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<gltf::buffer::Data>, String> {
+    document
+        .buffers()
+        .map(|buffer| {
+            let source = match buffer.source() {
+                gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                    "data URI".to_string()
+                }
+                gltf::buffer::Source::Uri(uri) => format!("'{uri}'"),
+                gltf::buffer::Source::Bin => "GLB BIN chunk".to_string(),
+            };
+            let what = format!("buffer {} ({source})", buffer.index());
+            let data =
+                gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
+                    .map_err(|e| format!("{what}: {e}"))?;
+            if data.len() < buffer.length() {
+                return Err(format!(
+                    "{what}: byteLength is {} but only {} bytes could be read",
+                    buffer.length(),
+                    data.len()
+                ));
+            }
+            Ok(data)
+        })
+        .collect()
+}
+
+/// Checks that an accessor's elements (and its sparse indices and values)
+/// lie inside their buffer views and the views inside the loaded buffers,
+/// so that reading it can neither go out of bounds nor trip the `gltf`
+/// reader's own assertions.
 fn check_accessor_bounds(
     accessor: &gltf::Accessor,
     buffers: &[gltf::buffer::Data],
     what: &str,
 ) -> Result<(), String> {
-    let Some(view) = accessor.view() else {
-        return Ok(()); // sparse-only or zero-filled accessor: nothing to read
+    let index = accessor.index();
+    // glTF requires count >= 1, and the `gltf` reader computes `count - 1`.
+    if accessor.count() == 0 {
+        return Err(format!("{what}: accessor {index} has count 0"));
+    }
+    let element = accessor.size();
+    let in_view = |view: &gltf::buffer::View, offset: usize, count: usize, element: usize| {
+        check_view_range(view, offset, count, element, buffers)
+            .map_err(|e| format!("{what}: accessor {index}: {e}"))
     };
+    if let Some(view) = accessor.view() {
+        in_view(&view, accessor.offset(), accessor.count(), element)?;
+    }
+    if let Some(sparse) = accessor.sparse() {
+        if sparse.count() == 0 {
+            return Err(format!("{what}: accessor {index} has a sparse count of 0"));
+        }
+        let indices = sparse.indices();
+        let index_size = indices.index_type().size();
+        in_view(
+            &indices.view(),
+            indices.offset(),
+            sparse.count(),
+            index_size,
+        )?;
+        let values = sparse.values();
+        in_view(&values.view(), values.offset(), sparse.count(), element)?;
+    }
+    Ok(())
+}
+
+/// Checks that `count` elements of `element` bytes, `offset` bytes into
+/// `view` at its stride, lie inside it, and `view` inside its buffer.
+/// Sizes come from the file: the arithmetic is checked.
+fn check_view_range(
+    view: &gltf::buffer::View,
+    offset: usize,
+    count: usize,
+    element: usize,
+    buffers: &[gltf::buffer::Data],
+) -> Result<(), String> {
     let buffer_len = buffers[view.buffer().index()].len();
-    if view.offset() + view.length() > buffer_len {
+    if view
+        .offset()
+        .checked_add(view.length())
+        .is_none_or(|end| end > buffer_len)
+    {
         return Err(format!(
-            "{what}: buffer view {} (offset {}, length {}) exceeds buffer {} of {buffer_len} bytes",
+            "buffer view {} (offset {}, length {}) exceeds buffer {} of {buffer_len} bytes",
             view.index(),
             view.offset(),
             view.length(),
             view.buffer().index()
         ));
     }
-    let element = accessor.size();
     let stride = view.stride().unwrap_or(element);
-    if accessor.count() > 0 {
-        let end = accessor.offset() + (accessor.count() - 1) * stride + element;
-        if end > view.length() {
-            return Err(format!(
-                "{what}: accessor {} needs {end} bytes but its buffer view {} has {}",
-                accessor.index(),
-                view.index(),
-                view.length()
-            ));
-        }
+    if stride < element {
+        return Err(format!(
+            "buffer view {} has byte stride {stride}, less than its {element}-byte elements",
+            view.index()
+        ));
     }
-    Ok(())
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|n| n.checked_add(offset))
+        .and_then(|n| n.checked_add(element));
+    match end {
+        Some(end) if end <= view.length() => Ok(()),
+        _ => Err(format!(
+            "needs {} bytes but its buffer view {} has {}",
+            end.map_or_else(|| "over 2^64".to_string(), |end| end.to_string()),
+            view.index(),
+            view.length()
+        )),
+    }
 }
 
 fn read_primitive(

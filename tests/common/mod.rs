@@ -35,7 +35,8 @@ pub struct TempDir {
 
 impl TempDir {
     pub fn new(test_name: &str) -> Self {
-        let path = std::env::temp_dir().join(format!("izb-test-{test_name}-{}", std::process::id()));
+        let path =
+            std::env::temp_dir().join(format!("izb-test-{test_name}-{}", std::process::id()));
         // A leftover from a crashed run with a recycled pid must not leak in.
         let _ = std::fs::remove_dir_all(&path);
         std::fs::create_dir_all(&path).unwrap();
@@ -93,7 +94,7 @@ impl Gltf {
     pub fn view(&mut self, bytes: &[u8]) -> usize {
         // Accessor offsets must be multiples of their component size: start
         // every view on a 4-byte boundary.
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -108,7 +109,11 @@ impl Gltf {
 
     /// Appends a VEC3 float POSITION accessor; returns its index.
     pub fn positions(&mut self, points: &[[f32; 3]]) -> usize {
-        let bytes: Vec<u8> = points.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+        let bytes: Vec<u8> = points
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
         let view = self.view(&bytes);
         // glTF requires min/max on POSITION. JSON cannot hold NaN or Inf, so
         // bounds are taken over the finite components only.
@@ -221,12 +226,18 @@ impl Gltf {
     pub fn write_external(&self, dir: &Path, stem: &str) -> PathBuf {
         let bin_name = format!("{stem}.bin");
         std::fs::write(dir.join(&bin_name), &self.bin).unwrap();
-        write_json(&dir.join(format!("{stem}.gltf")), &self.to_json(Some(&bin_name)))
+        write_json(
+            &dir.join(format!("{stem}.gltf")),
+            &self.to_json(Some(&bin_name)),
+        )
     }
 
     /// Writes `<stem>.gltf` with the buffer inline as a base64 data URI.
     pub fn write_embedded(&self, dir: &Path, stem: &str) -> PathBuf {
-        let uri = format!("data:application/octet-stream;base64,{}", base64_encode(&self.bin));
+        let uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64_encode(&self.bin)
+        );
         write_json(&dir.join(format!("{stem}.gltf")), &self.to_json(Some(&uri)))
     }
 
@@ -249,11 +260,11 @@ pub fn write_json(path: &Path, value: &Value) -> PathBuf {
 /// out when `bin` is empty).
 pub fn glb_bytes(json: &Value, bin: &[u8]) -> Vec<u8> {
     let mut json_chunk = serde_json::to_vec(json).unwrap();
-    while json_chunk.len() % 4 != 0 {
+    while !json_chunk.len().is_multiple_of(4) {
         json_chunk.push(b' ');
     }
     let mut bin_chunk = bin.to_vec();
-    while bin_chunk.len() % 4 != 0 {
+    while !bin_chunk.len().is_multiple_of(4) {
         bin_chunk.push(0);
     }
     let mut total = 12 + 8 + json_chunk.len();
@@ -280,7 +291,11 @@ pub fn base64_encode(bytes: &[u8]) -> String {
     const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
     for chunk in bytes.chunks(3) {
-        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
         let group = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
         for k in 0..4 {
             // A chunk of n bytes yields n + 1 significant sextets.
@@ -335,7 +350,10 @@ pub fn error_message<T, E: Display>(result: Result<T, E>, what: &str) -> String 
 /// when it does not.
 pub fn assert_mentions(message: &str, parts: &[&str]) {
     for part in parts {
-        assert!(message.contains(part), "message does not mention {part:?}:\n  {message}");
+        assert!(
+            message.contains(part),
+            "message does not mention {part:?}:\n  {message}"
+        );
     }
 }
 
