@@ -9,6 +9,9 @@
 //! and reports atomically.
 
 pub mod gbuffer;
+pub mod izb;
+pub mod lut;
+pub mod metrics;
 pub mod output;
 pub mod reference;
 pub mod scene;

@@ -1,6 +1,34 @@
-//! `izb-lut`: the sub-pixel sample pattern and (from the LUT issue on) the
-//! edge-visibility lookup table. Pure Rust, no I/O: `build.rs` of the `izb`
-//! crate, the CLI and the tests all call the same code.
+//! `izb-lut`: the 32-sample sub-pixel pattern, the normalised edge-line
+//! parameterisation and the edge-visibility lookup table of `izb`
+//! (seed 002 §4, design §4). Pure Rust, no I/O, no dependencies: `build.rs`
+//! of the `izb` crate, the `izb lut` command and the tests all call this
+//! same code.
+//!
+//! - [`pattern`]: candidate 32-point patterns, their coverage error on
+//!   straight edges, and the chosen [`sample_pattern`].
+//! - [`edge`]: f(u,v) = α + β(u−½) + γ(v−½) ≥ 0 per sample, exactly
+//!   ([`exact_mask`], [`exact_mask_f32`]), and its normalised form
+//!   (θ, d) ([`edge_line`]).
+//! - [`table`]: the (θ, d) table [`EdgeLut`], its lookup, its proven
+//!   misclassification bound and [`lut_statistics`].
+
+pub mod edge;
+pub mod pattern;
+mod rng;
+pub mod table;
+
+pub use edge::{
+    edge_line, exact_mask, exact_mask_f32, inside_area, line_mask, line_signed_distance,
+    signed_distance, EdgeLine, ALL_SAMPLES, HALF_DIAGONAL,
+};
+pub use pattern::{
+    candidate_patterns, coverage_error, sample_pattern, CoverageError, PatternCandidate,
+    SamplePattern, PATTERN_EVALUATION_LINES, SAMPLE_PATTERN_NAME,
+};
+pub use table::{
+    lut_statistics, EdgeComparison, EdgeLut, LutCell, LutDecodeError, LutStats, DEFAULT_ANGLES,
+    DEFAULT_DISTANCES, LOOKUP_SLACK, LUT_HEADER_BYTES, LUT_MAGIC, MAX_RESOLUTION,
+};
 
 /// Number of visibility samples per pixel: one bit each in a `u32` mask.
 pub const SAMPLES_PER_PIXEL: usize = 32;

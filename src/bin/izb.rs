@@ -2,11 +2,17 @@
 //! scene's name (default: `default`) or a path to a `*.scene.json` spec.
 
 use anyhow::{Context, Result};
+use clap::builder::TypedValueParser;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use izb::gbuffer::gbuffer;
-use izb::output::{write_exr, write_json, write_shaded_png, write_visibility_png};
+use izb::izb::{render_cpu, IzbSettings, SampleMode};
+use izb::metrics::{error_heat_map, metrics, sample_mismatches};
+use izb::output::{
+    write_exr, write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
+};
 use izb::reference::bvh::SceneBvh;
+use izb::reference::same_samples::same_sample_masks;
 use izb::reference::{reference, ReferenceImage, ReferenceSettings};
 use izb::scene::{self, Scene};
 use std::path::{Path, PathBuf};
@@ -25,6 +31,12 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Render the shadow mask: 32-sample analytic IZB (or 1 spp).
+    Render(RenderArgs),
+    /// Ground truth and every method side by side: error table, JSON, heat maps.
+    Compare(CompareArgs),
+    /// Regenerate the 32-sample edge LUT (the code build.rs runs), with a picture.
+    Lut(LutArgs),
     /// Supersampled ray-traced ground truth: lit fraction per pixel.
     Reference(ReferenceArgs),
     /// Benchmark the ground-truth tracer (rays per second) and write JSON.
@@ -60,6 +72,71 @@ struct ReferenceArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Trace exactly the 32 µQuad samples of each pixel (f64, the IZB's
+    /// rule) and write their masks instead of the supersampled estimate.
+    #[arg(long)]
+    same_samples: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Backend {
+    /// The best available backend (the CPU until the Vulkan backend lands).
+    Auto,
+    /// The CPU twin (rayon).
+    Cpu,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Visibility samples per pixel: 32 (µQuad frustum test) or 1 (point test).
+    #[arg(long, default_value_t = 32, value_parser = clap::builder::PossibleValuesParser::new(["32", "1"]).map(|s| s.parse::<u32>().expect("listed values")))]
+    spp: u32,
+    /// Evaluate every edge function at every sample instead of the LUT.
+    #[arg(long)]
+    exact: bool,
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    backend: Backend,
+    /// Grid cells along the longer side (default: from the pixel count).
+    #[arg(long)]
+    cells: Option<u32>,
+    /// Output folder.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Methods to compare, comma separated: izb32, izb32-exact, izb1.
+    #[arg(long, value_delimiter = ',', default_value = "izb32,izb32-exact,izb1")]
+    methods: Vec<String>,
+    /// Sub-pixel samples per pixel of the ground truth (a perfect square).
+    #[arg(long, default_value_t = 256)]
+    reference_spp: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+#[derive(Args)]
+struct LutArgs {
+    /// Angle cells of the table.
+    #[arg(long, default_value_t = izb::lut::DEFAULT_ANGLES)]
+    angles: u32,
+    /// Signed-distance cells of the table.
+    #[arg(long, default_value_t = izb::lut::DEFAULT_DISTANCES)]
+    distances: u32,
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
 }
 
 #[derive(Args)]
@@ -147,7 +224,49 @@ fn scene_summary(scene: &Scene) -> serde_json::Value {
     })
 }
 
+fn run_same_sample_reference(args: ReferenceArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
+    let pool = thread_pool(args.threads)?;
+    let start = Instant::now();
+    let (masks, g) = pool.install(|| {
+        let bvh = SceneBvh::build(&scene);
+        (
+            same_sample_masks(&scene, &bvh, izb::lut::sample_pattern()),
+            gbuffer(&scene, &bvh),
+        )
+    });
+    let seconds = start.elapsed().as_secs_f64();
+    let visibility = izb::izb::resolve(&masks, &g);
+    let [w, h] = scene.resolution;
+    write_exr_with_masks(
+        &args.out.join("visibility.exr"),
+        w,
+        h,
+        &[("visibility", &visibility)],
+        &[("mask", &masks)],
+    )?;
+    write_visibility_png(&args.out.join("visibility.png"), w, h, &visibility)?;
+    let report = serde_json::json!({
+        "command": "reference --same-samples",
+        "scene": scene_summary(&scene),
+        "samples_per_pixel": 32,
+        "threads": pool.current_num_threads(),
+        "seconds": seconds,
+        "gbuffer": g.stats,
+    });
+    write_json(&args.out.join("report.json"), &report)?;
+    println!(
+        "same-sample reference {}: {w}x{h}, 32 µQuad samples per pixel, {seconds:.2} s -> {}",
+        scene.name,
+        args.out.display()
+    );
+    Ok(())
+}
+
 fn run_reference(args: ReferenceArgs) -> Result<()> {
+    if args.same_samples {
+        return run_same_sample_reference(args);
+    }
     let scene = load_scene(&args.scene)?;
     let settings = ReferenceSettings::from_spp(args.spp, args.seed).map_err(anyhow::Error::msg)?;
     let pool = thread_pool(args.threads)?;
@@ -250,6 +369,178 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
+fn mode_for(spp: u32, exact: bool) -> SampleMode {
+    match (spp, exact) {
+        (1, _) => SampleMode::One,
+        (_, true) => SampleMode::Exact32,
+        _ => SampleMode::Lut32,
+    }
+}
+
+fn run_render(args: RenderArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
+    if args.backend == Backend::Auto {
+        eprintln!("backend: cpu (the Vulkan backend is not built yet)");
+    }
+    anyhow::ensure!(
+        !(args.exact && args.spp == 1),
+        "--exact applies to 32 spp; 1 spp is always an exact point test"
+    );
+    let settings = IzbSettings {
+        mode: mode_for(args.spp, args.exact),
+        cells: args.cells,
+        ..Default::default()
+    };
+    let pool = thread_pool(args.threads)?;
+    let (render, bvh_seconds) = pool.install(|| {
+        let t = Instant::now();
+        let bvh = SceneBvh::build(&scene);
+        let bvh_seconds = t.elapsed().as_secs_f64();
+        (render_cpu(&scene, &bvh, settings), bvh_seconds)
+    });
+    let [w, h] = scene.resolution;
+    write_exr_with_masks(
+        &args.out.join("visibility.exr"),
+        w,
+        h,
+        &[("visibility", &render.visibility)],
+        &[("mask", &render.masks)],
+    )?;
+    write_visibility_png(&args.out.join("visibility.png"), w, h, &render.visibility)?;
+    let light = scene.light.relative_to(scene.camera.eye);
+    write_shaded_png(
+        &args.out.join("shaded.png"),
+        &render.gbuffer,
+        &light,
+        &render.visibility,
+    )?;
+    let report = serde_json::json!({
+        "command": "render",
+        "backend": "cpu",
+        "scene": scene_summary(&scene),
+        "threads": pool.current_num_threads(),
+        "bvh_build_seconds": bvh_seconds,
+        "render": render.report,
+    });
+    write_json(&args.out.join("report.json"), &report)?;
+    let r = &render.report;
+    println!(
+        "render {} ({:?}, cpu): {}x{}, {} triangles ({} binned, {} overflow, {} culled), grid {}x{}, \
+         {} tests, {:.3} s (evaluate {:.3} s) -> {}",
+        scene.name,
+        settings.mode,
+        w,
+        h,
+        scene.triangles.len(),
+        r.bin.binned,
+        r.bin.overflow,
+        r.bin.culled,
+        r.light.cells[0],
+        r.light.cells[1],
+        r.evaluate.tests_spawned,
+        r.seconds.total,
+        r.seconds.evaluate,
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn parse_method(name: &str) -> Result<SampleMode> {
+    Ok(match name {
+        "izb32" => SampleMode::Lut32,
+        "izb32-exact" => SampleMode::Exact32,
+        "izb1" => SampleMode::One,
+        other => anyhow::bail!("unknown method '{other}': expected izb32, izb32-exact or izb1"),
+    })
+}
+
+fn run_compare(args: CompareArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
+    let methods: Vec<(String, SampleMode)> = args
+        .methods
+        .iter()
+        .map(|m| parse_method(m).map(|mode| (m.clone(), mode)))
+        .collect::<Result<_>>()?;
+    let settings =
+        ReferenceSettings::from_spp(args.reference_spp, args.seed).map_err(anyhow::Error::msg)?;
+    let pool = thread_pool(args.threads)?;
+    let [w, h] = scene.resolution;
+    let (truth, bvh, _) = pool.install(|| trace_reference(&scene, settings));
+    let bar = progress_bar(1, "same-sample reference");
+    let same = pool.install(|| same_sample_masks(&scene, &bvh, izb::lut::sample_pattern()));
+    bar.finish_and_clear();
+    let mut rows = Vec::new();
+    println!(
+        "{:<12} {:>8} {:>8} {:>8} {:>8} {:>10} {:>9} {:>12} {:>9}",
+        "method", "MAE", "RMSE", "max", ">1/32 %", "smooth-pen", "edge", "mismatch", "seconds"
+    );
+    for (name, mode) in &methods {
+        let settings = IzbSettings {
+            mode: *mode,
+            ..Default::default()
+        };
+        let render = pool.install(|| render_cpu(&scene, &bvh, settings));
+        let mut m = metrics(&render.visibility, &truth.visibility, &truth.smooth);
+        if *mode != SampleMode::One {
+            let (diff, total) = sample_mismatches(&render.masks, &same, |i| {
+                render.gbuffer.flags[i] & izb::gbuffer::flags::SHADOW_TESTED != 0
+            });
+            m.sample_mismatch_rate = Some(diff as f64 / total.max(1) as f64);
+        }
+        println!(
+            "{:<12} {:>8.5} {:>8.5} {:>8.4} {:>8.3} {:>10.5} {:>9.5} {:>12} {:>9.3}",
+            name,
+            m.mae,
+            m.rmse,
+            m.max_error,
+            m.percent_over_one_sample,
+            m.smooth_penumbra_mae,
+            m.edge_mae,
+            m.sample_mismatch_rate
+                .map_or("-".into(), |r| format!("{r:.2e}")),
+            render.report.seconds.total
+        );
+        write_png(
+            &args.out.join(format!("error_{name}.png")),
+            &error_heat_map(&render.visibility, &truth.visibility, w, h, 0.25),
+        )?;
+        rows.push(serde_json::json!({
+            "method": name,
+            "mode": mode,
+            "metrics": m,
+            "render": render.report,
+        }));
+    }
+    write_exr(
+        &args.out.join("reference.exr"),
+        w,
+        h,
+        &[("visibility", &truth.visibility), ("smooth", &truth.smooth)],
+    )?;
+    let report = serde_json::json!({
+        "command": "compare",
+        "scene": scene_summary(&scene),
+        "reference_spp": settings.spp(),
+        "reference_seconds": truth.stats.seconds,
+        "threads": pool.current_num_threads(),
+        "methods": rows,
+    });
+    write_json(&args.out.join("compare.json"), &report)?;
+    println!("wrote {}", args.out.join("compare.json").display());
+    Ok(())
+}
+
+fn run_lut(args: LutArgs) -> Result<()> {
+    let stats = izb::lut::regenerate(args.angles, args.distances, &args.out)?;
+    println!("{stats:#?}");
+    println!(
+        "wrote {} and {}",
+        args.out.join("edge_lut.bin").display(),
+        args.out.join("edge_lut.png").display()
+    );
+    Ok(())
+}
+
 fn run_info(args: SceneArgs) -> Result<()> {
     let scene = load_scene(&args)?;
     let (lo, hi) = scene.bounds();
@@ -262,6 +553,9 @@ fn run_info(args: SceneArgs) -> Result<()> {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Render(a) => run_render(a),
+        Command::Compare(a) => run_compare(a),
+        Command::Lut(a) => run_lut(a),
         Command::Reference(a) => run_reference(a),
         Command::Bench(a) => run_bench(a),
         Command::Info(a) => run_info(a),

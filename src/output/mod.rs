@@ -36,15 +36,37 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) ->
 /// Writes a single-layer EXR of `f32` channels, each `width × height`,
 /// row-major.
 pub fn write_exr(path: &Path, width: u32, height: u32, channels: &[(&str, &[f32])]) -> Result<()> {
+    write_exr_with_masks(path, width, height, channels, &[])
+}
+
+/// Writes a single-layer EXR of `f32` channels and `u32` channels (the
+/// occlusion masks), each `width × height`, row-major.
+pub fn write_exr_with_masks(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: &[(&str, &[f32])],
+    masks: &[(&str, &[u32])],
+) -> Result<()> {
     use exr::prelude::*;
     let n = width as usize * height as usize;
-    let list: Vec<AnyChannel<FlatSamples>> = channels
-        .iter()
-        .map(|(name, data)| {
-            assert_eq!(data.len(), n, "channel {name} has the wrong size");
-            AnyChannel::new(*name, FlatSamples::F32(data.to_vec()))
-        })
-        .collect();
+    let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
+    for (name, data) in channels {
+        anyhow::ensure!(
+            data.len() == n,
+            "channel {name} has {} values, expected {n}",
+            data.len()
+        );
+        list.push(AnyChannel::new(*name, FlatSamples::F32(data.to_vec())));
+    }
+    for (name, data) in masks {
+        anyhow::ensure!(
+            data.len() == n,
+            "channel {name} has {} values, expected {n}",
+            data.len()
+        );
+        list.push(AnyChannel::new(*name, FlatSamples::U32(data.to_vec())));
+    }
     let layer = Layer::new(
         (width as usize, height as usize),
         LayerAttributes::default(),
@@ -57,6 +79,28 @@ pub fn write_exr(path: &Path, width: u32, height: u32, channels: &[(&str, &[f32]
             .to_file(tmp)
             .map_err(|e| anyhow::anyhow!("EXR encoding: {e}"))
     })
+}
+
+/// Reads the named `u32` channel of a single-layer EXR (row-major).
+pub fn read_exr_mask(path: &Path, channel: &str) -> Result<(u32, u32, Vec<u32>)> {
+    use exr::prelude::*;
+    let image = read_all_flat_layers_from_file(path)
+        .map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
+    let layer = image.layer_data.first().context("EXR has no layer")?;
+    let ch = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name == *channel)
+        .with_context(|| format!("{}: no channel '{channel}'", path.display()))?;
+    let FlatSamples::U32(values) = &ch.sample_data else {
+        anyhow::bail!("{}: channel '{channel}' is not u32", path.display());
+    };
+    Ok((
+        layer.size.width() as u32,
+        layer.size.height() as u32,
+        values.clone(),
+    ))
 }
 
 /// Reads the named `f32` channel of a single-layer EXR (row-major).

@@ -5,10 +5,11 @@
 //! Why this split: `obvhs` traverses in `f32`, which is fine for culling as
 //! long as the bounds it sees are conservative; the hit itself decides what
 //! is in shadow, so it runs in `f64` on eye-relative coordinates (design §4:
-//! never hand `f32` a large absolute coordinate). Bounds are padded by 8
-//! `f32` ulps of the scene's eye-relative radius R: every ray starts inside
-//! the scene, so rounding its origin and direction to `f32` moves it by at
-//! most ~2 ε32 R over the scene, and the `f32` traversal can never cull a
+//! never hand `f32` a large absolute coordinate). Bounds are padded by 16
+//! `f32` ulps of the scene's eye-relative radius R: every ray starts within
+//! 3R of the eye (the same-sample reference starts lines 2R behind a
+//! sample), so rounding its origin and direction to `f32` moves it by at
+//! most ~5 ε₃₂ R inside the scene, and the `f32` traversal can never cull a
 //! box that the `f64` test would hit.
 
 use crate::scene::{Scene, Triangle};
@@ -54,7 +55,7 @@ impl SceneBvh {
             .flatten()
             .map(|v| v.abs().max_element())
             .fold(0.0, f64::max);
-        let pad = 8.0 * f32::EPSILON as f64 * radius;
+        let pad = 16.0 * f32::EPSILON as f64 * radius;
         let bounds: Vec<PaddedBounds> = by_id.iter().map(|t| padded_bounds(t, pad)).collect();
         let bvh = obvhs::cwbvh::builder::build_cwbvh(
             &bounds,
@@ -140,6 +141,28 @@ impl SceneBvh {
             }
             match tester.intersect(&self.triangles[prim]) {
                 Some(t) if t > t_min && t < t_max => 0.0,
+                _ => f32::INFINITY,
+            }
+        })
+    }
+}
+
+impl SceneBvh {
+    /// Whether the ray meets, with `t` in `(t_min, t_max)`, any triangle for
+    /// which `accept(id)` holds (a filtered any-hit query).
+    pub fn any_hit(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+        accept: impl Fn(u32) -> bool,
+    ) -> bool {
+        let ray = f32_ray(origin, direction, t_max);
+        let tester = WatertightRay::new(origin, direction);
+        !self.bvh.ray_traverse_miss(ray, |_, prim| {
+            match tester.intersect(&self.triangles[prim]) {
+                Some(t) if t > t_min && t < t_max && accept(self.ids[prim]) => 0.0,
                 _ => f32::INFINITY,
             }
         })

@@ -11,6 +11,7 @@
 
 pub mod analytic;
 pub mod bvh;
+pub mod same_samples;
 
 use crate::gbuffer::{faces_light, pixel_surface, trace_primary};
 use crate::scene::{CameraFrame, Light, Scene};

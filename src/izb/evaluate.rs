@@ -1,0 +1,269 @@
+//! Pass 3, `evaluate`: per shadow-tested pixel, gather the candidate
+//! triangles of every grid cell its µQuad touches (plus the overflow list),
+//! run the frustum-triangle test of each, and OR the occluded samples into
+//! the pixel's 32-bit mask, stopping once it is full (seed 002 §6.6).
+//!
+//! No missed occluder: a sample S can only be shadowed by a triangle whose
+//! light-NDC projection contains S's projection, and S lies in its µQuad,
+//! whose projection lies in the bounding box of the projected corners (a
+//! planar quad in front of the light projects to the hull of its corners).
+//! So visiting every cell of that box, padded like the triangles' boxes,
+//! visits every triangle able to shadow any of the 32 samples.
+
+use super::bin::{cell_range, Bins, Placement};
+use super::frustum::{edge_functions, exact_edge_mask, may_shadow, LightRel};
+use super::light_setup::{microquad_corners, LightSetup};
+use crate::gbuffer::{flags, GBuffer};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Samples per pixel and how each triangle's mask is formed.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum SampleMode {
+    /// One point test at the µQuad centre: the mask is all or nothing.
+    One,
+    /// 32 samples, each edge's mask from the edge LUT (seed 002 §4).
+    Lut32,
+    /// 32 samples, every edge function evaluated at every sample.
+    Exact32,
+}
+
+/// A full 32-sample mask.
+pub const FULL: u32 = u32::MAX;
+
+/// Counters of the evaluate pass.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct EvaluateStats {
+    pub pixels_tested: usize,
+    /// Frustum-triangle tests started (candidate triangles visited).
+    pub tests_spawned: u64,
+    /// Of those, triangles that passed the depth test at P.
+    pub depth_passed: u64,
+    /// Pixels that stopped early because their mask was full.
+    pub early_outs: usize,
+    /// Grid cells visited over all pixels.
+    pub cells_visited: u64,
+}
+
+/// What evaluate needs of one pixel, in light view.
+struct PixelFrustum {
+    p: Vec3,
+    normal: Vec3,
+    ex: Vec3,
+    ey: Vec3,
+    receiver: u32,
+    cells: Option<[u32; 4]>,
+}
+
+fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
+    let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
+    let cells = if setup.grid_disabled {
+        None
+    } else {
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for c in microquad_corners(p, ex, ey) {
+            // Every receiver corner is in front of the light (else the grid
+            // is disabled), so `ndc` is Some.
+            let n = setup.ndc(setup.to_light_view(c)).unwrap_or(Vec2::NAN);
+            let gc = setup.grid_coords(n);
+            lo = lo.min(gc);
+            hi = hi.max(gc);
+        }
+        cell_range(setup, lo, hi)
+    };
+    PixelFrustum {
+        p: setup.to_light_view(p),
+        normal: setup.rotate(g.normal[i]),
+        ex: setup.rotate(ex),
+        ey: setup.rotate(ey),
+        receiver: g.triangle_id[i],
+        cells,
+    }
+}
+
+/// Occluded samples of `tri` (light view, not yet relative to P) for one
+/// pixel, or 0 when it fails the depth test.
+#[inline]
+fn triangle_mask(
+    px: &PixelFrustum,
+    tri: &[Vec3; 3],
+    setup: &LightSetup,
+    mode: SampleMode,
+    pattern: &[[f32; 2]; 32],
+    lut: &izb_lut::EdgeLut,
+    depth_passed: &mut u64,
+) -> u32 {
+    let t = tri.map(|v| v - px.p);
+    let light = match setup.light_position() {
+        None => LightRel::Toward(Vec3::Z),
+        Some(l) => LightRel::At(l - px.p),
+    };
+    let size = px.ex.length().max(px.ey.length());
+    if !may_shadow(&t, px.normal, size, light) {
+        return 0;
+    }
+    *depth_passed += 1;
+    let e = edge_functions(&t, px.ex, px.ey, light);
+    match mode {
+        SampleMode::One => {
+            if e.iter().all(|e| e[0] >= 0.0) {
+                FULL
+            } else {
+                0
+            }
+        }
+        SampleMode::Lut32 => e.iter().fold(FULL, |m, e| m & lut.lookup(e[0], e[1], e[2])),
+        SampleMode::Exact32 => e.iter().fold(FULL, |m, e| m & exact_edge_mask(*e, pattern)),
+    }
+}
+
+/// Calls `visit(id)` once for every candidate triangle of shadow-tested
+/// pixel `i` — the overflow list, then each triangle of the cells under the
+/// µQuad — until `visit` returns `true` (the mask is full). Returns the
+/// number of cells visited.
+pub fn for_each_candidate(
+    setup: &LightSetup,
+    bins: &Bins,
+    g: &GBuffer,
+    i: usize,
+    mut visit: impl FnMut(u32) -> bool,
+) -> u64 {
+    let px = pixel_frustum(setup, g, i);
+    for &id in &bins.overflow {
+        if visit(id) {
+            return 0;
+        }
+    }
+    let mut cells = 0;
+    if let Some([x0, y0, x1, y1]) = px.cells {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                cells += 1;
+                for &id in bins.cell(setup, x, y) {
+                    // A triangle in several of the visited cells is tested
+                    // once: in the first cell (lowest y, then x) of the
+                    // overlap of its rectangle and the pixel's.
+                    if let Placement::Cells {
+                        x0: tx0, y0: ty0, ..
+                    } = bins.placement[id as usize]
+                    {
+                        if x != tx0.max(x0) || y != ty0.max(y0) {
+                            continue;
+                        }
+                    }
+                    if visit(id) {
+                        return cells;
+                    }
+                }
+            }
+        }
+    }
+    cells
+}
+
+/// The occlusion mask of shadow-tested pixel `i` (and its counters).
+#[allow(clippy::too_many_arguments)]
+fn evaluate_pixel(
+    setup: &LightSetup,
+    bins: &Bins,
+    g: &GBuffer,
+    i: usize,
+    mode: SampleMode,
+    pattern: &[[f32; 2]; 32],
+    lut: &izb_lut::EdgeLut,
+    stats: &mut EvaluateStats,
+) -> u32 {
+    let px = pixel_frustum(setup, g, i);
+    let mut mask = 0u32;
+    let (mut tests, mut passed) = (0u64, 0u64);
+    let cells = for_each_candidate(setup, bins, g, i, |id| {
+        if id != px.receiver {
+            tests += 1;
+            mask |= triangle_mask(
+                &px,
+                &bins.vertex_cache[id as usize],
+                setup,
+                mode,
+                pattern,
+                lut,
+                &mut passed,
+            );
+        }
+        mask == FULL
+    });
+    stats.tests_spawned += tests;
+    stats.depth_passed += passed;
+    stats.cells_visited += cells;
+    stats.early_outs += (mask == FULL) as usize;
+    mask
+}
+
+/// The occluded samples of triangle `id` for shadow-tested pixel `i`,
+/// whether or not the grid would have offered it (for tests that check the
+/// grid against brute force).
+pub fn triangle_mask_for_pixel(
+    setup: &LightSetup,
+    bins: &Bins,
+    g: &GBuffer,
+    i: usize,
+    id: u32,
+    mode: SampleMode,
+    pattern: &[[f32; 2]; 32],
+    lut: &izb_lut::EdgeLut,
+) -> u32 {
+    let px = pixel_frustum(setup, g, i);
+    if id == px.receiver {
+        return 0;
+    }
+    triangle_mask(
+        &px,
+        &bins.vertex_cache[id as usize],
+        setup,
+        mode,
+        pattern,
+        lut,
+        &mut 0,
+    )
+}
+
+/// Occlusion masks of every pixel (0 for pixels not shadow-tested).
+pub fn evaluate(
+    setup: &LightSetup,
+    bins: &Bins,
+    g: &GBuffer,
+    mode: SampleMode,
+    pattern: &[[f32; 2]; 32],
+    lut: &izb_lut::EdgeLut,
+) -> (Vec<u32>, EvaluateStats) {
+    let w = g.width as usize;
+    let rows: Vec<(Vec<u32>, EvaluateStats)> = (0..g.height as usize)
+        .into_par_iter()
+        .map(|y| {
+            let mut stats = EvaluateStats::default();
+            let masks = (y * w..(y + 1) * w)
+                .map(|i| {
+                    if g.flags[i] & flags::SHADOW_TESTED == 0 {
+                        return 0;
+                    }
+                    stats.pixels_tested += 1;
+                    evaluate_pixel(setup, bins, g, i, mode, pattern, lut, &mut stats)
+                })
+                .collect();
+            (masks, stats)
+        })
+        .collect();
+    let mut masks = Vec::with_capacity(g.flags.len());
+    let mut stats = EvaluateStats::default();
+    for (m, s) in rows {
+        masks.extend(m);
+        stats.pixels_tested += s.pixels_tested;
+        stats.tests_spawned += s.tests_spawned;
+        stats.depth_passed += s.depth_passed;
+        stats.early_outs += s.early_outs;
+        stats.cells_visited += s.cells_visited;
+    }
+    (masks, stats)
+}

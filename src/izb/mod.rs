@@ -1,0 +1,146 @@
+//! The compute irregular z-buffer on the CPU (rayon): the CPU twin of the
+//! GPU passes, one function per pass with the pass's name.
+//!
+//! 1. [`light_setup`]: light-view frame, grid bounds fitted to the µQuads;
+//! 2. [`bin`](bin::bin): count, prefix sum, scatter; vertex cache; overflow;
+//! 3. [`evaluate`](evaluate::evaluate): frustum-triangle tests per pixel,
+//!    OR of per-triangle masks, early exit when full;
+//! 4. [`resolve`]: lit fraction from the mask.
+//!
+//! The G-buffer (pass 0) comes from [`crate::gbuffer`].
+
+pub mod bin;
+pub mod evaluate;
+pub mod frustum;
+pub mod light_setup;
+
+pub use evaluate::{SampleMode, FULL};
+pub use light_setup::{light_setup, LightSetup};
+
+use crate::gbuffer::{flags, gbuffer, GBuffer, GBufferStats};
+use crate::reference::bvh::SceneBvh;
+use crate::scene::Scene;
+use std::time::Instant;
+
+/// How to render.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct IzbSettings {
+    pub mode: SampleMode,
+    /// Grid cells along the longer side (None: chosen from the pixel count).
+    pub cells: Option<u32>,
+    /// Triangles spanning more cells than this on an axis overflow.
+    pub max_span: u32,
+}
+
+impl Default for IzbSettings {
+    fn default() -> Self {
+        IzbSettings {
+            mode: SampleMode::Lut32,
+            cells: None,
+            max_span: bin::DEFAULT_MAX_SPAN,
+        }
+    }
+}
+
+/// Seconds per pass.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct PassSeconds {
+    pub gbuffer: f64,
+    pub light_setup: f64,
+    pub bin: f64,
+    pub evaluate: f64,
+    pub resolve: f64,
+    pub total: f64,
+}
+
+/// Settings, timings and counters of one render (`report.json`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderReport {
+    pub settings: IzbSettings,
+    pub seconds: PassSeconds,
+    pub gbuffer: GBufferStats,
+    pub light: LightSetup,
+    pub bin: bin::BinStats,
+    pub evaluate: evaluate::EvaluateStats,
+}
+
+/// A rendered shadow mask.
+pub struct ShadowRender {
+    pub gbuffer: GBuffer,
+    /// Occlusion mask per pixel: bit i set = sample i in shadow (0 where not
+    /// shadow-tested).
+    pub masks: Vec<u32>,
+    /// Lit fraction per pixel, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    pub report: RenderReport,
+}
+
+/// Pass 4: lit fraction = 1 − popcount / 32, NaN where not shadow-tested.
+pub fn resolve(masks: &[u32], g: &GBuffer) -> Vec<f32> {
+    masks
+        .iter()
+        .zip(&g.flags)
+        .map(|(&m, &f)| {
+            if f & flags::SHADOW_TESTED == 0 {
+                f32::NAN
+            } else {
+                1.0 - m.count_ones() as f32 / 32.0
+            }
+        })
+        .collect()
+}
+
+/// Eye-relative `f32` triangles: the vertex buffer a GPU would receive.
+pub fn eye_relative_f32(scene: &Scene) -> Vec<[glam::Vec3; 3]> {
+    scene
+        .eye_relative_triangles()
+        .iter()
+        .map(|t| t.map(|v| v.as_vec3()))
+        .collect()
+}
+
+/// Renders the shadow mask of `scene` on the CPU.
+pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> ShadowRender {
+    let start = Instant::now();
+    let mut seconds = PassSeconds::default();
+    let mut lap = {
+        let mut t = Instant::now();
+        move || {
+            let s = t.elapsed().as_secs_f64();
+            t = Instant::now();
+            s
+        }
+    };
+    let g = gbuffer(scene, bvh);
+    seconds.gbuffer = lap();
+    let setup = light_setup(scene, &g, settings.cells);
+    seconds.light_setup = lap();
+    let triangles = eye_relative_f32(scene);
+    let bins = bin::bin(&setup, &triangles, settings.max_span);
+    seconds.bin = lap();
+    let (masks, eval_stats) = evaluate::evaluate(
+        &setup,
+        &bins,
+        &g,
+        settings.mode,
+        crate::lut::sample_pattern(),
+        crate::lut::edge_lut(),
+    );
+    seconds.evaluate = lap();
+    let visibility = resolve(&masks, &g);
+    seconds.resolve = lap();
+    seconds.total = start.elapsed().as_secs_f64();
+    ShadowRender {
+        report: RenderReport {
+            settings,
+            seconds,
+            gbuffer: g.stats.clone(),
+            light: setup,
+            bin: bins.stats,
+            evaluate: eval_stats,
+        },
+        gbuffer: g,
+        masks,
+        visibility,
+    }
+}

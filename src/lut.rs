@@ -1,0 +1,97 @@
+//! The 32-sample pattern and the edge-visibility LUT as the renderer uses
+//! them (seed 002 §4, design §4).
+//!
+//! `build.rs` runs [`izb_lut`] at compile time and this module embeds what
+//! it wrote: [`edge_lut`] is the `DEFAULT_ANGLES × DEFAULT_DISTANCES` table
+//! for [`sample_pattern`]. [`regenerate`] (the `izb lut` command) runs the
+//! same generator at any resolution, writes the table and a picture of it,
+//! and measures it against the exact classifier. Why this pattern and this
+//! resolution: `paper-notes/edge-lut.md`.
+
+use crate::output::{write_atomically, write_png};
+use anyhow::{ensure, Result};
+use std::path::Path;
+use std::sync::OnceLock;
+
+pub use izb_lut::{
+    candidate_patterns, coverage_error, edge_line, exact_mask, exact_mask_f32, inside_area,
+    lut_statistics, signed_distance, CoverageError, EdgeComparison, EdgeLine, EdgeLut, LutCell,
+    LutDecodeError, LutStats, PatternCandidate, SamplePattern, ALL_SAMPLES, DEFAULT_ANGLES,
+    DEFAULT_DISTANCES, HALF_DIAGONAL, LOOKUP_SLACK, LUT_HEADER_BYTES, LUT_MAGIC, MAX_RESOLUTION,
+    SAMPLE_PATTERN_NAME,
+};
+
+/// The default table, as `build.rs` serialised it.
+static EMBEDDED_EDGE_LUT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/edge_lut.bin"));
+
+/// The pattern the embedded table was built for.
+static EMBEDDED_SAMPLE_PATTERN: SamplePattern =
+    include!(concat!(env!("OUT_DIR"), "/sample_pattern.rs"));
+
+/// Random edges behind the statistics [`regenerate`] returns.
+pub const REGENERATE_STATISTICS_LINES: usize = 1_000_000;
+
+/// Shortest side, in pixels, of `edge_lut.png`: small tables are scaled up
+/// by a whole factor until their longer side reaches it.
+const PICTURE_MIN_SIDE: u32 = 512;
+
+/// The embedded default edge LUT (decoded once).
+pub fn edge_lut() -> &'static EdgeLut {
+    static LUT: OnceLock<EdgeLut> = OnceLock::new();
+    LUT.get_or_init(|| {
+        EdgeLut::from_bytes(EMBEDDED_EDGE_LUT)
+            .unwrap_or_else(|e| panic!("build.rs wrote an invalid edge LUT: {e}"))
+    })
+}
+
+/// The renderer's 32 sample positions (u, v) ∈ [0, 1)², bit i = sample i:
+/// the ones the embedded table was generated for.
+pub fn sample_pattern() -> &'static SamplePattern {
+    &EMBEDDED_SAMPLE_PATTERN
+}
+
+/// Generates the `angles × distances` table for [`sample_pattern`] with
+/// the code `build.rs` uses, writes `edge_lut.bin` ([`EdgeLut::to_bytes`])
+/// and `edge_lut.png` ([`lut_picture`]) into `out_dir` (atomically), and
+/// returns its statistics over [`REGENERATE_STATISTICS_LINES`] random edges.
+pub fn regenerate(angles: u32, distances: u32, out_dir: &Path) -> Result<LutStats> {
+    let valid = 1..=MAX_RESOLUTION;
+    ensure!(
+        valid.contains(&angles) && valid.contains(&distances),
+        "edge LUT resolution {angles}x{distances}: both must lie in 1..={MAX_RESOLUTION}"
+    );
+    let pattern = sample_pattern();
+    let lut = EdgeLut::generate(angles, distances, pattern);
+    let bytes = lut.to_bytes();
+    write_atomically(&out_dir.join("edge_lut.bin"), |tmp| {
+        Ok(std::fs::write(tmp, &bytes)?)
+    })?;
+    write_png(&out_dir.join("edge_lut.png"), &lut_picture(&lut))?;
+    Ok(lut_statistics(&lut, pattern, REGENERATE_STATISTICS_LINES))
+}
+
+/// A picture of the table: one block per cell, A rows (θ from −π at the
+/// top to π at the bottom) × D columns (d from −√2/2 at the left to √2/2
+/// at the right). Brightness is the fraction of samples inside, so each row
+/// (one edge direction swept across the pixel) runs from black to white;
+/// a faint tint, a hash of the mask, tells neighbouring distinct masks
+/// apart, so the curves d = −(cos θ·x_i + sin θ·y_i) along which sample i
+/// changes sides show as the borders between tinted regions. Scaled up by
+/// a whole factor to at least [`PICTURE_MIN_SIDE`] pixels on the longer
+/// side.
+pub fn lut_picture(lut: &EdgeLut) -> image::RgbImage {
+    const TINT: f64 = 0.3;
+    let scale = PICTURE_MIN_SIDE
+        .div_ceil(lut.angles.max(lut.distances))
+        .max(1);
+    image::RgbImage::from_fn(lut.distances * scale, lut.angles * scale, |x, y| {
+        let mask = lut.masks[((y / scale) * lut.distances + x / scale) as usize];
+        let coverage = f64::from(mask.count_ones()) / f64::from(u32::BITS);
+        // Fibonacci hashing spreads masks that differ in one bit apart.
+        let hash = mask.wrapping_mul(0x9E37_79B9).to_le_bytes();
+        image::Rgb(std::array::from_fn(|c| {
+            let tint = f64::from(hash[c + 1]) / 255.0;
+            (((1.0 - TINT) * coverage + TINT * tint) * 255.0).round() as u8
+        }))
+    })
+}
