@@ -13,12 +13,12 @@ use izb::scene::{Camera, Light, Scene};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
-/// 3000 specks (1–2 cm triangles) 2–40 cm above a ground plane, seen by a
+/// 20 000 specks (1–2 cm triangles) 2–40 cm above a ground plane, seen by a
 /// camera 25 cm above the ground looking along it.
 fn specks() -> Scene {
     let mut t = ground(0.0, -50.0, 50.0, -50.0, 50.0);
     let mut rng = Pcg32::seed_from_u64(2024);
-    for _ in 0..3000 {
+    for _ in 0..20_000 {
         let c = DVec3::new(
             rng.random_range(-4.0..4.0),
             rng.random_range(0.02..0.4),

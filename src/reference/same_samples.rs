@@ -66,3 +66,75 @@ pub fn same_sample_masks(scene: &Scene, bvh: &SceneBvh, pattern: &[[f32; 2]; 32]
         })
         .collect()
 }
+
+/// Relative float tolerance of the IZB's `f32` decisions: a sample whose
+/// decision margin (see [`decision_margin`]) is below this fraction of the
+/// scale of the quantities involved may be classified either way by an
+/// `f32` evaluation (2⁻¹⁶ = 128 ε₃₂: the light-view rotation, the
+/// subtraction of P and two cross products each round once or twice).
+pub const FLOAT_DECISION_TOLERANCE: f64 = 1.0 / 65536.0;
+
+/// How close sample `uv` of the pixel `px` is to flipping: over every
+/// triangle other than the receiver, the smallest relative margin among the
+/// conditions of the shadow rule — the two per-pixel depth conditions of
+/// [`may_shadow`] (distance above the tangent plane and beyond the triangle
+/// plane, minus the tolerance) and, for triangles passing them, the signed
+/// distance of the sample to each side plane — each divided by the scale
+/// of its inputs (the triangle's distance from P plus the µQuad size).
+/// A sample with a margin below [`FLOAT_DECISION_TOLERANCE`] lies within
+/// float rounding of a shadow boundary. `f64`, brute force: meant for the
+/// few samples where the IZB and this reference disagree.
+pub fn decision_margin(
+    eye_relative_triangles: &[crate::scene::Triangle],
+    px: &crate::gbuffer::PixelSurface,
+    light: &Light,
+    uv: [f32; 2],
+) -> f64 {
+    use crate::izb::frustum::{
+        edge_functions, DEPTH_TOLERANCE_MICROQUAD, DEPTH_TOLERANCE_ROUNDING,
+    };
+    let p = px.hit.position;
+    let size = px.axis_x.length().max(px.axis_y.length());
+    let rel = match *light {
+        Light::Directional { direction } => LightRel::Toward(-direction),
+        Light::Point { position } => LightRel::At(position - p),
+    };
+    let (du, dv) = (uv[0] as f64 - 0.5, uv[1] as f64 - 0.5);
+    let mut margin = f64::INFINITY;
+    for (id, tri) in eye_relative_triangles.iter().enumerate() {
+        if id as u32 == px.hit.triangle {
+            continue;
+        }
+        let t = tri.map(|v| v - p);
+        let reach = t.iter().map(|v| v.length()).fold(0.0, f64::max);
+        let scale = reach + size;
+        let tolerance = DEPTH_TOLERANCE_MICROQUAD * size + DEPTH_TOLERANCE_ROUNDING * reach;
+        let height = t
+            .iter()
+            .map(|v| px.hit.normal.dot(*v))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        let facing = match rel {
+            LightRel::Toward(w) => n.dot(w),
+            LightRel::At(l) => n.dot(l - t[0]),
+        };
+        let beyond = if facing == 0.0 {
+            f64::NEG_INFINITY
+        } else {
+            n.dot(t[0]) * facing.signum() / n.length() - tolerance
+        };
+        let depth = (height - tolerance).min(beyond);
+        margin = margin.min((height - tolerance).abs().min(beyond.abs()) / scale);
+        if depth > 0.0 {
+            for e in edge_functions(&t, px.axis_x, px.axis_y, rel) {
+                let len = (e[1] * e[1] + e[2] * e[2]).sqrt().max(f64::MIN_POSITIVE);
+                let f = e[0] + e[1] * du + e[2] * dv;
+                // The side plane's normal scales with the edge length and
+                // the light vector: normalise by its component in the µQuad
+                // plane to get a distance on the µQuad.
+                margin = margin.min((f / len * size).abs() / scale);
+            }
+        }
+    }
+    margin
+}
