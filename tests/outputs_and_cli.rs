@@ -186,3 +186,129 @@ fn cli_rejects_bad_arguments_with_a_clear_message() {
         assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
     }
 }
+
+#[test]
+fn cli_render_writes_masks_consistent_with_visibility() {
+    for (spp, exact) in [("32", false), ("32", true), ("1", false)] {
+        let dir = temp_dir(&format!("render-{spp}-{exact}"));
+        let out = dir.to_str().unwrap();
+        let mut args = vec![
+            "render",
+            "default",
+            "--spp",
+            spp,
+            "--resolution",
+            "96x54",
+            "--out",
+            out,
+        ];
+        if exact {
+            args.push("--exact");
+        }
+        let run = izb(&args);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        for f in [
+            "visibility.exr",
+            "visibility.png",
+            "shaded.png",
+            "report.json",
+        ] {
+            assert!(dir.join(f).is_file(), "{f} missing");
+        }
+        let (_, _, v) = read_exr_channel(&dir.join("visibility.exr"), "visibility").unwrap();
+        let (_, _, masks) =
+            izb::output::read_exr_mask(&dir.join("visibility.exr"), "mask").unwrap();
+        for (m, v) in masks.iter().zip(&v) {
+            if v.is_nan() {
+                assert_eq!(*m, 0);
+            } else {
+                assert_eq!(*v, 1.0 - m.count_ones() as f32 / 32.0);
+                if spp == "1" {
+                    assert!(*m == 0 || *m == u32::MAX, "1 spp masks are all or nothing");
+                }
+            }
+        }
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+        let r = &report["render"];
+        for pass in [
+            "gbuffer",
+            "light_setup",
+            "bin",
+            "evaluate",
+            "resolve",
+            "total",
+        ] {
+            assert!(
+                r["seconds"][pass].as_f64().unwrap() >= 0.0,
+                "seconds.{pass}"
+            );
+        }
+        for counter in ["binned", "overflow", "culled", "cell_entries"] {
+            assert!(r["bin"][counter].is_u64(), "bin.{counter}");
+        }
+        assert!(r["evaluate"]["tests_spawned"].as_u64().unwrap() > 0);
+        assert!(r["evaluate"]["early_outs"].is_u64());
+    }
+}
+
+#[test]
+fn cli_lut_and_compare_write_their_files() {
+    let dir = temp_dir("lut");
+    let run = izb(&[
+        "lut",
+        "--angles",
+        "16",
+        "--distances",
+        "8",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let table = std::fs::read(dir.join("edge_lut.bin")).unwrap();
+    let lut = izb_lut::EdgeLut::from_bytes(&table).unwrap();
+    assert_eq!((lut.angles, lut.distances), (16, 8));
+    assert!(dir.join("edge_lut.png").is_file());
+
+    let dir = temp_dir("compare");
+    let run = izb(&[
+        "compare",
+        "analytic",
+        "--resolution",
+        "96x54",
+        "--reference-spp",
+        "16",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("compare.json")).unwrap()).unwrap();
+    let methods: Vec<&str> = report["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["method"].as_str().unwrap())
+        .collect();
+    assert_eq!(methods, ["izb32", "izb32-exact", "izb1"]);
+    for m in ["izb32", "izb32-exact", "izb1"] {
+        assert!(dir.join(format!("error_{m}.png")).is_file());
+    }
+    let exact = &report["methods"][1]["metrics"];
+    assert_eq!(
+        exact["sample_mismatch_rate"], 0.0,
+        "exact mode vs same-sample reference on the analytic scene"
+    );
+}
