@@ -11,6 +11,11 @@
 //!   bits survive).
 //!
 //! Both are read by `src/lut.rs` with `include_bytes!` / `include!`.
+//!
+//! It also compiles every GLSL compute shader in `shaders/` to SPIR-V with
+//! the `glslang` crate (built from source, so a fresh machine needs nothing
+//! but cargo; design §7), one `<name>.spv` per [`SHADERS`] entry. A compile
+//! error fails the build with the shader's file and glslang's line numbers.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -42,6 +47,106 @@ fn main() {
     }
     source.push_str("]\n");
     write(&out_dir.join("sample_pattern.rs"), source.as_bytes());
+
+    compile_shaders(&out_dir);
+}
+
+/// `#define NAME VALUE` pairs for one compilation.
+type Defines = &'static [(&'static str, &'static str)];
+
+/// (output name, source file in `shaders/`, `#define`s): one entry per GPU
+/// dispatch. A pass with several steps is one file compiled once per step.
+const SHADERS: &[(&str, &str, Defines)] = &[
+    ("gbuffer", "gbuffer.comp", &[]),
+    (
+        "light_setup_receivers",
+        "light_setup.comp",
+        &[("STEP_RECEIVERS", "1")],
+    ),
+    (
+        "light_setup_frame",
+        "light_setup.comp",
+        &[("STEP_FRAME", "1")],
+    ),
+    (
+        "light_setup_extent",
+        "light_setup.comp",
+        &[("STEP_EXTENT", "1")],
+    ),
+    (
+        "light_setup_grid",
+        "light_setup.comp",
+        &[("STEP_GRID", "1")],
+    ),
+    ("bin_count", "bin.comp", &[("STEP_COUNT", "1")]),
+    ("bin_prefix_sum", "bin.comp", &[("STEP_PREFIX_SUM", "1")]),
+    ("bin_scatter", "bin.comp", &[("STEP_SCATTER", "1")]),
+    ("evaluate", "evaluate.comp", &[]),
+    ("resolve", "resolve.comp", &[]),
+];
+
+/// Resolves `#include "x"` against `shaders/`.
+struct ShaderIncludes(PathBuf);
+
+impl glslang::include::IncludeHandler for ShaderIncludes {
+    fn include(
+        &mut self,
+        _ty: glslang::include::IncludeType,
+        header_name: &str,
+        _includer_name: &str,
+        _include_depth: usize,
+    ) -> Option<glslang::include::IncludeResult> {
+        let path = self.0.join(header_name);
+        let data = std::fs::read_to_string(&path).ok()?;
+        Some(glslang::include::IncludeResult {
+            name: path.display().to_string(),
+            data,
+        })
+    }
+}
+
+fn compile_shaders(out_dir: &std::path::Path) {
+    let dir = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets it"))
+        .join("shaders");
+    println!("cargo:rerun-if-changed=shaders");
+    let compiler = glslang::Compiler::acquire().expect("glslang initialises");
+    let options = glslang::CompilerOptions {
+        source_language: glslang::SourceLanguage::GLSL,
+        target: glslang::Target::Vulkan {
+            version: glslang::VulkanVersion::Vulkan1_2,
+            spirv_version: glslang::SpirvVersion::SPIRV1_5,
+        },
+        version_profile: None,
+        messages: glslang::ShaderMessage::DEFAULT,
+    };
+    for (name, file, defines) in SHADERS {
+        let path = dir.join(file);
+        let text = std::fs::read_to_string(&path)
+            .unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+        let source = glslang::ShaderSource::from(text);
+        let defines: Vec<(&str, Option<&str>)> =
+            defines.iter().map(|(k, v)| (*k, Some(*v))).collect();
+        let mut includes = ShaderIncludes(dir.clone());
+        let fail = |what: &str, e: &dyn std::fmt::Display| -> ! {
+            panic!("\n{what} {} ({name}):\n{e}\n", path.display())
+        };
+        let input = glslang::ShaderInput::new(
+            &source,
+            glslang::ShaderStage::Compute,
+            &options,
+            Some(&defines[..]),
+            Some(&mut includes),
+        )
+        .unwrap_or_else(|e| fail("shader input", &e));
+        let shader = compiler
+            .create_shader(input)
+            .unwrap_or_else(|e| fail("GLSL error in", &e));
+        let words = shader
+            .compile()
+            .unwrap_or_else(|e| fail("SPIR-V generation failed for", &e));
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        write(&out_dir.join(format!("{name}.spv")), &bytes);
+    }
 }
 
 fn write(path: &std::path::Path, bytes: &[u8]) {

@@ -5,10 +5,12 @@
 //!
 //! Module map (design §2): [`scene`] loads glTF, scene specs and procedural
 //! scenes; [`gbuffer`] computes primary visibility with µQuad footprints;
-//! [`reference`] traces supersampled ground truth; [`output`] writes images
+//! [`reference`] traces supersampled ground truth; [`izb`] is the CPU
+//! irregular z-buffer and [`gpu`] its Vulkan twin; [`output`] writes images
 //! and reports atomically.
 
 pub mod gbuffer;
+pub mod gpu;
 pub mod izb;
 pub mod lut;
 pub mod metrics;

@@ -6,6 +6,7 @@ use clap::builder::TypedValueParser;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use izb::gbuffer::gbuffer;
+use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
 use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::metrics::{error_heat_map, metrics, sample_mismatches};
 use izb::output::{
@@ -39,10 +40,12 @@ enum Command {
     Lut(LutArgs),
     /// Supersampled ray-traced ground truth: lit fraction per pixel.
     Reference(ReferenceArgs),
-    /// Benchmark the ground-truth tracer (rays per second) and write JSON.
+    /// Benchmark the ground-truth tracer (rays/s) and the IZB passes; write JSON.
     Bench(BenchArgs),
     /// Print a scene's triangle counts, bounds, camera and light.
     Info(SceneArgs),
+    /// List the Vulkan devices `--device` can pick, best first.
+    Devices,
 }
 
 #[derive(Args)]
@@ -80,8 +83,10 @@ struct ReferenceArgs {
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum Backend {
-    /// The best available backend (the CPU until the Vulkan backend lands).
+    /// Vulkan when a device opens, else the CPU (saying why).
     Auto,
+    /// The Vulkan backend (ash); fails if no device opens.
+    Vulkan,
     /// The CPU twin (rayon).
     Cpu,
 }
@@ -98,6 +103,9 @@ struct RenderArgs {
     exact: bool,
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     backend: Backend,
+    /// Vulkan device index (see `izb devices`; default: the best one).
+    #[arg(long)]
+    device: Option<usize>,
     /// Grid cells along the longer side (default: from the pixel count).
     #[arg(long)]
     cells: Option<u32>,
@@ -150,6 +158,17 @@ struct BenchArgs {
     /// Image size WxH (default: each scene's own).
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<[u32; 2]>,
+    /// Methods, comma separated: reference (the ground-truth tracer's
+    /// rays/s), izb1, izb32, izb32-exact (seconds per pass).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "reference,izb1,izb32,izb32-exact"
+    )]
+    methods: Vec<String>,
+    /// Repetitions of each IZB method; the median per pass is reported.
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
     /// Output JSON file.
     #[arg(long, default_value = "out/bench.json")]
     out: PathBuf,
@@ -329,6 +348,14 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         args.scenes.clone()
     };
     let settings = ReferenceSettings::from_spp(args.spp, 1).map_err(anyhow::Error::msg)?;
+    let izb_methods: Vec<(String, SampleMode)> = args
+        .methods
+        .iter()
+        .filter(|m| m.as_str() != "reference")
+        .map(|m| parse_method(m).map(|mode| (m.clone(), mode)))
+        .collect::<Result<_>>()?;
+    let with_reference = args.methods.iter().any(|m| m == "reference");
+    anyhow::ensure!(args.repeat > 0, "--repeat must be at least 1");
     let pool = thread_pool(args.threads)?;
     let mut rows = Vec::new();
     for name in &scenes {
@@ -336,6 +363,12 @@ fn run_bench(args: BenchArgs) -> Result<()> {
             scene: name.clone(),
             resolution: args.resolution,
         })?;
+        if !izb_methods.is_empty() {
+            rows.extend(bench_izb(&pool, &scene, &izb_methods, args.repeat));
+        }
+        if !with_reference {
+            continue;
+        }
         let (image, _, bvh_seconds) = pool.install(|| trace_reference(&scene, settings));
         println!(
             "{}: {} triangles, {}x{} at {} spp: BVH {:.2} s, trace {:.2} s, {:.2} Mrays/s ({} threads)",
@@ -369,6 +402,90 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
+/// Times each IZB method on `scene`, `repeat` times interleaved (so drift
+/// in the machine's speed hits every method alike), and reports the median
+/// seconds of every pass plus the ratios 32 spp / 1 spp.
+fn bench_izb(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    methods: &[(String, SampleMode)],
+    repeat: usize,
+) -> Vec<serde_json::Value> {
+    let bvh = pool.install(|| SceneBvh::build(scene));
+    let mut runs: Vec<Vec<izb::izb::RenderReport>> = vec![Vec::new(); methods.len()];
+    for _ in 0..repeat {
+        for (k, (_, mode)) in methods.iter().enumerate() {
+            let settings = IzbSettings {
+                mode: *mode,
+                ..Default::default()
+            };
+            runs[k].push(pool.install(|| render_cpu(scene, &bvh, settings)).report);
+        }
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let medians: Vec<izb::izb::PassSeconds> = runs
+        .iter()
+        .map(|r| {
+            let pass = |f: fn(&izb::izb::PassSeconds) -> f64| {
+                median(r.iter().map(|x| f(&x.seconds)).collect())
+            };
+            izb::izb::PassSeconds {
+                gbuffer: pass(|s| s.gbuffer),
+                light_setup: pass(|s| s.light_setup),
+                bin: pass(|s| s.bin),
+                evaluate: pass(|s| s.evaluate),
+                resolve: pass(|s| s.resolve),
+                total: pass(|s| s.total),
+            }
+        })
+        .collect();
+    let one = methods
+        .iter()
+        .position(|(_, m)| *m == SampleMode::One)
+        .map(|k| medians[k].clone());
+    methods
+        .iter()
+        .zip(&medians)
+        .zip(&runs)
+        .map(|(((name, mode), s), r)| {
+            let shadow = s.total - s.gbuffer;
+            println!(
+                "{}: {name:<12} gbuffer {:.3} s, light_setup {:.4} s, bin {:.3} s, evaluate {:.3} s, \
+                 resolve {:.4} s; shadow passes {:.3} s{}",
+                scene.name,
+                s.gbuffer,
+                s.light_setup,
+                s.bin,
+                s.evaluate,
+                s.resolve,
+                shadow,
+                one.as_ref().map_or(String::new(), |o| format!(
+                    " ({:.2}x 1 spp)",
+                    shadow / (o.total - o.gbuffer)
+                ))
+            );
+            let last = r.last().expect("repeat >= 1");
+            serde_json::json!({
+                "method": name,
+                "backend": "cpu",
+                "mode": mode,
+                "scene": scene_summary(scene),
+                "repeat": r.len(),
+                "median_seconds": s,
+                "shadow_seconds": shadow,
+                "shadow_seconds_over_1spp": one.as_ref().map(|o| shadow / (o.total - o.gbuffer)),
+                "evaluate_over_1spp": one.as_ref().map(|o| s.evaluate / o.evaluate),
+                "bin": last.bin,
+                "evaluate": last.evaluate,
+                "grid": last.light.cells,
+            })
+        })
+        .collect()
+}
+
 fn mode_for(spp: u32, exact: bool) -> SampleMode {
     match (spp, exact) {
         (1, _) => SampleMode::One,
@@ -379,9 +496,6 @@ fn mode_for(spp: u32, exact: bool) -> SampleMode {
 
 fn run_render(args: RenderArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
-    if args.backend == Backend::Auto {
-        eprintln!("backend: cpu (the Vulkan backend is not built yet)");
-    }
     anyhow::ensure!(
         !(args.exact && args.spp == 1),
         "--exact applies to 32 spp; 1 spp is always an exact point test"
@@ -391,12 +505,99 @@ fn run_render(args: RenderArgs) -> Result<()> {
         cells: args.cells,
         ..Default::default()
     };
+    let renderer = match args.backend {
+        Backend::Cpu => None,
+        Backend::Vulkan | Backend::Auto => {
+            let options = GpuOptions {
+                device_index: args.device,
+                ..GpuOptions::from_env()
+            };
+            match GpuRenderer::new(&options) {
+                Ok(r) => Some(r),
+                Err(e) if args.backend == Backend::Auto => {
+                    eprintln!("backend: cpu ({e})");
+                    None
+                }
+                Err(e) => return Err(e).context("--backend vulkan"),
+            }
+        }
+    };
+    match renderer {
+        Some(r) => render_on_gpu(&r, &scene, settings, &args),
+        None => render_on_cpu(&scene, settings, &args),
+    }
+}
+
+fn render_on_gpu(
+    renderer: &GpuRenderer,
+    scene: &Scene,
+    settings: IzbSettings,
+    args: &RenderArgs,
+) -> Result<()> {
+    eprintln!(
+        "backend: vulkan ({}, {})",
+        renderer.context.info().name,
+        renderer.context.info().kind
+    );
+    let render = renderer.render(scene, settings, GBufferSource::Gpu)?;
+    let messages = renderer.take_validation_messages();
+    for m in &messages {
+        eprintln!("validation: {m}");
+    }
+    let [w, h] = scene.resolution;
+    write_exr_with_masks(
+        &args.out.join("visibility.exr"),
+        w,
+        h,
+        &[("visibility", &render.visibility)],
+        &[("mask", &render.masks)],
+    )?;
+    write_visibility_png(&args.out.join("visibility.png"), w, h, &render.visibility)?;
+    let shaded =
+        image::RgbImage::from_raw(w, h, render.shaded.concat()).context("shaded image size")?;
+    write_png(&args.out.join("shaded.png"), &shaded)?;
+    let report = serde_json::json!({
+        "command": "render",
+        "backend": "vulkan",
+        "scene": scene_summary(scene),
+        "render": render.report,
+        "validation_messages": messages,
+    });
+    write_json(&args.out.join("report.json"), &report)?;
+    let r = &render.report;
+    let ms = r
+        .gpu_milliseconds
+        .as_ref()
+        .map_or("no timestamps".to_string(), |m| {
+            format!("GPU {:.3} ms (evaluate {:.3} ms)", m.total, m.evaluate)
+        });
+    println!(
+        "render {} ({:?}, vulkan): {}x{}, {} triangles ({} binned, {} overflow, {} culled), grid {}x{}, \
+         {} tests, {ms}, {:.1} MiB -> {}",
+        scene.name,
+        settings.mode,
+        w,
+        h,
+        scene.triangles.len(),
+        r.counters.triangles_binned,
+        r.counters.overflow,
+        r.counters.culled,
+        r.light.cells[0],
+        r.light.cells[1],
+        r.counters.tests_spawned,
+        r.memory_total_bytes as f64 / (1024.0 * 1024.0),
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) -> Result<()> {
     let pool = thread_pool(args.threads)?;
     let (render, bvh_seconds) = pool.install(|| {
         let t = Instant::now();
-        let bvh = SceneBvh::build(&scene);
+        let bvh = SceneBvh::build(scene);
         let bvh_seconds = t.elapsed().as_secs_f64();
-        (render_cpu(&scene, &bvh, settings), bvh_seconds)
+        (render_cpu(scene, &bvh, settings), bvh_seconds)
     });
     let [w, h] = scene.resolution;
     write_exr_with_masks(
@@ -417,7 +618,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let report = serde_json::json!({
         "command": "render",
         "backend": "cpu",
-        "scene": scene_summary(&scene),
+        "scene": scene_summary(scene),
         "threads": pool.current_num_threads(),
         "bvh_build_seconds": bvh_seconds,
         "render": render.report,
@@ -550,6 +751,24 @@ fn run_info(args: SceneArgs) -> Result<()> {
     Ok(())
 }
 
+fn run_devices() -> Result<()> {
+    let devices = izb::gpu::list_devices()?;
+    if devices.is_empty() {
+        println!("no Vulkan 1.2 device with compute and the scalar block layout");
+    }
+    for d in devices {
+        println!(
+            "{}: {} ({}, Vulkan {}, max storage buffer {} MiB)",
+            d.index,
+            d.name,
+            d.kind,
+            d.api_version,
+            d.max_storage_buffer_range / (1 << 20)
+        );
+    }
+    Ok(())
+}
+
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -559,6 +778,7 @@ fn main() {
         Command::Reference(a) => run_reference(a),
         Command::Bench(a) => run_bench(a),
         Command::Info(a) => run_info(a),
+        Command::Devices => run_devices(),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -204,6 +204,7 @@ fn evaluate_pixel(
 /// The occluded samples of triangle `id` for shadow-tested pixel `i`,
 /// whether or not the grid would have offered it (for tests that check the
 /// grid against brute force).
+#[allow(clippy::too_many_arguments)]
 pub fn triangle_mask_for_pixel(
     setup: &LightSetup,
     bins: &Bins,

@@ -88,6 +88,13 @@ impl LightSetup {
     }
 }
 
+/// The light-view rotation of a directional light travelling along
+/// `direction` (unit): rows x, y, z with z pointing toward the light. The
+/// GPU `light_setup` receives exactly this matrix.
+pub fn directional_rotation(direction: DVec3) -> Mat3 {
+    basis_with_z(-direction).as_mat3()
+}
+
 /// An orthonormal basis whose third row is `z`.
 fn basis_with_z(z: DVec3) -> DMat3 {
     let helper = if z.y.abs() < 0.9 { DVec3::Y } else { DVec3::X };
@@ -100,6 +107,17 @@ fn basis_with_z(z: DVec3) -> DMat3 {
 pub fn microquad_corners(p: Vec3, ex: Vec3, ey: Vec3) -> [Vec3; 4] {
     let (hx, hy) = (ex * 0.5, ey * 0.5);
     [p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy]
+}
+
+/// Cells along the grid's longer side when none is asked for: a square grid
+/// with about 4 receivers per cell, or about 16 triangles per cell where
+/// the scene has more than 4 triangles per receiver (a dense scene at a low
+/// resolution would otherwise put thousands of triangles in every cell),
+/// clamped to 8..=1024. The shorter side keeps cells square in NDC. The GPU
+/// `light_setup` computes the same expression in `f32`.
+pub fn default_grid_side(receivers: usize, triangles: usize) -> u32 {
+    let per_cell = (receivers as f32 / 4.0).max(triangles as f32 / 16.0);
+    (per_cell.sqrt().ceil() as u32).clamp(8, 1024)
 }
 
 /// Fits the light view and grid to the shadow-tested pixels of `gbuffer`.
@@ -177,11 +195,8 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, cells_hint: Option<u32>) ->
     let pad = (nmax - nmin).max_element().max(f32::MIN_POSITIVE) * 1e-4;
     setup.ndc_min = nmin - pad;
     setup.ndc_max = nmax + pad;
-    // About 4 receivers per cell on average along the longer side, as a
-    // square grid of √(receivers / 4) cells would give; the shorter side
-    // keeps cells square in NDC.
-    let longest = cells_hint
-        .unwrap_or_else(|| ((tested.len() as f32 / 4.0).sqrt().ceil() as u32).clamp(8, 1024));
+    let longest =
+        cells_hint.unwrap_or_else(|| default_grid_side(tested.len(), scene.triangles.len()));
     let extent = setup.ndc_max - setup.ndc_min;
     let (cx, cy) = if extent.x >= extent.y {
         (

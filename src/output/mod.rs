@@ -170,24 +170,35 @@ pub fn write_shaded_png(
     light: &crate::scene::Light,
     visibility: &[f32],
 ) -> Result<()> {
-    const AMBIENT: f32 = 0.18;
     let mut img = image::RgbImage::new(gbuffer.width, gbuffer.height);
     for (i, p) in img.pixels_mut().enumerate() {
-        let rgb = if gbuffer.flags[i] & crate::gbuffer::flags::HIT == 0 {
-            SKY_RGB
-        } else {
-            let position = gbuffer.position[i].as_dvec3();
-            let toward = light.toward(position).0.as_vec3();
-            let lambert = gbuffer.normal[i].dot(toward).max(0.0);
-            let v = if visibility[i].is_nan() {
-                0.0
-            } else {
-                visibility[i]
-            };
-            [AMBIENT + (1.0 - AMBIENT) * 0.85 * lambert * v; 3]
-        };
-        // Display gamma 2.2.
-        *p = image::Rgb(rgb.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8));
+        *p = image::Rgb(shade_pixel(gbuffer, i, light, visibility[i]));
     }
     write_png(path, &img)
+}
+
+/// Ambient term of the shaded image.
+pub const AMBIENT: f32 = 0.18;
+/// Diffuse albedo of the shaded image.
+pub const DIFFUSE: f32 = 0.85;
+
+/// CPU twin of the GPU `resolve` pass's shading: sky colour for a miss,
+/// else ambient + Lambert × lit fraction (NaN counts as 0), display gamma
+/// 2.2, rounded to 8 bits.
+pub fn shade_pixel(
+    gbuffer: &crate::gbuffer::GBuffer,
+    i: usize,
+    light: &crate::scene::Light,
+    visibility: f32,
+) -> [u8; 3] {
+    let rgb = if gbuffer.flags[i] & crate::gbuffer::flags::HIT == 0 {
+        SKY_RGB
+    } else {
+        let position = gbuffer.position[i].as_dvec3();
+        let toward = light.toward(position).0.as_vec3();
+        let lambert = gbuffer.normal[i].dot(toward).max(0.0);
+        let v = if visibility.is_nan() { 0.0 } else { visibility };
+        [AMBIENT + (1.0 - AMBIENT) * DIFFUSE * lambert * v; 3]
+    };
+    rgb.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8)
 }

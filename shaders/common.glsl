@@ -1,0 +1,160 @@
+// common.glsl — the one header every izb compute shader includes.
+//
+// Mirrored field for field by `src/gpu/shared.rs` (#[repr(C)] + bytemuck,
+// with size asserts). Buffers use the scalar block layout
+// (GL_EXT_scalar_block_layout), so a `vec3` takes 12 bytes exactly like a
+// Rust `[f32; 3]`, and every binding below is one storage buffer of one
+// descriptor set shared by all passes (a pass declares only what it reads).
+//
+// Conventions (design §3, §4): positions are eye-relative f32 (the f64 →
+// f32 rounding happens on the host after subtracting the eye); every
+// triangle test runs in light view relative to the pixel, never in NDC.
+
+#extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_control_flow_attributes : require
+
+#define WORKGROUP_PIXELS_X 8
+#define WORKGROUP_PIXELS_Y 8
+#define WORKGROUP_PIXELS 64
+#define WORKGROUP_LINEAR 256
+
+// ---- bindings (src/gpu/shared.rs: `binding`) ----
+#define B_FRAME 0
+#define B_TRIANGLES 1
+#define B_BVH_NODES 2
+#define B_BVH_PRIMS 3
+#define B_G_POSITION 4
+#define B_G_NORMAL 5
+#define B_G_AXIS_X 6
+#define B_G_AXIS_Y 7
+#define B_G_TRIANGLE 8
+#define B_G_FLAGS 9
+#define B_LIGHT 10
+#define B_COUNTERS 11
+#define B_VERTEX_CACHE 12
+#define B_PLACEMENT 13
+#define B_CELL_CURSOR 14
+#define B_CELL_START 15
+#define B_CELL_TRIANGLES 16
+#define B_OVERFLOW 17
+#define B_EDGE_LUT 18
+#define B_MASKS 19
+#define B_VISIBILITY 20
+#define B_SHADED 21
+
+// ---- G-buffer flags (src/gbuffer: `flags`) ----
+#define FLAG_HIT 1u
+#define FLAG_SHADOW_TESTED 2u
+#define FLAG_AXES_CLAMPED 4u
+#define NO_HIT 0xFFFFFFFFu
+
+// ---- sample modes (src/izb/evaluate.rs: `SampleMode`) ----
+#define MODE_ONE 0u
+#define MODE_LUT32 1u
+#define MODE_EXACT32 2u
+#define FULL_MASK 0xFFFFFFFFu
+
+// ---- placement of a triangle (src/izb/bin.rs: `Placement`) ----
+// .x = x0 | y0 << 16, .y = x1 | y1 << 16 for a cell rectangle.
+#define PLACEMENT_CULLED 0xFFFFFFFEu
+#define PLACEMENT_OVERFLOW 0xFFFFFFFFu
+
+// ---- counters (src/gpu/shared.rs: `counter`) ----
+#define C_HITS 0
+#define C_SHADOW_TESTED 1
+#define C_CLAMPED 2
+#define C_BINNED 3
+#define C_OVERFLOW 4
+#define C_CULLED 5
+#define C_CELL_ENTRIES 6
+#define C_CAPACITY_EXCEEDED 7
+#define C_PIXELS_TESTED 8
+#define C_EARLY_OUTS 9
+#define C_TESTS_SPAWNED 10   // 64-bit: lo, hi
+#define C_DEPTH_PASSED 12    // 64-bit
+#define C_CELLS_VISITED 14   // 64-bit
+#define C_LOOP_BUDGET_EXCEEDED 16
+#define COUNTER_WORDS 17
+
+// Per-frame constants, written by the host once per frame.
+struct FrameParams {
+    vec3 cam_corner;      // unnormalised ray direction through image point (0, 0)
+    float near;
+    vec3 cam_dx;          // d(direction)/dx per pixel
+    float far;
+    vec3 cam_dy;          // d(direction)/dy per pixel (y down)
+    float max_stretch;    // gbuffer::MAX_MICROQUAD_STRETCH
+    vec3 light_vec;       // directional: unit vector toward the light; point: eye-relative position
+    uint light_is_point;
+    vec3 rot_x;           // directional light: light-view rows (f64 on the host, then f32)
+    uint width;
+    vec3 rot_y;
+    uint height;
+    vec3 rot_z;
+    uint triangle_count;
+    uint mode;
+    uint cells_hint;      // 0: from the receiver count
+    uint max_span;
+    uint cell_capacity;   // entries the cell list can hold
+    float lut_angle_scale;
+    float lut_distance_scale;
+    uint lut_angles;
+    uint lut_distances;
+    uint max_cells;       // cell_cursor / cell_start capacity
+    uint loop_budget;     // evaluate's loop iterations per pixel (lavapipe's cap), else ~0u
+    uint pad1;
+    uint pad2;
+    vec2 pattern[32];
+};
+
+// Light view and grid, computed on the GPU by light_setup (no readback).
+struct LightState {
+    vec3 rot_x;
+    uint projection;      // 0 orthographic (directional), 1 perspective (point)
+    vec3 rot_y;
+    uint grid_disabled;
+    vec3 rot_z;
+    uint receivers;
+    vec3 origin;
+    uint cells_x;
+    vec2 ndc_min;
+    vec2 ndc_max;
+    vec2 receiver_z;
+    uint cells_y;
+    uint behind_light;
+    // Reduction scratch, floats in order-preserving uint encoding.
+    uint pos_lo[3];
+    uint pos_hi[3];
+    uint ndc_lo[2];
+    uint ndc_hi[2];
+    uint z_lo;
+    uint z_hi;
+};
+
+struct Triangle {
+    vec3 a;
+    vec3 b;
+    vec3 c;
+};
+
+struct BvhNode {
+    vec3 lo;
+    uint prim_count;      // 0: inner node
+    vec3 hi;
+    uint first;           // inner: left child (right = first + 1); leaf: first primitive slot
+};
+
+// A float's bits mapped to a uint with the same order, so atomicMin/Max on
+// uints reduce floats (no float atomics needed).
+uint ordered_bits(float f) {
+    uint u = floatBitsToUint(f);
+    return (u & 0x80000000u) != 0u ? ~u : (u | 0x80000000u);
+}
+
+float from_ordered_bits(uint u) {
+    return uintBitsToFloat((u & 0x80000000u) != 0u ? (u & 0x7FFFFFFFu) : ~u);
+}
+
+float max_of3(float a, float b, float c) {
+    return max(max(a, b), c);
+}

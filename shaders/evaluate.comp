@@ -1,0 +1,307 @@
+#version 460
+// Pass 3, `evaluate` — GPU twin of `izb::izb::evaluate::evaluate`.
+//
+// One thread per pixel, 8×8 tiles (seed 000). A shadow-tested pixel's
+// µQuad maps to a rectangle of grid cells; every triangle binned in those
+// cells, plus the overflow list, is a candidate, and each candidate is
+// tested once (in the first cell of the overlap of its rectangle and the
+// pixel's, as on the CPU). Triangles reach the tile through shared memory
+// in batches of 64: the overflow list (the same for every pixel), then the
+// tile's elected cell (the lowest first cell among its pixels); cells a
+// pixel covers beyond the elected one are read from global memory.
+// Barriers are reached by every thread: finished or inactive pixels still
+// help load batches (seed 000's `live` flag).
+//
+// The test itself (design §4, seed 002 §4): a per-pixel depth test at the
+// µQuad centre, then the three shadow-volume side planes as affine edge
+// functions over the µQuad — LUT masks (MODE_LUT32), all 32 samples
+// evaluated (MODE_EXACT32), or the centre only (MODE_ONE) — ANDed per
+// triangle, ORed per pixel, stopping when the mask is full (seed 002 §6.6).
+#extension GL_GOOGLE_include_directive : require
+#include "common.glsl"
+
+layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
+
+layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
+layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
+layout(scalar, binding = B_G_NORMAL) readonly buffer NrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
+layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
+layout(scalar, binding = B_G_TRIANGLE) readonly buffer GtBuf { uint g_triangle[]; };
+layout(scalar, binding = B_G_FLAGS) readonly buffer GfBuf { uint g_flags[]; };
+layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
+layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
+layout(scalar, binding = B_VERTEX_CACHE) readonly buffer CacheBuf { Triangle vertex_cache[]; };
+layout(scalar, binding = B_PLACEMENT) readonly buffer PlaceBuf { uvec2 placement[]; };
+layout(scalar, binding = B_CELL_START) readonly buffer StartBuf { uint cell_start[]; };
+layout(scalar, binding = B_CELL_TRIANGLES) readonly buffer CellTriBuf { uint cell_triangles[]; };
+layout(scalar, binding = B_OVERFLOW) readonly buffer OverflowBuf { uint overflow_list[]; };
+layout(scalar, binding = B_EDGE_LUT) readonly buffer LutBuf { uint edge_lut[]; };
+layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
+
+#define CELL_PADDING (1.0 / 64.0)
+#define NO_CELL 0xFFFFFFFFu
+// frustum::DEPTH_TOLERANCE_MICROQUAD and DEPTH_TOLERANCE_ROUNDING (16 ε₃₂).
+#define DEPTH_TOLERANCE_MICROQUAD (1.0 / 256.0)
+#define DEPTH_TOLERANCE_ROUNDING (16.0 * 1.1920929e-7)
+#define HALF_DIAGONAL 0.70710677
+#define PI 3.14159265
+
+shared Triangle sm_tri[WORKGROUP_PIXELS];
+shared uint sm_id[WORKGROUP_PIXELS];
+shared uint sm_first_cell[WORKGROUP_PIXELS];
+shared uint sm_cell;
+
+// The pixel in light view, relative quantities as the CPU twin's
+// `PixelFrustum`.
+vec3 px_p, px_normal, px_ex, px_ey;
+float px_size;
+uint px_receiver;
+uvec4 px_cells;   // x0, y0, x1, y1
+bool px_has_cells;
+
+vec3 to_light_view(vec3 p) {
+    precise vec3 q = p - light.origin;
+    precise vec3 r = vec3(dot(light.rot_x, q), dot(light.rot_y, q), dot(light.rot_z, q));
+    return r;
+}
+
+vec3 rotate(vec3 v) {
+    precise vec3 r = vec3(dot(light.rot_x, v), dot(light.rot_y, v), dot(light.rot_z, v));
+    return r;
+}
+
+// frustum::may_shadow: the per-pixel depth test at P (t = vertices − P).
+bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
+    precise float reach = max_of3(length(t0), length(t1), length(t2));
+    precise float tolerance = float(DEPTH_TOLERANCE_MICROQUAD) * px_size
+        + float(DEPTH_TOLERANCE_ROUNDING) * reach;
+    precise float height = max_of3(dot(px_normal, t0), dot(px_normal, t1), dot(px_normal, t2));
+    if (!(height > tolerance)) return false;   // wholly below the tangent plane
+    precise vec3 n = cross(t1 - t0, t2 - t0);
+    precise float facing = light.projection == 0u ? dot(n, vec3(0.0, 0.0, 1.0)) : dot(n, light_rel - t0);
+    if (facing == 0.0) return false;           // seen edge-on from the light
+    if (facing < 0.0) n = -n;
+    precise float beyond = dot(n, t0);
+    return beyond > tolerance * length(n);     // P beyond the plane, away from the light
+}
+
+// frustum::edge_functions: (α, β, γ) of the side plane through x→y, oriented
+// so z is inside.
+vec3 edge_function(vec3 x, vec3 y, vec3 z, vec3 light_rel) {
+    precise vec3 n = light.projection == 0u ? cross(y - x, vec3(0.0, 0.0, 1.0))
+                                            : cross(x - light_rel, y - light_rel);
+    precise float side = dot(n, z - x);
+    if (side < 0.0) n = -n;
+    precise vec3 e = vec3(-dot(n, x), dot(n, px_ex), dot(n, px_ey));
+    return e;
+}
+
+// EdgeLut::lookup, in f32 as the CPU twin computes it.
+uint lut_mask(vec3 e) {
+    precise float r = sqrt(e.y * e.y + e.z * e.z);
+    if (!(abs(e.x) < HALF_DIAGONAL * r)) {
+        return (e.x >= 0.0 && r >= 0.0) ? FULL_MASK : 0u;
+    }
+    precise float d = e.x / r;
+    int rows = int(frame.lut_angles), columns = int(frame.lut_distances);
+    precise float angle_f = (atan(e.z, e.y) + PI) * frame.lut_angle_scale;
+    int angle = int(floor(angle_f));
+    angle = angle >= rows ? angle - rows : max(angle, 0);
+    precise float distance_f = (d + HALF_DIAGONAL) * frame.lut_distance_scale;
+    int distance = clamp(int(floor(distance_f)), 0, columns - 1);
+    return edge_lut[angle * columns + distance];
+}
+
+// frustum::exact_edge_mask: the edge function at every sample.
+uint exact_mask(vec3 e) {
+    uint mask = 0u;
+    [[unroll]] for (int i = 0; i < 32; ++i) {
+        precise float f = e.x + e.y * (frame.pattern[i].x - 0.5) + e.z * (frame.pattern[i].y - 0.5);
+        mask |= uint(f >= 0.0) << i;
+    }
+    return mask;
+}
+
+uint tests_spawned = 0u, depth_passed = 0u, cells_visited = 0u;
+// Loop trips so far; past frame.loop_budget the pixel stops testing and
+// raises C_LOOP_BUDGET_EXCEEDED (lavapipe would cut its loops silently).
+uint trips = 0u;
+bool over_budget = false;
+
+bool spend_trip() {
+    trips += 1u;
+    if (trips > frame.loop_budget) over_budget = true;
+    return !over_budget;
+}
+
+// Occluded samples of one light-view triangle for this pixel.
+uint triangle_mask(Triangle tri) {
+    precise vec3 t0 = tri.a - px_p;
+    precise vec3 t1 = tri.b - px_p;
+    precise vec3 t2 = tri.c - px_p;
+    precise vec3 light_rel = -px_p;   // point light at the light-view origin
+    if (!may_shadow(t0, t1, t2, light_rel)) return 0u;
+    depth_passed += 1u;
+    vec3 e0 = edge_function(t0, t1, t2, light_rel);
+    vec3 e1 = edge_function(t1, t2, t0, light_rel);
+    vec3 e2 = edge_function(t2, t0, t1, light_rel);
+    if (frame.mode == MODE_ONE) {
+        return (e0.x >= 0.0 && e1.x >= 0.0 && e2.x >= 0.0) ? FULL_MASK : 0u;
+    } else if (frame.mode == MODE_LUT32) {
+        return lut_mask(e0) & lut_mask(e1) & lut_mask(e2);
+    }
+    return exact_mask(e0) & exact_mask(e1) & exact_mask(e2);
+}
+
+// Whether this pixel tests triangle `id` found in cell (x, y): not its own
+// receiver, and (binned triangles) (x, y) is the first cell of the overlap.
+bool tests_in_cell(uint id, uvec2 rect, uint x, uint y) {
+    if (id == px_receiver) return false;
+    if (rect.x >= PLACEMENT_CULLED) return true;   // overflow list
+    return x == max(rect.x & 0xFFFFu, px_cells.x) && y == max(rect.x >> 16, px_cells.y);
+}
+
+vec2 grid_coords(vec2 ndc) {
+    return (ndc - light.ndc_min) / (light.ndc_max - light.ndc_min)
+        * vec2(float(light.cells_x), float(light.cells_y));
+}
+
+vec2 ndc_of(vec3 q) {
+    return light.projection == 0u ? q.xy : q.xy / q.z;
+}
+
+// evaluate::pixel_frustum: light-view µQuad and its cell rectangle.
+void pixel_frustum(uint i) {
+    vec3 p = g_position[i], ex = g_axis_x[i], ey = g_axis_y[i];
+    px_p = to_light_view(p);
+    px_normal = rotate(g_normal[i]);
+    px_ex = rotate(ex);
+    px_ey = rotate(ey);
+    precise float size = max(length(px_ex), length(px_ey));
+    px_size = size;
+    px_receiver = g_triangle[i];
+    px_has_cells = false;
+    if (light.grid_disabled != 0u) return;
+    vec3 hx = ex * 0.5, hy = ey * 0.5;
+    vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
+    vec2 lo = vec2(1.0 / 0.0), hi = vec2(-1.0 / 0.0);
+    [[unroll]] for (int k = 0; k < 4; ++k) {
+        vec2 g = grid_coords(ndc_of(to_light_view(corners[k])));
+        lo = min(lo, g);
+        hi = max(hi, g);
+    }
+    lo -= CELL_PADDING;
+    hi += CELL_PADDING;
+    float w = float(light.cells_x), h = float(light.cells_y);
+    if (hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || isnan(lo.x) || isnan(hi.x)) return;
+    uint x0 = uint(max(lo.x, 0.0)), y0 = uint(max(lo.y, 0.0));
+    px_cells = uvec4(x0, y0, max(uint(min(hi.x, w - 1.0)), x0), max(uint(min(hi.y, h - 1.0)), y0));
+    px_has_cells = true;
+}
+
+// Adds a 64-bit counter held as (lo, hi) words.
+void add_counter64(int at, uint value) {
+    if (value == 0u) return;
+    uint before = atomicAdd(counters[at], value);
+    if (before + value < before) atomicAdd(counters[at + 1], 1u);
+}
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    uint lid = gl_LocalInvocationIndex;
+    uint i = pixel.y * frame.width + pixel.x;
+    bool inside = pixel.x < frame.width && pixel.y < frame.height;
+    bool live = inside && (g_flags[i] & FLAG_SHADOW_TESTED) != 0u;
+    uint mask = 0u;
+    if (live) pixel_frustum(i);
+    // A grid overrun (C_CAPACITY_EXCEEDED) leaves cell lists incomplete:
+    // skip them (uniformly); the host reruns the frame with room.
+    bool grid_usable = counters[C_CAPACITY_EXCEEDED] == 0u;
+
+    // 1. The overflow list, through shared memory.
+    uint overflow_count = counters[C_OVERFLOW];
+    for (uint base = 0u; base < overflow_count; base += WORKGROUP_PIXELS) {
+        spend_trip();
+        uint count = min(uint(WORKGROUP_PIXELS), overflow_count - base);
+        if (lid < count) {
+            uint id = overflow_list[base + lid];
+            sm_id[lid] = id;
+            sm_tri[lid] = vertex_cache[id];
+        }
+        barrier();
+        if (live && mask != FULL_MASK) {
+            for (uint k = 0u; k < count && mask != FULL_MASK && spend_trip(); ++k) {
+                if (sm_id[k] == px_receiver) continue;
+                tests_spawned += 1u;
+                mask |= triangle_mask(sm_tri[k]);
+            }
+        }
+        barrier();
+    }
+
+    // 2. Elect the tile's cell: the lowest first cell of its live pixels.
+    bool wants_cells = live && px_has_cells && grid_usable && mask != FULL_MASK;
+    if (lid == 0u) sm_cell = NO_CELL;
+    barrier();
+    if (wants_cells) atomicMin(sm_cell, px_cells.y * light.cells_x + px_cells.x);
+    barrier();
+    uint cell = sm_cell;
+    uint cx = 0u, cy = 0u;
+    bool in_elected = false;
+    if (cell != NO_CELL) {
+        cx = cell % light.cells_x;
+        cy = cell / light.cells_x;
+        in_elected = wants_cells && cx >= px_cells.x && cx <= px_cells.z
+            && cy >= px_cells.y && cy <= px_cells.w;
+        if (in_elected) cells_visited += 1u;
+        uint start = cell_start[cell], end = cell_start[cell + 1u];
+        for (uint base = start; base < end; base += WORKGROUP_PIXELS) {
+            spend_trip();
+            uint count = min(uint(WORKGROUP_PIXELS), end - base);
+            if (lid < count) {
+                uint id = cell_triangles[base + lid];
+                sm_id[lid] = id;
+                sm_first_cell[lid] = placement[id].x;
+                sm_tri[lid] = vertex_cache[id];
+            }
+            barrier();
+            if (in_elected && mask != FULL_MASK) {
+                for (uint k = 0u; k < count && mask != FULL_MASK && spend_trip(); ++k) {
+                    if (!tests_in_cell(sm_id[k], uvec2(sm_first_cell[k], 0u), cx, cy)) continue;
+                    tests_spawned += 1u;
+                    mask |= triangle_mask(sm_tri[k]);
+                }
+            }
+            barrier();
+        }
+    }
+
+    // 3. The pixel's other cells, from global memory.
+    if (wants_cells) {
+        for (uint y = px_cells.y; y <= px_cells.w && mask != FULL_MASK && spend_trip(); ++y) {
+            for (uint x = px_cells.x; x <= px_cells.z && mask != FULL_MASK && spend_trip(); ++x) {
+                if (in_elected && x == cx && y == cy) continue;
+                cells_visited += 1u;
+                uint c = y * light.cells_x + x;
+                uint end = cell_start[c + 1u];
+                for (uint k = cell_start[c]; k < end && mask != FULL_MASK && spend_trip(); ++k) {
+                    uint id = cell_triangles[k];
+                    if (!tests_in_cell(id, placement[id], x, y)) continue;
+                    tests_spawned += 1u;
+                    mask |= triangle_mask(vertex_cache[id]);
+                }
+            }
+        }
+    }
+
+    if (!inside) return;
+    masks[i] = mask;
+    if (!live) return;
+    if (over_budget) atomicMax(counters[C_LOOP_BUDGET_EXCEEDED], trips);
+    atomicAdd(counters[C_PIXELS_TESTED], 1u);
+    if (mask == FULL_MASK) atomicAdd(counters[C_EARLY_OUTS], 1u);
+    add_counter64(C_TESTS_SPAWNED, tests_spawned);
+    add_counter64(C_DEPTH_PASSED, depth_passed);
+    add_counter64(C_CELLS_VISITED, cells_visited);
+}

@@ -1,0 +1,149 @@
+#version 460
+// Pass 0, `gbuffer` — GPU twin of `izb::gbuffer::gbuffer`.
+//
+// A compute visibility pass, not a raster pipeline: each thread casts the
+// pixel-centre ray through a BVH (built on the host by obvhs) exactly as the
+// CPU twin does, so both sample the same ray and derive the µQuad axes from
+// the same closed form (design §3: derivatives of the ray/tangent-plane
+// intersection), with no rasterisation rules or depth-buffer precision in
+// between. Output: the struct-of-arrays G-buffer.
+#extension GL_GOOGLE_include_directive : require
+#include "common.glsl"
+
+layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
+
+layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
+layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+layout(scalar, binding = B_BVH_NODES) readonly buffer NodeBuf { BvhNode nodes[]; };
+layout(scalar, binding = B_BVH_PRIMS) readonly buffer PrimBuf { uint prims[]; };
+layout(scalar, binding = B_G_POSITION) writeonly buffer PosBuf { vec3 g_position[]; };
+layout(scalar, binding = B_G_NORMAL) writeonly buffer NrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_G_AXIS_X) writeonly buffer AxBuf { vec3 g_axis_x[]; };
+layout(scalar, binding = B_G_AXIS_Y) writeonly buffer AyBuf { vec3 g_axis_y[]; };
+layout(scalar, binding = B_G_TRIANGLE) writeonly buffer GtBuf { uint g_triangle[]; };
+layout(scalar, binding = B_G_FLAGS) writeonly buffer GfBuf { uint g_flags[]; };
+layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
+
+#define STACK_SIZE 64
+
+// Slab test: entry distance of the ray into the box, or +inf on a miss.
+float box_entry(vec3 lo, vec3 hi, vec3 inv_dir, float t_max) {
+    vec3 t0 = lo * inv_dir;
+    vec3 t1 = hi * inv_dir;
+    vec3 tn = min(t0, t1);
+    vec3 tf = max(t0, t1);
+    float enter = max(max(tn.x, tn.y), max(tn.z, 0.0));
+    float leave = min(min(tf.x, tf.y), min(tf.z, t_max));
+    return enter <= leave ? enter : 1.0 / 0.0;
+}
+
+// Möller–Trumbore from the eye (origin 0); the ray parameter along the
+// unnormalised direction is the view depth. Edges inclusive, so a ray
+// through a shared edge hits one of its two triangles.
+float hit_triangle(Triangle t, vec3 d) {
+    precise vec3 e1 = t.b - t.a;
+    precise vec3 e2 = t.c - t.a;
+    precise vec3 pv = cross(d, e2);
+    precise float det = dot(e1, pv);
+    if (det == 0.0) return -1.0;
+    float inv = 1.0 / det;
+    precise vec3 s = -t.a;
+    precise float u = dot(s, pv) * inv;
+    if (u < 0.0 || u > 1.0) return -1.0;
+    precise vec3 q = cross(s, e1);
+    precise float v = dot(d, q) * inv;
+    if (v < 0.0 || u + v > 1.0) return -1.0;
+    return dot(e2, q) * inv;
+}
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    if (pixel.x >= frame.width || pixel.y >= frame.height) return;
+    uint i = pixel.y * frame.width + pixel.x;
+    vec2 image_point = vec2(pixel) + 0.5;
+    vec3 d = frame.cam_corner + image_point.x * frame.cam_dx + image_point.y * frame.cam_dy;
+    vec3 inv_dir = 1.0 / d;
+
+    float best_t = frame.far;
+    uint best = NO_HIT;
+    uint stack[STACK_SIZE];
+    uint top = 0u;
+    uint node = 0u;
+    bool traversing = frame.triangle_count > 0u;
+    while (traversing) {
+        BvhNode n = nodes[node];
+        if (n.prim_count > 0u) {
+            for (uint k = 0u; k < n.prim_count; ++k) {
+                uint id = prims[n.first + k];
+                float t = hit_triangle(triangles[id], d);
+                if (t > frame.near && t < best_t) {
+                    best_t = t;
+                    best = id;
+                }
+            }
+        } else {
+            BvhNode l = nodes[n.first];
+            BvhNode r = nodes[n.first + 1u];
+            float tl = box_entry(l.lo, l.hi, inv_dir, best_t);
+            float tr = box_entry(r.lo, r.hi, inv_dir, best_t);
+            bool hit_l = !isinf(tl);
+            bool hit_r = !isinf(tr);
+            if (hit_l && hit_r) {
+                uint near_child = tl <= tr ? n.first : n.first + 1u;
+                uint far_child = tl <= tr ? n.first + 1u : n.first;
+                if (top < STACK_SIZE) stack[top++] = far_child;
+                node = near_child;
+                continue;
+            } else if (hit_l || hit_r) {
+                node = hit_l ? n.first : n.first + 1u;
+                continue;
+            }
+        }
+        if (top == 0u) break;
+        node = stack[--top];
+    }
+
+    if (best == NO_HIT) {
+        g_triangle[i] = NO_HIT;
+        g_flags[i] = 0u;
+        g_position[i] = vec3(0.0);
+        g_normal[i] = vec3(0.0);
+        g_axis_x[i] = vec3(0.0);
+        g_axis_y[i] = vec3(0.0);
+        return;
+    }
+    Triangle tri = triangles[best];
+    vec3 n = normalize(cross(tri.b - tri.a, tri.c - tri.a));
+    if (dot(n, d) > 0.0) n = -n;
+    vec3 p = d * best_t;
+    uint flags = FLAG_HIT;
+    vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
+    if (dot(n, toward) > 0.0) flags |= FLAG_SHADOW_TESTED;
+
+    // µQuad axes: dP/dx = t (dD/dx − (n·dD/dx)/(n·D) D), likewise for y.
+    float n_dot_d = dot(n, d);
+    vec3 ex = best_t * (frame.cam_dx - d * (dot(n, frame.cam_dx) / n_dot_d));
+    vec3 ey = best_t * (frame.cam_dy - d * (dot(n, frame.cam_dy) / n_dot_d));
+    // Grazing clamp (design §5), identical to the CPU twin's.
+    float limit = frame.max_stretch * best_t * length(frame.cam_dx) * length(d);
+    float lx = length(ex);
+    float ly = length(ey);
+    if (isnan(lx) || lx > limit) {
+        ex = isinf(lx) || isnan(lx) ? vec3(0.0) : ex * (limit / lx);
+        flags |= FLAG_AXES_CLAMPED;
+    }
+    if (isnan(ly) || ly > limit) {
+        ey = isinf(ly) || isnan(ly) ? vec3(0.0) : ey * (limit / ly);
+        flags |= FLAG_AXES_CLAMPED;
+    }
+
+    g_triangle[i] = best;
+    g_flags[i] = flags;
+    g_position[i] = p;
+    g_normal[i] = n;
+    g_axis_x[i] = ex;
+    g_axis_y[i] = ey;
+    atomicAdd(counters[C_HITS], 1u);
+    if ((flags & FLAG_SHADOW_TESTED) != 0u) atomicAdd(counters[C_SHADOW_TESTED], 1u);
+    if ((flags & FLAG_AXES_CLAMPED) != 0u) atomicAdd(counters[C_CLAMPED], 1u);
+}

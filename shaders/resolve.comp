@@ -1,0 +1,43 @@
+#version 460
+// Pass 4, `resolve` — GPU twin of `izb::izb::resolve` and
+// `izb::output::shade_pixel`: lit fraction = 1 − popcount(mask)/32 (NaN
+// where the pixel is not shadow-tested), and the shaded image (ambient +
+// Lambert × lit fraction, display gamma 2.2) as packed RGBA8.
+#extension GL_GOOGLE_include_directive : require
+#include "common.glsl"
+
+layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
+
+layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
+layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
+layout(scalar, binding = B_G_NORMAL) readonly buffer NrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_G_FLAGS) readonly buffer GfBuf { uint g_flags[]; };
+layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint masks[]; };
+layout(scalar, binding = B_VISIBILITY) writeonly buffer VisBuf { float visibility[]; };
+layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; };
+
+// output::AMBIENT, output::DIFFUSE and output::SKY_RGB.
+#define AMBIENT 0.18
+#define DIFFUSE 0.85
+const vec3 SKY = vec3(0.55, 0.7, 0.9);
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    if (pixel.x >= frame.width || pixel.y >= frame.height) return;
+    uint i = pixel.y * frame.width + pixel.x;
+    uint flags = g_flags[i];
+    float lit = (flags & FLAG_SHADOW_TESTED) != 0u
+        ? 1.0 - float(bitCount(masks[i])) / 32.0
+        : uintBitsToFloat(0x7FC00000u);   // NaN
+    visibility[i] = lit;
+    vec3 rgb = SKY;
+    if ((flags & FLAG_HIT) != 0u) {
+        vec3 p = g_position[i];
+        vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
+        float lambert = max(dot(g_normal[i], toward), 0.0);
+        float v = isnan(lit) ? 0.0 : lit;
+        rgb = vec3(AMBIENT + (1.0 - AMBIENT) * DIFFUSE * lambert * v);
+    }
+    uvec3 c = uvec3(round(pow(clamp(rgb, 0.0, 1.0), vec3(1.0 / 2.2)) * 255.0));
+    shaded[i] = c.r | (c.g << 8) | (c.b << 16) | (255u << 24);
+}

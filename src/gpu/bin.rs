@@ -1,0 +1,25 @@
+//! GPU pass 2, `bin` (`shaders/bin.comp`): triangles into the light-space
+//! grid by counting sort — atomic count per cell with the light-view vertex
+//! cache and the overflow list, exclusive prefix sum, scatter (seed 000) —
+//! the twin of [`crate::izb::bin::bin`].
+//!
+//! The cell list's size is only known after the prefix sum, inside the
+//! frame. The host allocates a guess; the prefix sum compares the total
+//! with it and raises `C_CAPACITY_EXCEEDED`, the scatter writes nothing past
+//! the end, evaluate skips the incomplete grid, and the host reruns the
+//! frame with the exact size ([`super::frame`]). Within a cell the order of
+//! triangle ids depends on the atomics; masks do not (they are ORs).
+
+use super::{Kernels, Recorder};
+
+/// Records the pass over `triangles` triangles.
+pub fn bin(rec: &Recorder, kernels: &Kernels, triangles: u32) {
+    rec.begin_label("bin");
+    rec.dispatch_linear(&kernels.bin_count, triangles);
+    rec.barrier();
+    rec.dispatch(&kernels.bin_prefix_sum, [1, 1, 1]);
+    rec.barrier();
+    rec.dispatch_linear(&kernels.bin_scatter, triangles);
+    rec.barrier();
+    rec.end_label();
+}

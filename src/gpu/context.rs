@@ -1,0 +1,445 @@
+//! Instance, device and queue on any Vulkan ≥ 1.2 device (a discrete GPU
+//! first, then integrated, virtual, and CPU implementations such as Mesa's
+//! lavapipe), with the validation layer and debug-utils names when asked
+//! for (`IZB_VALIDATION=1`). Everything the device owns lives in one
+//! reference-counted [`DeviceShared`]; buffers and pipelines hold an `Arc`
+//! to it, so nothing can outlive the device and no caller keeps a destroy
+//! list.
+
+use super::GpuError;
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use std::ffi::{c_void, CStr, CString};
+use std::mem::ManuallyDrop;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// The validation layer's name.
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+/// How long one submission may run before it is reported as hung. Generous
+/// for lavapipe on 2 cores at full resolution; a real GPU takes
+/// milliseconds.
+pub const FRAME_TIMEOUT: Duration = Duration::from_secs(600);
+
+/// How to pick and set up the device.
+#[derive(Clone, Debug, Default)]
+pub struct GpuOptions {
+    /// Index into the list of suitable devices (`izb devices` order);
+    /// `None`: the best-ranked one.
+    pub device_index: Option<usize>,
+    /// Enable `VK_LAYER_KHRONOS_validation` and collect its messages; the
+    /// device fails to open if the layer is missing.
+    pub validation: bool,
+}
+
+impl GpuOptions {
+    /// Options from the environment: `IZB_VALIDATION=1` turns validation on.
+    pub fn from_env() -> Self {
+        GpuOptions {
+            device_index: None,
+            validation: std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1"),
+        }
+    }
+}
+
+/// A suitable device as enumerated.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DeviceInfo {
+    pub index: usize,
+    pub name: String,
+    pub kind: String,
+    pub api_version: String,
+    pub max_storage_buffer_range: u32,
+    pub max_compute_work_group_count: [u32; 3],
+}
+
+/// What the device owns, destroyed in order when the last user drops it.
+pub struct DeviceShared {
+    // Kept alive for the function pointers of everything below.
+    _entry: ash::Entry,
+    pub instance: ash::Instance,
+    pub device: ash::Device,
+    pub physical_device: vk::PhysicalDevice,
+    pub queue: vk::Queue,
+    pub queue_family: u32,
+    pub allocator: ManuallyDrop<Mutex<Allocator>>,
+    debug_instance: Option<ash::ext::debug_utils::Instance>,
+    pub debug_device: Option<ash::ext::debug_utils::Device>,
+    messenger: vk::DebugUtilsMessengerEXT,
+    /// Validation messages since the device was created (the callback's
+    /// `user_data` points at this `Mutex`, boxed so its address is stable).
+    messages: Box<Mutex<Vec<String>>>,
+    pub info: DeviceInfo,
+    pub limits: vk::PhysicalDeviceLimits,
+    /// Nanoseconds per timestamp tick; `None` when the queue has no
+    /// timestamps.
+    pub timestamp_period_ns: Option<f64>,
+}
+
+impl DeviceShared {
+    /// Names a Vulkan object for validation messages and GPU debuggers.
+    pub fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
+        if let Some(debug) = &self.debug_device {
+            let name = CString::new(name).unwrap_or_default();
+            let info = vk::DebugUtilsObjectNameInfoEXT::default()
+                .object_handle(handle)
+                .object_name(&name);
+            // Naming is a debugging aid: a failure is not worth an error.
+            unsafe {
+                let _ = debug.set_debug_utils_object_name(&info);
+            }
+        }
+    }
+
+    /// Validation messages collected so far (and clears them).
+    pub fn take_messages(&self) -> Vec<String> {
+        std::mem::take(&mut *self.messages.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+}
+
+impl Drop for DeviceShared {
+    fn drop(&mut self) {
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            ManuallyDrop::drop(&mut self.allocator);
+            self.device.destroy_device(None);
+            if let Some(debug) = &self.debug_instance {
+                debug.destroy_debug_utils_messenger(self.messenger, None);
+            }
+            self.instance.destroy_instance(None);
+        }
+    }
+}
+
+unsafe extern "system" fn debug_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    kind: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user_data: *mut c_void,
+) -> vk::Bool32 {
+    if data.is_null() || user_data.is_null() {
+        return vk::FALSE;
+    }
+    let message = unsafe { (*data).message_as_c_str() }
+        .map(|m| m.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let messages = unsafe { &*(user_data as *const Mutex<Vec<String>>) };
+    messages
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(format!("[{severity:?} {kind:?}] {message}"));
+    vk::FALSE
+}
+
+fn device_kind(t: vk::PhysicalDeviceType) -> (u32, &'static str) {
+    match t {
+        vk::PhysicalDeviceType::DISCRETE_GPU => (0, "discrete GPU"),
+        vk::PhysicalDeviceType::INTEGRATED_GPU => (1, "integrated GPU"),
+        vk::PhysicalDeviceType::VIRTUAL_GPU => (2, "virtual GPU"),
+        vk::PhysicalDeviceType::CPU => (3, "CPU"),
+        _ => (4, "other"),
+    }
+}
+
+/// The Vulkan context: a shared device plus the command pool of its queue.
+pub struct GpuContext {
+    pub shared: Arc<DeviceShared>,
+    command_pool: vk::CommandPool,
+}
+
+impl Drop for GpuContext {
+    fn drop(&mut self) {
+        unsafe {
+            let _ = self.shared.device.device_wait_idle();
+            self.shared
+                .device
+                .destroy_command_pool(self.command_pool, None);
+        }
+    }
+}
+
+/// A suitable physical device: Vulkan ≥ 1.2, a compute queue, the scalar
+/// block layout.
+struct Candidate {
+    physical: vk::PhysicalDevice,
+    queue_family: u32,
+    rank: u32,
+    info: DeviceInfo,
+    limits: vk::PhysicalDeviceLimits,
+    timestamps: bool,
+}
+
+fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
+    let physicals = unsafe { instance.enumerate_physical_devices() }.map_err(GpuError::vk)?;
+    let mut out = Vec::new();
+    for physical in physicals {
+        let props = unsafe { instance.get_physical_device_properties(physical) };
+        if props.api_version < vk::API_VERSION_1_2 {
+            continue;
+        }
+        let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
+        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12);
+        unsafe { instance.get_physical_device_features2(physical, &mut f2) };
+        if f12.scalar_block_layout == vk::FALSE {
+            continue;
+        }
+        let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+        let Some((family, family_props)) = families
+            .iter()
+            .enumerate()
+            .find(|(_, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+        else {
+            continue;
+        };
+        let (rank, kind) = device_kind(props.device_type);
+        let name = props
+            .device_name_as_c_str()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|_| "unnamed device".into());
+        out.push(Candidate {
+            physical,
+            queue_family: family as u32,
+            rank,
+            info: DeviceInfo {
+                index: 0,
+                name,
+                kind: kind.into(),
+                api_version: format!(
+                    "{}.{}.{}",
+                    vk::api_version_major(props.api_version),
+                    vk::api_version_minor(props.api_version),
+                    vk::api_version_patch(props.api_version)
+                ),
+                max_storage_buffer_range: props.limits.max_storage_buffer_range,
+                max_compute_work_group_count: props.limits.max_compute_work_group_count,
+            },
+            limits: props.limits,
+            timestamps: family_props.timestamp_valid_bits > 0
+                && props.limits.timestamp_period > 0.0,
+        });
+    }
+    out.sort_by_key(|c| c.rank);
+    for (i, c) in out.iter_mut().enumerate() {
+        c.info.index = i;
+    }
+    Ok(out)
+}
+
+fn load_entry() -> Result<ash::Entry, GpuError> {
+    unsafe { ash::Entry::load() }.map_err(|e| GpuError::NoVulkan(format!("no Vulkan loader ({e})")))
+}
+
+fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance, GpuError> {
+    let app = vk::ApplicationInfo::default()
+        .application_name(c"izb")
+        .engine_name(c"izb")
+        .api_version(vk::API_VERSION_1_2);
+    let mut layers = Vec::new();
+    let mut extensions = Vec::new();
+    if validation {
+        let available = unsafe { entry.enumerate_instance_layer_properties() }
+            .map_err(GpuError::vk)?
+            .iter()
+            .any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER));
+        if !available {
+            return Err(GpuError::NoVulkan(
+                "IZB_VALIDATION=1 but VK_LAYER_KHRONOS_validation is not installed \
+                 (Debian: apt install vulkan-validationlayers)"
+                    .into(),
+            ));
+        }
+        layers.push(VALIDATION_LAYER.as_ptr());
+        extensions.push(ash::ext::debug_utils::NAME.as_ptr());
+    }
+    let info = vk::InstanceCreateInfo::default()
+        .application_info(&app)
+        .enabled_layer_names(&layers)
+        .enabled_extension_names(&extensions);
+    unsafe { entry.create_instance(&info, None) }.map_err(|e| {
+        GpuError::NoVulkan(format!(
+            "vkCreateInstance failed ({e}): no Vulkan 1.2 driver?"
+        ))
+    })
+}
+
+/// Lists the suitable devices, best first (the order `--device` indexes).
+pub fn list_devices() -> Result<Vec<DeviceInfo>, GpuError> {
+    let entry = load_entry()?;
+    let instance = create_instance(&entry, false)?;
+    let list = candidates(&instance).map(|c| c.into_iter().map(|c| c.info).collect());
+    unsafe { instance.destroy_instance(None) };
+    list
+}
+
+impl GpuContext {
+    /// Opens the chosen (or best) device.
+    pub fn new(options: &GpuOptions) -> Result<Self, GpuError> {
+        let entry = load_entry()?;
+        let instance = create_instance(&entry, options.validation)?;
+        let fail = |instance: &ash::Instance, e: GpuError| {
+            unsafe { instance.destroy_instance(None) };
+            Err(e)
+        };
+        let mut list = match candidates(&instance) {
+            Ok(l) => l,
+            Err(e) => return fail(&instance, e),
+        };
+        if list.is_empty() {
+            return fail(
+                &instance,
+                GpuError::NoVulkan(
+                    "no Vulkan 1.2 device with compute and the scalar block layout".into(),
+                ),
+            );
+        }
+        let index = options.device_index.unwrap_or(0);
+        if index >= list.len() {
+            let n = list.len();
+            return fail(
+                &instance,
+                GpuError::NoVulkan(format!("--device {index}: only {n} device(s) found")),
+            );
+        }
+        let chosen = list.swap_remove(index);
+
+        let messages: Box<Mutex<Vec<String>>> = Box::default();
+        let (debug_instance, messenger) = if options.validation {
+            let debug = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+                .message_severity(
+                    vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                        | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+                )
+                .message_type(
+                    vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                        | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                        | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+                )
+                .pfn_user_callback(Some(debug_callback))
+                .user_data(&*messages as *const Mutex<Vec<String>> as *mut c_void);
+            match unsafe { debug.create_debug_utils_messenger(&info, None) } {
+                Ok(m) => (Some(debug), m),
+                Err(e) => return fail(&instance, GpuError::vk(e)),
+            }
+        } else {
+            (None, vk::DebugUtilsMessengerEXT::null())
+        };
+
+        let priorities = [1.0f32];
+        let queue_info = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(chosen.queue_family)
+            .queue_priorities(&priorities)];
+        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().scalar_block_layout(true);
+        let device_info = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queue_info)
+            .push_next(&mut f12);
+        let device = match unsafe { instance.create_device(chosen.physical, &device_info, None) } {
+            Ok(d) => d,
+            Err(e) => {
+                if let Some(debug) = &debug_instance {
+                    unsafe { debug.destroy_debug_utils_messenger(messenger, None) };
+                }
+                return fail(&instance, GpuError::vk(e));
+            }
+        };
+        let queue = unsafe { device.get_device_queue(chosen.queue_family, 0) };
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device: chosen.physical,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        })
+        .map_err(|e| GpuError::Allocation(e.to_string()));
+        let allocator = match allocator {
+            Ok(a) => a,
+            Err(e) => {
+                unsafe {
+                    device.destroy_device(None);
+                    if let Some(debug) = &debug_instance {
+                        debug.destroy_debug_utils_messenger(messenger, None);
+                    }
+                }
+                return fail(&instance, e);
+            }
+        };
+        let debug_device = options
+            .validation
+            .then(|| ash::ext::debug_utils::Device::new(&instance, &device));
+        let shared = Arc::new(DeviceShared {
+            _entry: entry,
+            instance,
+            device,
+            physical_device: chosen.physical,
+            queue,
+            queue_family: chosen.queue_family,
+            allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            debug_instance,
+            debug_device,
+            messenger,
+            messages,
+            timestamp_period_ns: chosen
+                .timestamps
+                .then_some(chosen.limits.timestamp_period as f64),
+            info: chosen.info,
+            limits: chosen.limits,
+        });
+        let pool_info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(shared.queue_family)
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        let command_pool =
+            unsafe { shared.device.create_command_pool(&pool_info, None) }.map_err(GpuError::vk)?;
+        Ok(GpuContext {
+            shared,
+            command_pool,
+        })
+    }
+
+    /// The device's name and kind.
+    pub fn info(&self) -> &DeviceInfo {
+        &self.shared.info
+    }
+
+    /// Records commands with `record` into a fresh command buffer, submits
+    /// them, and waits (at most [`FRAME_TIMEOUT`]).
+    pub fn submit_and_wait(
+        &self,
+        record: impl FnOnce(vk::CommandBuffer) -> Result<(), GpuError>,
+    ) -> Result<(), GpuError> {
+        let device = &self.shared.device;
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(self.command_pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        let cmd = unsafe { device.allocate_command_buffers(&alloc) }.map_err(GpuError::vk)?[0];
+        let free = || unsafe { device.free_command_buffers(self.command_pool, &[cmd]) };
+        let result = (|| {
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            unsafe { device.begin_command_buffer(cmd, &begin) }.map_err(GpuError::vk)?;
+            record(cmd)?;
+            unsafe { device.end_command_buffer(cmd) }.map_err(GpuError::vk)?;
+            let fence = unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) }
+                .map_err(GpuError::vk)?;
+            let cmds = [cmd];
+            let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+            let waited = unsafe { device.queue_submit(self.shared.queue, &submit, fence) }
+                .and_then(|_| unsafe {
+                    device.wait_for_fences(&[fence], true, FRAME_TIMEOUT.as_nanos() as u64)
+                });
+            unsafe { device.destroy_fence(fence, None) };
+            waited.map_err(|e| match e {
+                vk::Result::TIMEOUT => GpuError::Timeout(FRAME_TIMEOUT),
+                e => GpuError::vk(e),
+            })
+        })();
+        // After a timeout the buffer may still be in flight: leak it rather
+        // than free it under the GPU (the device is unusable anyway).
+        if !matches!(result, Err(GpuError::Timeout(_))) {
+            free();
+        }
+        result
+    }
+}

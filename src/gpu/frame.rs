@@ -1,0 +1,788 @@
+//! One frame on the GPU: buffers described by intent, one command buffer
+//! (uploads → five passes with timestamps → read-backs), the capacity
+//! rerun of the bin pass, and the report (per-pass milliseconds, counters,
+//! memory per pass).
+
+use super::context::{DeviceShared, GpuContext, GpuOptions};
+use super::pipeline::{BindingLayout, DescriptorSet};
+use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
+use super::shared::{self, binding, counter, FrameParams, GpuTriangle, LightState};
+use super::{GpuError, Kernels, Recorder};
+use crate::gbuffer::{flags, GBuffer, GBufferStats, MAX_MICROQUAD_STRETCH};
+use crate::izb::light_setup::directional_rotation;
+use crate::izb::{IzbSettings, SampleMode};
+use crate::scene::{Light, Scene};
+use ash::vk;
+use bytemuck::Pod;
+use glam::Vec3;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Where the frame's G-buffer comes from.
+#[derive(Clone, Copy)]
+pub enum GBufferSource<'a> {
+    /// The GPU `gbuffer` pass casts the primary rays.
+    Gpu,
+    /// A CPU G-buffer is uploaded and the `gbuffer` pass is skipped: the
+    /// later passes then see exactly the CPU twin's inputs (tests).
+    Upload(&'a GBuffer),
+}
+
+/// Per-pass GPU milliseconds from timestamp queries.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GpuPassMillis {
+    pub gbuffer: f64,
+    pub light_setup: f64,
+    pub bin: f64,
+    pub evaluate: f64,
+    pub resolve: f64,
+    pub total: f64,
+}
+
+/// Device memory of one pass's buffers.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PassMemory {
+    pub pass: &'static str,
+    pub bytes: u64,
+    pub buffers: Vec<(&'static str, u64)>,
+}
+
+/// The light view and grid as the GPU fitted them.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GpuLightSummary {
+    pub perspective: bool,
+    pub grid_disabled: bool,
+    pub receivers: u32,
+    pub cells: [u32; 2],
+    pub ndc_min: [f32; 2],
+    pub ndc_max: [f32; 2],
+    pub receiver_z: [f32; 2],
+}
+
+/// Counters read back once after the frame.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GpuCounters {
+    pub hits: u32,
+    pub shadow_tested: u32,
+    pub clamped_microquads: u32,
+    pub triangles_binned: u32,
+    pub overflow: u32,
+    pub culled: u32,
+    pub cell_entries: u32,
+    pub pixels_tested: u32,
+    pub early_outs: u32,
+    pub tests_spawned: u64,
+    pub depth_passed: u64,
+    pub cells_visited: u64,
+}
+
+/// Settings, timings, counters and memory of one GPU frame.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GpuRenderReport {
+    pub device: String,
+    pub device_kind: String,
+    pub settings: IzbSettings,
+    pub gbuffer_source: &'static str,
+    /// `None` when the queue has no timestamps.
+    pub gpu_milliseconds: Option<GpuPassMillis>,
+    /// Host wall time of the frame (submit to fence), seconds.
+    pub wall_seconds: f64,
+    /// Host seconds spent building the G-buffer BVH.
+    pub bvh_build_seconds: f64,
+    pub counters: GpuCounters,
+    pub light: GpuLightSummary,
+    /// Frames run: 2 when the cell list had to grow.
+    pub frames_run: u32,
+    pub memory: Vec<PassMemory>,
+    pub memory_total_bytes: u64,
+    pub memory_bytes_per_pixel_plus_triangle: f64,
+}
+
+/// What a GPU frame returns.
+pub struct GpuRender {
+    /// Occlusion mask per pixel (bit i = sample i in shadow).
+    pub masks: Vec<u32>,
+    /// Lit fraction, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    /// Shaded image, RGB8 per pixel.
+    pub shaded: Vec<[u8; 3]>,
+    /// The G-buffer as the GPU saw it (read back).
+    pub gbuffer: GBuffer,
+    pub report: GpuRenderReport,
+}
+
+/// The device, the shared layout and every pass's pipeline.
+pub struct GpuRenderer {
+    // Field order is drop order: pipelines before the device.
+    pub kernels: Kernels,
+    pub layout: BindingLayout,
+    pub context: GpuContext,
+}
+
+/// The frame's device buffers, in binding order.
+struct FrameBuffers {
+    buffers: Vec<GpuBuffer>,
+}
+
+impl FrameBuffers {
+    fn get(&self, b: u32) -> &GpuBuffer {
+        &self.buffers[b as usize]
+    }
+}
+
+fn as_bytes<T: Pod>(v: &[T]) -> &[u8] {
+    bytemuck::cast_slice(v)
+}
+
+fn mode_code(mode: SampleMode) -> u32 {
+    match mode {
+        SampleMode::One => shared::mode::ONE,
+        SampleMode::Lut32 => shared::mode::LUT32,
+        SampleMode::Exact32 => shared::mode::EXACT32,
+    }
+}
+
+/// lavapipe's gallivm stops every loop of a shader invocation once they
+/// have run this many iterations in total (`LP_MAX_TGSI_LOOP_ITERATIONS`).
+pub const LLVMPIPE_LOOP_CAP: u32 = 65535;
+
+/// `FrameParams::loop_budget` for a device: below llvmpipe's cap with room
+/// for the shader's other loops, unbounded on every other driver.
+fn loop_budget(device_name: &str) -> u32 {
+    if device_name.contains("llvmpipe") {
+        LLVMPIPE_LOOP_CAP - 1024
+    } else {
+        u32::MAX
+    }
+}
+
+/// Longest side of the grid the light setup may choose (its upper bound:
+/// every receiver is a pixel).
+fn longest_grid_side(pixels: usize, triangles: usize, hint: Option<u32>) -> u32 {
+    hint.unwrap_or_else(|| crate::izb::light_setup::default_grid_side(pixels, triangles))
+}
+
+impl GpuRenderer {
+    /// Opens a device and builds every pipeline.
+    pub fn new(options: &GpuOptions) -> Result<Self, GpuError> {
+        let context = GpuContext::new(options)?;
+        let layout = BindingLayout::new(&context.shared)?;
+        let kernels = Kernels::new(&context.shared, &layout)?;
+        Ok(GpuRenderer {
+            kernels,
+            layout,
+            context,
+        })
+    }
+
+    fn shared(&self) -> &Arc<DeviceShared> {
+        &self.context.shared
+    }
+
+    /// Validation messages collected since the last call.
+    pub fn take_validation_messages(&self) -> Vec<String> {
+        self.shared().take_messages()
+    }
+
+    /// Renders `scene`'s shadow mask.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        settings: IzbSettings,
+        source: GBufferSource,
+    ) -> Result<GpuRender, GpuError> {
+        let [w, h] = scene.resolution;
+        let pixels = scene.pixel_count();
+        let limits = &self.shared().limits;
+        let groups = [w.div_ceil(8), h.div_ceil(8)];
+        if groups[0] > limits.max_compute_work_group_count[0]
+            || groups[1] > limits.max_compute_work_group_count[1]
+        {
+            return Err(GpuError::Unsupported(format!(
+                "{w}x{h} needs {}x{} workgroups, above this device's limit of {}x{}",
+                groups[0],
+                groups[1],
+                limits.max_compute_work_group_count[0],
+                limits.max_compute_work_group_count[1]
+            )));
+        }
+        if let GBufferSource::Upload(g) = source {
+            if g.width != w || g.height != h {
+                return Err(GpuError::Unsupported(format!(
+                    "uploaded G-buffer is {}x{}, the scene renders at {w}x{h}",
+                    g.width, g.height
+                )));
+            }
+        }
+        let triangles: Vec<GpuTriangle> = crate::izb::eye_relative_f32(scene)
+            .iter()
+            .map(|t| GpuTriangle {
+                v: t.map(|v| v.to_array()),
+            })
+            .collect();
+        let t_count = u32::try_from(triangles.len())
+            .map_err(|_| GpuError::Unsupported("more than 2^32 triangles".into()))?;
+        let bvh_start = Instant::now();
+        let bvh = match source {
+            GBufferSource::Gpu => super::gbuffer::build_bvh(&triangles)?,
+            GBufferSource::Upload(_) => super::gbuffer::GpuBvh {
+                nodes: Vec::new(),
+                prims: Vec::new(),
+                depth: 0,
+            },
+        };
+        let bvh_build_seconds = bvh_start.elapsed().as_secs_f64();
+
+        let longest = longest_grid_side(pixels, triangles.len(), settings.cells);
+        if longest > 0xFFFF {
+            return Err(GpuError::Unsupported(format!(
+                "--cells {longest}: the GPU grid holds at most 65535 cells per side"
+            )));
+        }
+        let max_cells = u64::from(longest) * u64::from(longest);
+        let mut capacity = (4 * triangles.len() as u64).max(1 << 16);
+        let mut frames_run = 0;
+        loop {
+            frames_run += 1;
+            let out = self.run_frame(
+                scene, settings, source, &triangles, &bvh, max_cells, capacity,
+            )?;
+            let needed = u64::from(out.counters[counter::CELL_ENTRIES]);
+            if out.counters[counter::CAPACITY_EXCEEDED] != 0 && frames_run == 1 {
+                capacity = needed;
+                continue;
+            }
+            let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
+            if trips != 0 {
+                return Err(GpuError::Unsupported(format!(
+                    "{} ends a shader's loops after {LLVMPIPE_LOOP_CAP} iterations, and a pixel \
+                     of this frame needs more than {trips} candidate tests: refine the grid \
+                     (--cells) or use --backend cpu",
+                    self.context.info().name
+                )));
+            }
+            if out.counters[counter::CAPACITY_EXCEEDED] != 0 {
+                return Err(GpuError::Unsupported(format!(
+                    "the cell list still overflowed after growing to {capacity} entries"
+                )));
+            }
+            return Ok(self.finish(
+                scene,
+                settings,
+                source,
+                out,
+                frames_run,
+                bvh_build_seconds,
+                t_count,
+            ));
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn run_frame(
+        &self,
+        scene: &Scene,
+        settings: IzbSettings,
+        source: GBufferSource,
+        triangles: &[GpuTriangle],
+        bvh: &super::gbuffer::GpuBvh,
+        max_cells: u64,
+        cell_capacity: u64,
+    ) -> Result<FrameOutput, GpuError> {
+        let shared = self.shared();
+        let [w, h] = scene.resolution;
+        let pixels = scene.pixel_count() as u64;
+        let t = triangles.len() as u64;
+        let v3 = 12u64;
+        let lut = crate::lut::edge_lut();
+        // Binding order (shared::binding), each with its pass and size.
+        let descs = [
+            BufferDesc::device("frame", "frame_params", size_of::<FrameParams>() as u64),
+            BufferDesc::device("scene", "triangles", t * 36),
+            BufferDesc::device("gbuffer", "bvh_nodes", bvh.nodes.len() as u64 * 32),
+            BufferDesc::device("gbuffer", "bvh_prims", bvh.prims.len() as u64 * 4),
+            BufferDesc::device("gbuffer", "g_position", pixels * v3),
+            BufferDesc::device("gbuffer", "g_normal", pixels * v3),
+            BufferDesc::device("gbuffer", "g_axis_x", pixels * v3),
+            BufferDesc::device("gbuffer", "g_axis_y", pixels * v3),
+            BufferDesc::device("gbuffer", "g_triangle", pixels * 4),
+            BufferDesc::device("gbuffer", "g_flags", pixels * 4),
+            BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
+            BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
+            BufferDesc::device("bin", "vertex_cache", t * 36),
+            BufferDesc::device("bin", "placement", t * 8),
+            BufferDesc::device("bin", "cell_cursor", max_cells * 4),
+            BufferDesc::device("bin", "cell_start", (max_cells + 1) * 4),
+            BufferDesc::device("bin", "cell_triangles", cell_capacity * 4),
+            BufferDesc::device("bin", "overflow", t * 4),
+            BufferDesc::device("evaluate", "edge_lut", lut.masks.len() as u64 * 4),
+            BufferDesc::device("evaluate", "masks", pixels * 4),
+            BufferDesc::device("resolve", "visibility", pixels * 4),
+            BufferDesc::device("resolve", "shaded", pixels * 4),
+        ];
+        debug_assert_eq!(descs.len(), binding::COUNT as usize);
+        let frame_buffers = FrameBuffers {
+            buffers: descs
+                .into_iter()
+                .map(|d| GpuBuffer::new(shared, d))
+                .collect::<Result<_, _>>()?,
+        };
+        let fb = &frame_buffers;
+        let refs: [&GpuBuffer; binding::COUNT as usize] = std::array::from_fn(|b| fb.get(b as u32));
+        let set = DescriptorSet::new(shared, &self.layout, &refs)?;
+
+        // Uploads through staging buffers, kept alive until the fence.
+        let params = frame_params(
+            scene,
+            settings,
+            triangles.len(),
+            max_cells,
+            cell_capacity,
+            loop_budget(&shared.info.name),
+        );
+        let mut uploads: Vec<(GpuBuffer, u32)> = Vec::new();
+        let mut stage = |b: u32, bytes: &[u8]| -> Result<(), GpuError> {
+            if bytes.is_empty() {
+                return Ok(());
+            }
+            let mut staging = GpuBuffer::new(
+                shared,
+                BufferDesc {
+                    name: "staging",
+                    pass: "upload",
+                    size: bytes.len() as u64,
+                    domain: BufferDomain::Upload,
+                },
+            )?;
+            staging.mapped_mut()?[..bytes.len()].copy_from_slice(bytes);
+            uploads.push((staging, b));
+            Ok(())
+        };
+        stage(binding::FRAME, bytemuck::bytes_of(&params))?;
+        stage(binding::TRIANGLES, as_bytes(triangles))?;
+        stage(binding::BVH_NODES, as_bytes(&bvh.nodes))?;
+        stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
+        stage(binding::LIGHT, bytemuck::bytes_of(&LightState::reset()))?;
+        stage(binding::EDGE_LUT, as_bytes(&lut.masks))?;
+        if let GBufferSource::Upload(g) = source {
+            stage(binding::G_POSITION, as_bytes(&g.position))?;
+            stage(binding::G_NORMAL, as_bytes(&g.normal))?;
+            stage(binding::G_AXIS_X, as_bytes(&g.axis_x))?;
+            stage(binding::G_AXIS_Y, as_bytes(&g.axis_y))?;
+            stage(binding::G_TRIANGLE, as_bytes(&g.triangle_id))?;
+            stage(binding::G_FLAGS, as_bytes(&g.flags))?;
+        }
+
+        let readback_of = [
+            binding::COUNTERS,
+            binding::LIGHT,
+            binding::MASKS,
+            binding::VISIBILITY,
+            binding::SHADED,
+            binding::G_POSITION,
+            binding::G_NORMAL,
+            binding::G_AXIS_X,
+            binding::G_AXIS_Y,
+            binding::G_TRIANGLE,
+            binding::G_FLAGS,
+        ];
+        let readbacks: Vec<(GpuBuffer, u32)> = readback_of
+            .iter()
+            .map(|&b| {
+                GpuBuffer::new(
+                    shared,
+                    BufferDesc {
+                        name: "readback",
+                        pass: "readback",
+                        size: fb.get(b).size(),
+                        domain: BufferDomain::Readback,
+                    },
+                )
+                .map(|r| (r, b))
+            })
+            .collect::<Result<_, _>>()?;
+
+        let timestamps = TimestampPool::new(shared, 6)?;
+        let device = &shared.device;
+        let start = Instant::now();
+        self.context.submit_and_wait(|cmd| {
+            let rec = Recorder {
+                shared,
+                cmd,
+                layout: &self.layout,
+                set: set.set,
+            };
+            unsafe {
+                for (staging, b) in &uploads {
+                    let region = [vk::BufferCopy::default().size(staging.size())];
+                    device.cmd_copy_buffer(cmd, staging.buffer, fb.get(*b).buffer, &region);
+                }
+                device.cmd_fill_buffer(cmd, fb.get(binding::COUNTERS).buffer, 0, vk::WHOLE_SIZE, 0);
+                device.cmd_fill_buffer(
+                    cmd,
+                    fb.get(binding::CELL_CURSOR).buffer,
+                    0,
+                    vk::WHOLE_SIZE,
+                    0,
+                );
+            }
+            rec.barrier();
+            timestamps.reset(cmd);
+            timestamps.write(cmd, 0);
+            if let GBufferSource::Gpu = source {
+                super::gbuffer::gbuffer(&rec, &self.kernels, [w, h]);
+            }
+            timestamps.write(cmd, 1);
+            super::light_setup::light_setup(&rec, &self.kernels, [w, h]);
+            timestamps.write(cmd, 2);
+            super::bin::bin(&rec, &self.kernels, triangles.len() as u32);
+            timestamps.write(cmd, 3);
+            super::evaluate::evaluate(&rec, &self.kernels, [w, h]);
+            timestamps.write(cmd, 4);
+            super::resolve::resolve(&rec, &self.kernels, [w, h]);
+            timestamps.write(cmd, 5);
+            for (rb, b) in &readbacks {
+                let region = [vk::BufferCopy::default().size(rb.size())];
+                unsafe { device.cmd_copy_buffer(cmd, fb.get(*b).buffer, rb.buffer, &region) };
+            }
+            let to_host = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ)];
+            unsafe {
+                device.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::HOST,
+                    vk::DependencyFlags::empty(),
+                    &to_host,
+                    &[],
+                    &[],
+                );
+            }
+            Ok(())
+        })?;
+        let wall_seconds = start.elapsed().as_secs_f64();
+        let millis = timestamps.millis()?;
+
+        let read = |b: u32| -> Result<&[u8], GpuError> {
+            let (rb, _) = readbacks
+                .iter()
+                .find(|(_, x)| *x == b)
+                .expect("every read binding has a read-back buffer");
+            rb.mapped()
+        };
+        let words = |b: u32| -> Result<Vec<u32>, GpuError> {
+            Ok(bytemuck::pod_collect_to_vec(
+                &read(b)?[..pixels as usize * 4],
+            ))
+        };
+        let vec3s = |b: u32| -> Result<Vec<Vec3>, GpuError> {
+            let f: Vec<f32> = bytemuck::pod_collect_to_vec(&read(b)?[..pixels as usize * 12]);
+            Ok(f.chunks_exact(3).map(Vec3::from_slice).collect())
+        };
+        let counters: Vec<u32> =
+            bytemuck::pod_collect_to_vec(&read(binding::COUNTERS)?[..counter::WORDS * 4]);
+        let light: LightState =
+            bytemuck::pod_read_unaligned(&read(binding::LIGHT)?[..size_of::<LightState>()]);
+        let memory = memory_by_pass(&frame_buffers.buffers);
+        Ok(FrameOutput {
+            counters,
+            light,
+            masks: words(binding::MASKS)?,
+            visibility: bytemuck::pod_collect_to_vec(
+                &read(binding::VISIBILITY)?[..pixels as usize * 4],
+            ),
+            shaded: words(binding::SHADED)?,
+            position: vec3s(binding::G_POSITION)?,
+            normal: vec3s(binding::G_NORMAL)?,
+            axis_x: vec3s(binding::G_AXIS_X)?,
+            axis_y: vec3s(binding::G_AXIS_Y)?,
+            triangle_id: words(binding::G_TRIANGLE)?,
+            flags: words(binding::G_FLAGS)?,
+            millis,
+            wall_seconds,
+            memory,
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn finish(
+        &self,
+        scene: &Scene,
+        settings: IzbSettings,
+        source: GBufferSource,
+        out: FrameOutput,
+        frames_run: u32,
+        bvh_build_seconds: f64,
+        triangles: u32,
+    ) -> GpuRender {
+        let c = &out.counters;
+        let wide = |i: usize| u64::from(c[i]) | (u64::from(c[i + 1]) << 32);
+        let counters = GpuCounters {
+            hits: c[counter::HITS],
+            shadow_tested: c[counter::SHADOW_TESTED],
+            clamped_microquads: c[counter::CLAMPED],
+            triangles_binned: c[counter::BINNED],
+            overflow: c[counter::OVERFLOW],
+            culled: c[counter::CULLED],
+            cell_entries: c[counter::CELL_ENTRIES],
+            pixels_tested: c[counter::PIXELS_TESTED],
+            early_outs: c[counter::EARLY_OUTS],
+            tests_spawned: wide(counter::TESTS_SPAWNED),
+            depth_passed: wide(counter::DEPTH_PASSED),
+            cells_visited: wide(counter::CELLS_VISITED),
+        };
+        let [w, h] = scene.resolution;
+        let frame = scene.camera.frame(scene.resolution);
+        let forward = frame.forward.as_vec3();
+        let gbuffer = match source {
+            GBufferSource::Upload(g) => g.clone(),
+            GBufferSource::Gpu => {
+                let depth = out
+                    .position
+                    .iter()
+                    .zip(&out.flags)
+                    .map(|(p, &f)| {
+                        if f & flags::HIT != 0 {
+                            p.dot(forward)
+                        } else {
+                            f32::INFINITY
+                        }
+                    })
+                    .collect();
+                GBuffer {
+                    width: w,
+                    height: h,
+                    triangle_id: out.triangle_id,
+                    depth,
+                    position: out.position,
+                    normal: out.normal,
+                    axis_x: out.axis_x,
+                    axis_y: out.axis_y,
+                    flags: out.flags,
+                    stats: GBufferStats {
+                        pixels: scene.pixel_count(),
+                        hits: counters.hits as usize,
+                        shadow_tested: counters.shadow_tested as usize,
+                        clamped_microquads: counters.clamped_microquads as usize,
+                    },
+                }
+            }
+        };
+        let memory_total_bytes: u64 = out.memory.iter().map(|m| m.bytes).sum();
+        let l = &out.light;
+        let report = GpuRenderReport {
+            device: self.context.info().name.clone(),
+            device_kind: self.context.info().kind.clone(),
+            settings,
+            gbuffer_source: match source {
+                GBufferSource::Gpu => "gpu",
+                GBufferSource::Upload(_) => "uploaded",
+            },
+            gpu_milliseconds: out.millis,
+            wall_seconds: out.wall_seconds,
+            bvh_build_seconds,
+            counters,
+            light: GpuLightSummary {
+                perspective: l.projection == 1,
+                grid_disabled: l.grid_disabled != 0,
+                receivers: l.receivers,
+                cells: [l.cells_x, l.cells_y],
+                ndc_min: l.ndc_min,
+                ndc_max: l.ndc_max,
+                receiver_z: l.receiver_z,
+            },
+            frames_run,
+            memory: out.memory,
+            memory_total_bytes,
+            memory_bytes_per_pixel_plus_triangle: memory_total_bytes as f64
+                / (scene.pixel_count() as f64 + f64::from(triangles)).max(1.0),
+        };
+        let shaded = out
+            .shaded
+            .iter()
+            .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
+            .collect();
+        GpuRender {
+            masks: out.masks,
+            visibility: out.visibility,
+            shaded,
+            gbuffer,
+            report,
+        }
+    }
+}
+
+/// What one frame read back.
+struct FrameOutput {
+    counters: Vec<u32>,
+    light: LightState,
+    masks: Vec<u32>,
+    visibility: Vec<f32>,
+    shaded: Vec<u32>,
+    position: Vec<Vec3>,
+    normal: Vec<Vec3>,
+    axis_x: Vec<Vec3>,
+    axis_y: Vec<Vec3>,
+    triangle_id: Vec<u32>,
+    flags: Vec<u32>,
+    millis: Option<GpuPassMillis>,
+    wall_seconds: f64,
+    memory: Vec<PassMemory>,
+}
+
+fn memory_by_pass(buffers: &[GpuBuffer]) -> Vec<PassMemory> {
+    let mut out: Vec<PassMemory> = Vec::new();
+    for b in buffers {
+        match out.iter_mut().find(|m| m.pass == b.desc.pass) {
+            Some(m) => {
+                m.bytes += b.size();
+                m.buffers.push((b.desc.name, b.size()));
+            }
+            None => out.push(PassMemory {
+                pass: b.desc.pass,
+                bytes: b.size(),
+                buffers: vec![(b.desc.name, b.size())],
+            }),
+        }
+    }
+    out
+}
+
+/// `FrameParams` for `scene`: camera rays as affine functions of the pixel
+/// coordinates, the light, the directional light-view rotation (the CPU
+/// twin's matrix, f64 then f32), the mode, the LUT and the pattern.
+fn frame_params(
+    scene: &Scene,
+    settings: IzbSettings,
+    triangles: usize,
+    max_cells: u64,
+    cell_capacity: u64,
+    loop_budget: u32,
+) -> FrameParams {
+    let frame = scene.camera.frame(scene.resolution);
+    let corner = frame.direction(0.0, 0.0);
+    let light = scene.light.relative_to(scene.camera.eye);
+    let (light_vec, is_point, rotation) = match light {
+        Light::Directional { direction } => {
+            ((-direction).as_vec3(), 0, directional_rotation(direction))
+        }
+        Light::Point { position } => (position.as_vec3(), 1, glam::Mat3::IDENTITY),
+    };
+    let lut = crate::lut::edge_lut();
+    let rows = rotation.transpose();
+    FrameParams {
+        cam_corner: corner.as_vec3().to_array(),
+        near: scene.camera.near as f32,
+        cam_dx: frame.direction_dx().as_vec3().to_array(),
+        far: scene.camera.far as f32,
+        cam_dy: frame.direction_dy().as_vec3().to_array(),
+        max_stretch: MAX_MICROQUAD_STRETCH as f32,
+        light_vec: light_vec.to_array(),
+        light_is_point: is_point,
+        rot_x: rows.x_axis.to_array(),
+        width: scene.resolution[0],
+        rot_y: rows.y_axis.to_array(),
+        height: scene.resolution[1],
+        rot_z: rows.z_axis.to_array(),
+        triangle_count: triangles as u32,
+        mode: mode_code(settings.mode),
+        cells_hint: settings.cells.unwrap_or(0),
+        max_span: settings.max_span,
+        cell_capacity: cell_capacity.min(u64::from(u32::MAX)) as u32,
+        lut_angle_scale: lut.angle_scale_f32(),
+        lut_distance_scale: lut.distance_scale_f32(),
+        lut_angles: lut.angles,
+        lut_distances: lut.distances,
+        max_cells: max_cells as u32,
+        loop_budget,
+        pad: [0; 2],
+        pattern: *crate::lut::sample_pattern(),
+    }
+}
+
+/// A timestamp query pool (absent when the queue has no timestamps).
+struct TimestampPool {
+    shared: Arc<DeviceShared>,
+    pool: Option<vk::QueryPool>,
+    count: u32,
+}
+
+impl TimestampPool {
+    fn new(shared: &Arc<DeviceShared>, count: u32) -> Result<Self, GpuError> {
+        let pool = match shared.timestamp_period_ns {
+            None => None,
+            Some(_) => {
+                let info = vk::QueryPoolCreateInfo::default()
+                    .query_type(vk::QueryType::TIMESTAMP)
+                    .query_count(count);
+                Some(
+                    unsafe { shared.device.create_query_pool(&info, None) }
+                        .map_err(GpuError::vk)?,
+                )
+            }
+        };
+        Ok(TimestampPool {
+            shared: shared.clone(),
+            pool,
+            count,
+        })
+    }
+
+    fn reset(&self, cmd: vk::CommandBuffer) {
+        if let Some(pool) = self.pool {
+            unsafe {
+                self.shared
+                    .device
+                    .cmd_reset_query_pool(cmd, pool, 0, self.count)
+            };
+        }
+    }
+
+    fn write(&self, cmd: vk::CommandBuffer, index: u32) {
+        if let Some(pool) = self.pool {
+            unsafe {
+                self.shared.device.cmd_write_timestamp(
+                    cmd,
+                    vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                    pool,
+                    index,
+                )
+            };
+        }
+    }
+
+    /// Milliseconds between consecutive timestamps, per pass.
+    fn millis(&self) -> Result<Option<GpuPassMillis>, GpuError> {
+        let (Some(pool), Some(period)) = (self.pool, self.shared.timestamp_period_ns) else {
+            return Ok(None);
+        };
+        let mut ticks = vec![0u64; self.count as usize];
+        unsafe {
+            self.shared.device.get_query_pool_results(
+                pool,
+                0,
+                &mut ticks,
+                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+            )
+        }
+        .map_err(GpuError::vk)?;
+        let ms = |a: usize, b: usize| ticks[b].wrapping_sub(ticks[a]) as f64 * period * 1e-6;
+        Ok(Some(GpuPassMillis {
+            gbuffer: ms(0, 1),
+            light_setup: ms(1, 2),
+            bin: ms(2, 3),
+            evaluate: ms(3, 4),
+            resolve: ms(4, 5),
+            total: ms(0, 5),
+        }))
+    }
+}
+
+impl Drop for TimestampPool {
+    fn drop(&mut self) {
+        if let Some(pool) = self.pool {
+            unsafe { self.shared.device.destroy_query_pool(pool, None) };
+        }
+    }
+}

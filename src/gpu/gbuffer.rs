@@ -1,0 +1,90 @@
+//! GPU pass 0, `gbuffer` (`shaders/gbuffer.comp`): primary visibility —
+//! triangle id, hit point, camera-facing normal, shadow-tested flag and
+//! µQuad axes — the twin of [`crate::gbuffer::gbuffer`].
+//!
+//! Why a compute visibility pass rather than a raster pipeline: the CPU
+//! twin casts the pixel-centre ray and differentiates the ray/tangent-plane
+//! intersection (design §3); casting the same ray on the GPU reproduces
+//! that exactly, with no rasterisation fill rules, no depth-buffer
+//! quantisation and no graphics pipeline to maintain. The price is a BVH,
+//! built here on the host by `obvhs` (a static scene builds it once per
+//! run) and traversed in `f32`.
+
+use super::shared::{BvhNode, GpuTriangle};
+use super::{GpuError, Kernels, Recorder};
+use obvhs::aabb::Aabb;
+use obvhs::BvhBuildParams;
+use std::time::Duration;
+
+/// Deepest BVH the shader's traversal stack holds (`STACK_SIZE`).
+pub const MAX_BVH_DEPTH: usize = 64;
+
+/// The flattened BVH2 the shader traverses.
+pub struct GpuBvh {
+    pub nodes: Vec<BvhNode>,
+    /// Triangle id per leaf slot.
+    pub prims: Vec<u32>,
+    pub depth: usize,
+}
+
+/// Builds the BVH over eye-relative `f32` triangles.
+pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
+    if triangles.is_empty() {
+        return Ok(GpuBvh {
+            nodes: Vec::new(),
+            prims: Vec::new(),
+            depth: 0,
+        });
+    }
+    let boxes: Vec<Aabb> = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.v.map(glam::Vec3A::from);
+            Aabb::new(a.min(b).min(c), a.max(b).max(c))
+        })
+        .collect();
+    let bvh = obvhs::bvh2::builder::build_bvh2(
+        &boxes,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    let nodes: Vec<BvhNode> = bvh
+        .nodes
+        .iter()
+        .map(|n| BvhNode {
+            lo: n.aabb.min.to_array(),
+            prim_count: n.prim_count,
+            hi: n.aabb.max.to_array(),
+            first: n.first_index,
+        })
+        .collect();
+    // Depth by an explicit walk from the root (node 0).
+    let mut depth = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((i, d)) = stack.pop() {
+        depth = depth.max(d);
+        let n = &nodes[i];
+        if n.prim_count == 0 {
+            stack.push((n.first as usize, d + 1));
+            stack.push((n.first as usize + 1, d + 1));
+        }
+    }
+    if depth > MAX_BVH_DEPTH {
+        return Err(GpuError::Unsupported(format!(
+            "the G-buffer BVH is {depth} levels deep, above the shader's stack of {MAX_BVH_DEPTH}"
+        )));
+    }
+    Ok(GpuBvh {
+        nodes,
+        prims: bvh.primitive_indices,
+        depth,
+    })
+}
+
+/// Records the pass: one thread per pixel.
+pub fn gbuffer(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+    rec.begin_label("gbuffer");
+    rec.dispatch_pixels(&kernels.gbuffer, size);
+    rec.barrier();
+    rec.end_label();
+}

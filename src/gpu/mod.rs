@@ -1,0 +1,202 @@
+//! The Vulkan backend (ash): every pass of the CPU pipeline as a compute
+//! shader, checked sample by sample against its CPU twin.
+//!
+//! | pass | GPU module | shader | CPU twin |
+//! |---|---|---|---|
+//! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
+//! | 1 | [`light_setup`] | `light_setup.comp` | [`crate::izb::light_setup`] |
+//! | 2 | [`bin`] | `bin.comp` | [`crate::izb::bin::bin`] |
+//! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::izb::evaluate::evaluate`] |
+//! | 4 | [`resolve`] | `resolve.comp` | [`crate::izb::resolve`], [`crate::output::shade_pixel`] |
+//!
+//! A frame is one command buffer: uploads, the five passes with timestamps
+//! between them, and the read-backs; nothing is read back inside it (the
+//! light view and grid are fitted on the GPU). [`frame::GpuRenderer`] runs
+//! it; [`context`] opens the device, [`resources`] and [`pipeline`] own the
+//! Vulkan objects, [`shared`] mirrors `shaders/common.glsl`.
+
+pub mod bin;
+pub mod context;
+pub mod evaluate;
+pub mod frame;
+pub mod gbuffer;
+pub mod light_setup;
+pub mod pipeline;
+pub mod resolve;
+pub mod resources;
+pub mod shared;
+
+pub use context::{list_devices, DeviceInfo, GpuContext, GpuOptions};
+pub use frame::{GBufferSource, GpuRender, GpuRenderReport, GpuRenderer};
+
+use ash::vk;
+use pipeline::{BindingLayout, ComputeKernel};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Everything that can go wrong on the GPU path, each naming the problem.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No loader, no driver, no suitable device, or a missing layer.
+    #[error("no usable Vulkan device: {0}")]
+    NoVulkan(String),
+    #[error("Vulkan call failed: {0}")]
+    Vulkan(vk::Result),
+    #[error("the GPU device was lost (driver reset or crash); no result was produced")]
+    DeviceLost,
+    #[error("the GPU did not finish the frame within {0:?}")]
+    Timeout(Duration),
+    #[error("GPU memory allocation failed: {0}")]
+    Allocation(String),
+    #[error(
+        "buffer `{name}` needs {size} bytes, above this device's storage-buffer limit of {limit} \
+         bytes: lower the resolution or the scene size"
+    )]
+    BufferTooLarge {
+        name: &'static str,
+        size: u64,
+        limit: u64,
+    },
+    #[error("buffer `{0}` is not host-visible")]
+    NotMapped(&'static str),
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+impl GpuError {
+    /// Maps a Vulkan result, singling out a lost device.
+    pub fn vk(e: vk::Result) -> Self {
+        match e {
+            vk::Result::ERROR_DEVICE_LOST => GpuError::DeviceLost,
+            e => GpuError::Vulkan(e),
+        }
+    }
+}
+
+macro_rules! spirv {
+    ($name:literal) => {
+        include_bytes!(concat!(env!("OUT_DIR"), "/", $name, ".spv"))
+    };
+}
+
+/// The compiled pipelines of every pass.
+pub struct Kernels {
+    pub gbuffer: ComputeKernel,
+    pub light_setup_receivers: ComputeKernel,
+    pub light_setup_frame: ComputeKernel,
+    pub light_setup_extent: ComputeKernel,
+    pub light_setup_grid: ComputeKernel,
+    pub bin_count: ComputeKernel,
+    pub bin_prefix_sum: ComputeKernel,
+    pub bin_scatter: ComputeKernel,
+    pub evaluate: ComputeKernel,
+    pub resolve: ComputeKernel,
+}
+
+impl Kernels {
+    pub fn new(
+        shared: &Arc<context::DeviceShared>,
+        layout: &BindingLayout,
+    ) -> Result<Self, GpuError> {
+        let k = |name, spirv| ComputeKernel::new(shared, layout, name, spirv);
+        Ok(Kernels {
+            gbuffer: k("gbuffer", spirv!("gbuffer"))?,
+            light_setup_receivers: k("light_setup_receivers", spirv!("light_setup_receivers"))?,
+            light_setup_frame: k("light_setup_frame", spirv!("light_setup_frame"))?,
+            light_setup_extent: k("light_setup_extent", spirv!("light_setup_extent"))?,
+            light_setup_grid: k("light_setup_grid", spirv!("light_setup_grid"))?,
+            bin_count: k("bin_count", spirv!("bin_count"))?,
+            bin_prefix_sum: k("bin_prefix_sum", spirv!("bin_prefix_sum"))?,
+            bin_scatter: k("bin_scatter", spirv!("bin_scatter"))?,
+            evaluate: k("evaluate", spirv!("evaluate"))?,
+            resolve: k("resolve", spirv!("resolve"))?,
+        })
+    }
+}
+
+/// Records a frame's dispatches: binds the shared descriptor set, labels
+/// passes for debuggers, and puts a barrier between dependent dispatches.
+pub struct Recorder<'a> {
+    pub shared: &'a context::DeviceShared,
+    pub cmd: vk::CommandBuffer,
+    pub layout: &'a BindingLayout,
+    pub set: vk::DescriptorSet,
+}
+
+impl Recorder<'_> {
+    fn device(&self) -> &ash::Device {
+        &self.shared.device
+    }
+
+    /// Dispatches `kernel` over `groups` workgroups.
+    pub fn dispatch(&self, kernel: &ComputeKernel, groups: [u32; 3]) {
+        let d = self.device();
+        unsafe {
+            d.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
+            d.cmd_bind_descriptor_sets(
+                self.cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                self.layout.pipeline_layout,
+                0,
+                &[self.set],
+                &[],
+            );
+            d.cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]);
+        }
+    }
+
+    /// One thread per pixel in 8×8 tiles.
+    pub fn dispatch_pixels(&self, kernel: &ComputeKernel, size: [u32; 2]) {
+        let [wx, wy] = shared::WORKGROUP_PIXELS;
+        self.dispatch(kernel, [size[0].div_ceil(wx), size[1].div_ceil(wy), 1]);
+    }
+
+    /// One thread per item, 256 per workgroup (at least one workgroup).
+    pub fn dispatch_linear(&self, kernel: &ComputeKernel, items: u32) {
+        self.dispatch(
+            kernel,
+            [items.div_ceil(shared::WORKGROUP_LINEAR).max(1), 1, 1],
+        );
+    }
+
+    /// Makes every earlier shader or transfer write visible to every later
+    /// shader or transfer access.
+    pub fn barrier(&self) {
+        let barrier = [vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(
+                vk::AccessFlags::SHADER_READ
+                    | vk::AccessFlags::SHADER_WRITE
+                    | vk::AccessFlags::TRANSFER_READ
+                    | vk::AccessFlags::TRANSFER_WRITE,
+            )];
+        let stages = vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER;
+        unsafe {
+            self.device().cmd_pipeline_barrier(
+                self.cmd,
+                stages,
+                stages,
+                vk::DependencyFlags::empty(),
+                &barrier,
+                &[],
+                &[],
+            );
+        }
+    }
+
+    /// Opens a debug label (no-op without debug utils).
+    pub fn begin_label(&self, name: &str) {
+        if let Some(debug) = &self.shared.debug_device {
+            let name = std::ffi::CString::new(name).unwrap_or_default();
+            let label = vk::DebugUtilsLabelEXT::default().label_name(&name);
+            unsafe { debug.cmd_begin_debug_utils_label(self.cmd, &label) };
+        }
+    }
+
+    /// Closes the label opened by [`Self::begin_label`].
+    pub fn end_label(&self) {
+        if let Some(debug) = &self.shared.debug_device {
+            unsafe { debug.cmd_end_debug_utils_label(self.cmd) };
+        }
+    }
+}

@@ -1,0 +1,178 @@
+//! Compute pipelines. Every pass binds the same descriptor set — one
+//! storage buffer per binding of `shaders/common.glsl` — so one
+//! [`BindingLayout`] serves all [`ComputeKernel`]s, and a frame writes its
+//! buffers into one [`DescriptorSet`]. All three free their Vulkan objects
+//! on drop.
+
+use super::context::DeviceShared;
+use super::resources::GpuBuffer;
+use super::shared::binding;
+use super::GpuError;
+use ash::vk;
+use std::sync::Arc;
+
+/// The descriptor set layout and pipeline layout shared by every pass.
+pub struct BindingLayout {
+    shared: Arc<DeviceShared>,
+    pub set_layout: vk::DescriptorSetLayout,
+    pub pipeline_layout: vk::PipelineLayout,
+}
+
+impl BindingLayout {
+    pub fn new(shared: &Arc<DeviceShared>) -> Result<Self, GpuError> {
+        let bindings: Vec<vk::DescriptorSetLayoutBinding> = (0..binding::COUNT)
+            .map(|b| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            })
+            .collect();
+        let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
+        let device = &shared.device;
+        let set_layout =
+            unsafe { device.create_descriptor_set_layout(&info, None) }.map_err(GpuError::vk)?;
+        let layouts = [set_layout];
+        let info = vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts);
+        let pipeline_layout = match unsafe { device.create_pipeline_layout(&info, None) } {
+            Ok(l) => l,
+            Err(e) => {
+                unsafe { device.destroy_descriptor_set_layout(set_layout, None) };
+                return Err(GpuError::vk(e));
+            }
+        };
+        Ok(BindingLayout {
+            shared: shared.clone(),
+            set_layout,
+            pipeline_layout,
+        })
+    }
+}
+
+impl Drop for BindingLayout {
+    fn drop(&mut self) {
+        unsafe {
+            let d = &self.shared.device;
+            d.destroy_pipeline_layout(self.pipeline_layout, None);
+            d.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
+
+/// One compute shader as a pipeline.
+pub struct ComputeKernel {
+    shared: Arc<DeviceShared>,
+    pub name: &'static str,
+    pub pipeline: vk::Pipeline,
+}
+
+impl ComputeKernel {
+    /// Builds the pipeline from SPIR-V bytes (as `build.rs` wrote them).
+    pub fn new(
+        shared: &Arc<DeviceShared>,
+        layout: &BindingLayout,
+        name: &'static str,
+        spirv: &[u8],
+    ) -> Result<Self, GpuError> {
+        let words: Vec<u32> = spirv
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        let device = &shared.device;
+        let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
+        let module =
+            unsafe { device.create_shader_module(&module_info, None) }.map_err(GpuError::vk)?;
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main");
+        let info = [vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(layout.pipeline_layout)];
+        let pipeline =
+            unsafe { device.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        unsafe { device.destroy_shader_module(module, None) };
+        let pipeline = pipeline.map_err(|(_, e)| GpuError::vk(e))?[0];
+        shared.set_name(pipeline, name);
+        Ok(ComputeKernel {
+            shared: shared.clone(),
+            name,
+            pipeline,
+        })
+    }
+}
+
+impl Drop for ComputeKernel {
+    fn drop(&mut self) {
+        unsafe { self.shared.device.destroy_pipeline(self.pipeline, None) };
+    }
+}
+
+/// A descriptor pool holding the one set a frame binds.
+pub struct DescriptorSet {
+    shared: Arc<DeviceShared>,
+    pool: vk::DescriptorPool,
+    pub set: vk::DescriptorSet,
+}
+
+impl DescriptorSet {
+    /// Allocates the set and points binding `b` at `buffers[b]`.
+    pub fn new(
+        shared: &Arc<DeviceShared>,
+        layout: &BindingLayout,
+        buffers: &[&GpuBuffer; binding::COUNT as usize],
+    ) -> Result<Self, GpuError> {
+        let device = &shared.device;
+        let sizes = [vk::DescriptorPoolSize::default()
+            .ty(vk::DescriptorType::STORAGE_BUFFER)
+            .descriptor_count(binding::COUNT)];
+        let info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(1)
+            .pool_sizes(&sizes);
+        let pool = unsafe { device.create_descriptor_pool(&info, None) }.map_err(GpuError::vk)?;
+        let layouts = [layout.set_layout];
+        let alloc = vk::DescriptorSetAllocateInfo::default()
+            .descriptor_pool(pool)
+            .set_layouts(&layouts);
+        let set = match unsafe { device.allocate_descriptor_sets(&alloc) } {
+            Ok(s) => s[0],
+            Err(e) => {
+                unsafe { device.destroy_descriptor_pool(pool, None) };
+                return Err(GpuError::vk(e));
+            }
+        };
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = buffers
+            .iter()
+            .map(|b| {
+                [vk::DescriptorBufferInfo::default()
+                    .buffer(b.buffer)
+                    .offset(0)
+                    .range(vk::WHOLE_SIZE)]
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = infos
+            .iter()
+            .enumerate()
+            .map(|(b, info)| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(b as u32)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .buffer_info(info)
+            })
+            .collect();
+        unsafe { device.update_descriptor_sets(&writes, &[]) };
+        Ok(DescriptorSet {
+            shared: shared.clone(),
+            pool,
+            set,
+        })
+    }
+}
+
+impl Drop for DescriptorSet {
+    fn drop(&mut self) {
+        unsafe { self.shared.device.destroy_descriptor_pool(self.pool, None) };
+    }
+}

@@ -1,0 +1,192 @@
+//! The Rust mirror of `shaders/common.glsl`: `#[repr(C)]` + bytemuck structs
+//! laid out as the GLSL scalar block layout lays them out (every member
+//! 4-byte aligned, `vec3` = `[f32; 3]`), with compile-time size and offset
+//! asserts, and the binding, counter and flag constants (kajiya's shared
+//! crate does the same). Change one side, change the other.
+
+use bytemuck::{Pod, Zeroable};
+use std::mem::{offset_of, size_of};
+
+/// Descriptor bindings of the one set every pass shares (`B_*`).
+pub mod binding {
+    pub const FRAME: u32 = 0;
+    pub const TRIANGLES: u32 = 1;
+    pub const BVH_NODES: u32 = 2;
+    pub const BVH_PRIMS: u32 = 3;
+    pub const G_POSITION: u32 = 4;
+    pub const G_NORMAL: u32 = 5;
+    pub const G_AXIS_X: u32 = 6;
+    pub const G_AXIS_Y: u32 = 7;
+    pub const G_TRIANGLE: u32 = 8;
+    pub const G_FLAGS: u32 = 9;
+    pub const LIGHT: u32 = 10;
+    pub const COUNTERS: u32 = 11;
+    pub const VERTEX_CACHE: u32 = 12;
+    pub const PLACEMENT: u32 = 13;
+    pub const CELL_CURSOR: u32 = 14;
+    pub const CELL_START: u32 = 15;
+    pub const CELL_TRIANGLES: u32 = 16;
+    pub const OVERFLOW: u32 = 17;
+    pub const EDGE_LUT: u32 = 18;
+    pub const MASKS: u32 = 19;
+    pub const VISIBILITY: u32 = 20;
+    pub const SHADED: u32 = 21;
+    /// Number of bindings.
+    pub const COUNT: u32 = 22;
+}
+
+/// Word indices into the counters buffer (`C_*`); 64-bit counters take two
+/// words, low first.
+pub mod counter {
+    pub const HITS: usize = 0;
+    pub const SHADOW_TESTED: usize = 1;
+    pub const CLAMPED: usize = 2;
+    pub const BINNED: usize = 3;
+    pub const OVERFLOW: usize = 4;
+    pub const CULLED: usize = 5;
+    pub const CELL_ENTRIES: usize = 6;
+    pub const CAPACITY_EXCEEDED: usize = 7;
+    pub const PIXELS_TESTED: usize = 8;
+    pub const EARLY_OUTS: usize = 9;
+    pub const TESTS_SPAWNED: usize = 10;
+    pub const DEPTH_PASSED: usize = 12;
+    pub const CELLS_VISITED: usize = 14;
+    pub const LOOP_BUDGET_EXCEEDED: usize = 16;
+    /// Words in the counters buffer.
+    pub const WORDS: usize = 17;
+}
+
+/// Local sizes of the pixel passes (8×8 tiles) and the linear passes.
+pub const WORKGROUP_PIXELS: [u32; 2] = [8, 8];
+pub const WORKGROUP_LINEAR: u32 = 256;
+
+/// `MODE_*` of `FrameParams::mode`.
+pub mod mode {
+    pub const ONE: u32 = 0;
+    pub const LUT32: u32 = 1;
+    pub const EXACT32: u32 = 2;
+}
+
+/// `FrameParams`: per-frame constants.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameParams {
+    pub cam_corner: [f32; 3],
+    pub near: f32,
+    pub cam_dx: [f32; 3],
+    pub far: f32,
+    pub cam_dy: [f32; 3],
+    pub max_stretch: f32,
+    pub light_vec: [f32; 3],
+    pub light_is_point: u32,
+    pub rot_x: [f32; 3],
+    pub width: u32,
+    pub rot_y: [f32; 3],
+    pub height: u32,
+    pub rot_z: [f32; 3],
+    pub triangle_count: u32,
+    pub mode: u32,
+    pub cells_hint: u32,
+    pub max_span: u32,
+    pub cell_capacity: u32,
+    pub lut_angle_scale: f32,
+    pub lut_distance_scale: f32,
+    pub lut_angles: u32,
+    pub lut_distances: u32,
+    pub max_cells: u32,
+    /// Loop iterations `evaluate` may run per pixel: lavapipe (gallivm)
+    /// silently ends a shader's loops after 65535 iterations in total, so
+    /// there the shader stops early and raises `LOOP_BUDGET_EXCEEDED`
+    /// instead of returning a wrong mask; `u32::MAX` elsewhere.
+    pub loop_budget: u32,
+    pub pad: [u32; 2],
+    pub pattern: [[f32; 2]; 32],
+}
+const _: () = assert!(size_of::<FrameParams>() == 160 + 256);
+const _: () = assert!(offset_of!(FrameParams, mode) == 112);
+const _: () = assert!(offset_of!(FrameParams, pattern) == 160);
+
+/// `LightState`: light view and grid, written on the GPU by `light_setup`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct LightState {
+    pub rot_x: [f32; 3],
+    pub projection: u32,
+    pub rot_y: [f32; 3],
+    pub grid_disabled: u32,
+    pub rot_z: [f32; 3],
+    pub receivers: u32,
+    pub origin: [f32; 3],
+    pub cells_x: u32,
+    pub ndc_min: [f32; 2],
+    pub ndc_max: [f32; 2],
+    pub receiver_z: [f32; 2],
+    pub cells_y: u32,
+    pub behind_light: u32,
+    pub pos_lo: [u32; 3],
+    pub pos_hi: [u32; 3],
+    pub ndc_lo: [u32; 2],
+    pub ndc_hi: [u32; 2],
+    pub z_lo: u32,
+    pub z_hi: u32,
+}
+const _: () = assert!(size_of::<LightState>() == 144);
+const _: () = assert!(offset_of!(LightState, ndc_min) == 64);
+const _: () = assert!(offset_of!(LightState, pos_lo) == 96);
+
+impl LightState {
+    /// The state before the reductions: every minimum at the largest
+    /// ordered value, every maximum at the smallest.
+    pub fn reset() -> Self {
+        LightState {
+            pos_lo: [u32::MAX; 3],
+            pos_hi: [0; 3],
+            ndc_lo: [u32::MAX; 2],
+            ndc_hi: [0; 2],
+            z_lo: u32::MAX,
+            z_hi: 0,
+            ..Zeroable::zeroed()
+        }
+    }
+}
+
+/// `Triangle`: three vertices (eye-relative input, or light view in the
+/// vertex cache).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuTriangle {
+    pub v: [[f32; 3]; 3],
+}
+const _: () = assert!(size_of::<GpuTriangle>() == 36);
+
+/// `BvhNode`: a node of the G-buffer pass's BVH2.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct BvhNode {
+    pub lo: [f32; 3],
+    /// 0 for an inner node.
+    pub prim_count: u32,
+    pub hi: [f32; 3],
+    /// Inner: left child (right = first + 1); leaf: first primitive slot.
+    pub first: u32,
+}
+const _: () = assert!(size_of::<BvhNode>() == 32);
+
+/// The GLSL float ↔ ordered-uint map (`ordered_bits`), for tests.
+pub fn ordered_bits(f: f32) -> u32 {
+    let u = f.to_bits();
+    if u & 0x8000_0000 != 0 {
+        !u
+    } else {
+        u | 0x8000_0000
+    }
+}
+
+/// Inverse of [`ordered_bits`].
+pub fn from_ordered_bits(u: u32) -> f32 {
+    f32::from_bits(if u & 0x8000_0000 != 0 {
+        u & 0x7FFF_FFFF
+    } else {
+        !u
+    })
+}

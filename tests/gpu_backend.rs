@@ -1,0 +1,342 @@
+//! The Vulkan backend against its CPU twins, pass by pass and sample by
+//! sample, on every procedural and shared scene (reduced resolution).
+//!
+//! Two comparisons per scene and mode:
+//! - **uploaded G-buffer**: the CPU G-buffer goes to the GPU, so
+//!   light_setup, bin, evaluate and resolve see exactly the CPU twin's
+//!   input; masks must agree on ≥ 99.99% of samples;
+//! - **GPU G-buffer**: the `gbuffer` pass casts the rays itself; the
+//!   triangle id must agree on ≥ 99.9% of pixels and the µQuad axes within
+//!   a relative 1e-3 where it does.
+//!
+//! No Vulkan device: each test prints that it skipped — unless
+//! `IZB_REQUIRE_GPU=1` (CI), where that fails. Every test also fails on any
+//! validation-layer message (`IZB_VALIDATION=1` turns the layer on).
+
+use izb::gbuffer::{flags, GBuffer};
+use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
+use izb::izb::{render_cpu, IzbSettings, SampleMode};
+use izb::reference::bvh::SceneBvh;
+use izb::scene::{self, Scene};
+use std::sync::{Mutex, OnceLock};
+
+const RESOLUTION: [u32; 2] = [240, 135];
+/// Largest fraction of samples GPU and CPU masks may disagree on.
+const MAX_SAMPLE_MISMATCH: f64 = 1e-4;
+/// Largest fraction of hit pixels whose triangle id may differ.
+const MAX_ID_MISMATCH: f64 = 1e-3;
+/// µQuad axes: |gpu − cpu| ≤ max(this, 32 ε₃₂ κ) × |cpu| × stretch, where
+/// stretch ≥ 1 is the axis length over the pixel's footprint on a plane
+/// facing the ray (1/|cos| of the view angle, clamped at 64: the axis
+/// divides by n·D, so the f32 ray cast's rounding grows with exactly that
+/// factor) and κ = (distance of the hit triangle from the eye) / (its
+/// shortest edge), the conditioning of its f32 normal.
+const AXIS_RELATIVE_TOLERANCE: f32 = 1e-3;
+
+/// One renderer for the whole binary (tests run in parallel threads; one
+/// device is enough and lavapipe is slow to open).
+fn renderer() -> Option<&'static Mutex<GpuRenderer>> {
+    static RENDERER: OnceLock<Result<Mutex<GpuRenderer>, String>> = OnceLock::new();
+    match RENDERER.get_or_init(|| {
+        GpuRenderer::new(&GpuOptions::from_env())
+            .map(Mutex::new)
+            .map_err(|e| e.to_string())
+    }) {
+        Ok(r) => Some(r),
+        Err(e) => {
+            if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}");
+            }
+            eprintln!("skipped (no Vulkan device: {e})");
+            None
+        }
+    }
+}
+
+fn assert_no_validation_messages(r: &GpuRenderer, what: &str) {
+    let messages = r.take_validation_messages();
+    assert!(
+        messages.is_empty(),
+        "{what}: {} validation message(s):\n{}",
+        messages.len(),
+        messages.join("\n")
+    );
+}
+
+/// (differing samples, compared samples) over pixels shadow-tested in `g`.
+fn mask_mismatch(a: &[u32], b: &[u32], g: &GBuffer) -> (u64, u64) {
+    let mut diff = 0u64;
+    let mut total = 0u64;
+    for i in 0..a.len() {
+        if g.flags[i] & flags::SHADOW_TESTED != 0 {
+            diff += u64::from((a[i] ^ b[i]).count_ones());
+            total += 32;
+        }
+    }
+    (diff, total)
+}
+
+fn settings(mode: SampleMode) -> IzbSettings {
+    IzbSettings {
+        mode,
+        ..Default::default()
+    }
+}
+
+/// Whether triangles `a` and `b` are the same surface: equal, or exact
+/// duplicates (the same three vertices in any order — double-sided
+/// exports, e.g. the deckchair). Which duplicate a ray reports depends only
+/// on rounding and traversal order, and neither can shadow the other.
+fn same_surface(scene: &Scene, a: u32, b: u32) -> bool {
+    if a == b {
+        return true;
+    }
+    let (Some(ta), Some(tb)) = (
+        scene.triangles.get(a as usize),
+        scene.triangles.get(b as usize),
+    ) else {
+        return false;
+    };
+    let key = |t: &izb::scene::Triangle| {
+        let mut k = t.map(|v| v.to_array().map(f64::to_bits));
+        k.sort();
+        k
+    };
+    key(ta) == key(tb)
+}
+
+/// Runs both comparisons on one scene and every mode.
+fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
+    let scene = scene.with_resolution(RESOLUTION).unwrap();
+    let bvh = SceneBvh::build(&scene);
+    for mode in [SampleMode::One, SampleMode::Lut32, SampleMode::Exact32] {
+        let cpu = render_cpu(&scene, &bvh, settings(mode));
+        let gpu = r
+            .render(&scene, settings(mode), GBufferSource::Upload(&cpu.gbuffer))
+            .unwrap_or_else(|e| panic!("{name} {mode:?}: {e}"));
+        assert_no_validation_messages(r, name);
+        let (diff, total) = mask_mismatch(&gpu.masks, &cpu.masks, &cpu.gbuffer);
+        let rate = diff as f64 / total.max(1) as f64;
+        println!(
+            "{name} {mode:?} (uploaded G-buffer): {diff} of {total} samples differ ({rate:.2e}); \
+             grid GPU {:?} CPU {:?}; tests GPU {} CPU {}",
+            gpu.report.light.cells,
+            cpu.report.light.cells,
+            gpu.report.counters.tests_spawned,
+            cpu.report.evaluate.tests_spawned
+        );
+        assert!(
+            rate <= MAX_SAMPLE_MISMATCH,
+            "{name} {mode:?}: {diff} of {total} samples differ ({rate:.2e} > {MAX_SAMPLE_MISMATCH:.0e})"
+        );
+        // resolve: lit fraction bit for bit from the same masks, and the
+        // shaded image within one 8-bit level of the CPU twin.
+        let cpu_visibility = izb::izb::resolve(&gpu.masks, &cpu.gbuffer);
+        for (i, (g, c)) in gpu.visibility.iter().zip(&cpu_visibility).enumerate() {
+            assert!(
+                g.to_bits() == c.to_bits() || (g.is_nan() && c.is_nan()),
+                "{name}: visibility of pixel {i}: GPU {g}, CPU {c}"
+            );
+        }
+        let light = scene.light.relative_to(scene.camera.eye);
+        for (i, g) in gpu.shaded.iter().enumerate() {
+            let c = izb::output::shade_pixel(&cpu.gbuffer, i, &light, gpu.visibility[i]);
+            let off = (0..3).map(|k| g[k].abs_diff(c[k])).max().unwrap();
+            assert!(off <= 1, "{name}: shaded pixel {i}: GPU {g:?}, CPU {c:?}");
+        }
+    }
+
+    // The GPU G-buffer against the CPU twin.
+    let cpu = render_cpu(&scene, &bvh, settings(SampleMode::Lut32));
+    let gpu = r
+        .render(&scene, settings(SampleMode::Lut32), GBufferSource::Gpu)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_no_validation_messages(r, name);
+    let (g, c) = (&gpu.gbuffer, &cpu.gbuffer);
+    let hits = c.flags.iter().filter(|&&f| f & flags::HIT != 0).count();
+    let mut id_diff = 0usize;
+    let mut duplicates = 0usize;
+    let mut worst_axis = 0.0f32;
+    let frame = scene.camera.frame(scene.resolution);
+    let eye_triangles = scene.eye_relative_triangles();
+    for i in 0..c.flags.len() {
+        if g.triangle_id[i] != c.triangle_id[i] {
+            if same_surface(&scene, g.triangle_id[i], c.triangle_id[i]) {
+                duplicates += 1;
+            } else {
+                id_diff += 1;
+                continue;
+            }
+        }
+        if c.flags[i] & flags::HIT == 0 {
+            continue;
+        }
+        assert_eq!(g.flags[i], c.flags[i], "{name}: flags of pixel {i}");
+        let (x, y) = (
+            (i as u32 % c.width) as f64 + 0.5,
+            (i as u32 / c.width) as f64 + 0.5,
+        );
+        let footprint = (f64::from(c.depth[i])
+            * frame.direction_dx().length()
+            * frame.direction(x, y).length()) as f32;
+        // Conditioning of the f32 normal: the hit triangle's distance from
+        // the eye over its shortest edge.
+        let t = eye_triangles[c.triangle_id[i] as usize];
+        let reach = t.iter().map(|v| v.length()).fold(0.0, f64::max);
+        let edge = [t[1] - t[0], t[2] - t[1], t[0] - t[2]]
+            .iter()
+            .map(|e| e.length())
+            .fold(f64::INFINITY, f64::min);
+        let conditioning = (reach / edge) as f32;
+        for (ga, ca) in [(g.axis_x[i], c.axis_x[i]), (g.axis_y[i], c.axis_y[i])] {
+            let stretch = (ca.length() / footprint).max(1.0);
+            let tolerance = AXIS_RELATIVE_TOLERANCE.max(32.0 * f32::EPSILON * conditioning);
+            let rel = (ga - ca).length() / ca.length().max(f32::MIN_POSITIVE) / stretch / tolerance;
+            worst_axis = worst_axis.max(rel);
+        }
+    }
+    let id_rate = id_diff as f64 / hits.max(1) as f64;
+    let (diff, total) = mask_mismatch(&gpu.masks, &cpu.masks, c);
+    println!(
+        "{name} (GPU G-buffer): triangle id differs on {id_diff} of {hits} hit pixels ({id_rate:.2e}; \
+         {duplicates} more hit an exact duplicate), \
+         worst µQuad-axis error {worst_axis:.2} of its tolerance; masks differ on {diff} of {total} samples \
+         ({:.2e})",
+        diff as f64 / total.max(1) as f64
+    );
+    assert!(
+        id_rate <= MAX_ID_MISMATCH,
+        "{name}: {id_diff} of {hits} pixels hit another triangle"
+    );
+    assert!(
+        worst_axis <= 1.0,
+        "{name}: µQuad axes off by {worst_axis:.2} times their tolerance"
+    );
+}
+
+#[test]
+fn gpu_matches_cpu_on_procedural_scenes() {
+    let Some(r) = renderer() else { return };
+    let r = r.lock().unwrap_or_else(|e| e.into_inner());
+    for name in scene::procedural::NAMES {
+        check_scene(&r, name, scene::load(name).unwrap());
+    }
+}
+
+#[test]
+fn gpu_matches_cpu_on_shared_scenes() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
+    if !std::path::Path::new(dir).exists() {
+        eprintln!("skipped: ../shared/scenes not found");
+        return;
+    }
+    let Some(r) = renderer() else { return };
+    let r = r.lock().unwrap_or_else(|e| e.into_inner());
+    for name in ["deckchair", "tablefan", "ficus", "engine", "courtyard"] {
+        check_scene(
+            &r,
+            name,
+            scene::load(&format!("{dir}/{name}.scene.json")).unwrap(),
+        );
+    }
+}
+
+#[test]
+fn grid_capacity_overrun_reruns_with_room() {
+    // A tiny grid hint makes every triangle's rectangle cover many cells:
+    // whatever the first guess, the result must equal the CPU's.
+    let Some(r) = renderer() else { return };
+    let r = r.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = scene::load("hairball")
+        .unwrap()
+        .with_resolution([96, 64])
+        .unwrap();
+    let bvh = SceneBvh::build(&scene);
+    let s = IzbSettings {
+        mode: SampleMode::Exact32,
+        cells: Some(200),
+        max_span: 200,
+    };
+    let cpu = render_cpu(&scene, &bvh, s);
+    let gpu = r
+        .render(&scene, s, GBufferSource::Upload(&cpu.gbuffer))
+        .unwrap();
+    assert_no_validation_messages(&r, "capacity");
+    println!(
+        "hairball, 200-cell grid: {} cell entries, {} frame(s)",
+        gpu.report.counters.cell_entries, gpu.report.frames_run
+    );
+    assert_eq!(
+        gpu.report.counters.cell_entries as usize,
+        cpu.report.bin.cell_entries
+    );
+    let (diff, total) = mask_mismatch(&gpu.masks, &cpu.masks, &cpu.gbuffer);
+    assert!(diff as f64 / total as f64 <= MAX_SAMPLE_MISMATCH);
+}
+
+#[test]
+fn gpu_reports_memory_and_counters() {
+    let Some(r) = renderer() else { return };
+    let r = r.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([160, 90])
+        .unwrap();
+    let gpu = r
+        .render(&scene, IzbSettings::default(), GBufferSource::Gpu)
+        .unwrap();
+    assert_no_validation_messages(&r, "memory");
+    let rep = &gpu.report;
+    let per_pass: u64 = rep.memory.iter().map(|m| m.bytes).sum();
+    assert_eq!(per_pass, rep.memory_total_bytes);
+    for pass in ["gbuffer", "light_setup", "bin", "evaluate", "resolve"] {
+        assert!(
+            rep.memory.iter().any(|m| m.pass == pass && m.bytes > 0),
+            "no memory recorded for {pass}"
+        );
+    }
+    assert_eq!(rep.counters.shadow_tested, rep.counters.pixels_tested);
+    assert!(rep.counters.tests_spawned > 0);
+    assert_eq!(
+        rep.counters.triangles_binned + rep.counters.overflow + rep.counters.culled,
+        scene.triangles.len() as u32
+    );
+}
+
+#[test]
+fn oversized_buffers_are_refused_by_name() {
+    let Some(r) = renderer() else { return };
+    let r = r.lock().unwrap_or_else(|e| e.into_inner());
+    let limit = r.context.info().max_storage_buffer_range as u64;
+    // The µQuad-axis arrays take 12 bytes a pixel: pick a square image just
+    // past the limit, if one fits under 16384 per side.
+    let side = ((limit / 12) as f64).sqrt().ceil() as u32 + 1;
+    if side > 16384 {
+        eprintln!("skipped: this device's storage-buffer range ({limit} bytes) holds 16384²");
+        return;
+    }
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([side, side])
+        .unwrap();
+    let err = r
+        .render(&scene, IzbSettings::default(), GBufferSource::Gpu)
+        .err()
+        .expect("an image past the storage-buffer range must be refused");
+    println!("{side}x{side}: {err}");
+    assert!(
+        matches!(err, GpuError::BufferTooLarge { .. }),
+        "unexpected error {err}"
+    );
+    assert!(err.to_string().contains("lower the resolution"));
+    assert_no_validation_messages(&r, "oversized");
+}
+
+#[test]
+fn a_lost_device_is_reported_as_such() {
+    // Vulkan reports a lost device through VK_ERROR_DEVICE_LOST on any
+    // call; every call site maps results through `GpuError::vk`.
+    let e = GpuError::vk(ash::vk::Result::ERROR_DEVICE_LOST);
+    assert!(matches!(e, GpuError::DeviceLost));
+    assert!(e.to_string().contains("lost"));
+}
