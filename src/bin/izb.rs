@@ -91,6 +91,13 @@ enum Backend {
     Cpu,
 }
 
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum BenchBackend {
+    Cpu,
+    Vulkan,
+    Both,
+}
+
 #[derive(Args)]
 struct RenderArgs {
     #[command(flatten)]
@@ -169,6 +176,13 @@ struct BenchArgs {
     /// Repetitions of each IZB method; the median per pass is reported.
     #[arg(long, default_value_t = 3)]
     repeat: usize,
+    /// Where to time the IZB methods: cpu, vulkan, or both (in one run,
+    /// interleaved, so ratios GPU / CPU twin come from one process).
+    #[arg(long, value_enum, default_value_t = BenchBackend::Cpu)]
+    backend: BenchBackend,
+    /// Vulkan device index (see `izb devices`).
+    #[arg(long)]
+    device: Option<usize>,
     /// Output JSON file.
     #[arg(long, default_value = "out/bench.json")]
     out: PathBuf,
@@ -357,14 +371,28 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     let with_reference = args.methods.iter().any(|m| m == "reference");
     anyhow::ensure!(args.repeat > 0, "--repeat must be at least 1");
     let pool = thread_pool(args.threads)?;
+    let gpu = if args.backend == BenchBackend::Cpu || izb_methods.is_empty() {
+        None
+    } else {
+        Some(
+            GpuRenderer::new(&GpuOptions {
+                device_index: args.device,
+                ..GpuOptions::from_env()
+            })
+            .context("bench --backend vulkan")?,
+        )
+    };
     let mut rows = Vec::new();
     for name in &scenes {
         let scene = load_scene(&SceneArgs {
             scene: name.clone(),
             resolution: args.resolution,
         })?;
-        if !izb_methods.is_empty() {
+        if !izb_methods.is_empty() && args.backend != BenchBackend::Vulkan {
             rows.extend(bench_izb(&pool, &scene, &izb_methods, args.repeat));
+        }
+        if let Some(gpu) = &gpu {
+            rows.extend(bench_izb_gpu(gpu, &scene, &izb_methods, args.repeat)?);
         }
         if !with_reference {
             continue;
@@ -393,6 +421,7 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         }));
     }
     let report = serde_json::json!({
+        "device": gpu.as_ref().map(|g| g.context.info().clone()),
         "threads": pool.current_num_threads(),
         "logical_cores": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
         "results": rows,
@@ -484,6 +513,94 @@ fn bench_izb(
             })
         })
         .collect()
+}
+
+/// Times each IZB method on the GPU (full pipeline, GPU G-buffer), `repeat`
+/// times interleaved; reports the median GPU milliseconds of every pass
+/// (timestamp queries) and the ratios 32 spp / 1 spp and LUT / exact.
+fn bench_izb_gpu(
+    gpu: &GpuRenderer,
+    scene: &Scene,
+    methods: &[(String, SampleMode)],
+    repeat: usize,
+) -> Result<Vec<serde_json::Value>> {
+    let mut runs: Vec<Vec<izb::gpu::GpuRenderReport>> = vec![Vec::new(); methods.len()];
+    for _ in 0..repeat {
+        for (k, (_, mode)) in methods.iter().enumerate() {
+            let settings = IzbSettings {
+                mode: *mode,
+                ..Default::default()
+            };
+            runs[k].push(gpu.render(scene, settings, GBufferSource::Gpu)?.report);
+        }
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let medians: Vec<Option<izb::gpu::frame::GpuPassMillis>> = runs
+        .iter()
+        .map(|r| {
+            let all: Option<Vec<&izb::gpu::frame::GpuPassMillis>> =
+                r.iter().map(|x| x.gpu_milliseconds.as_ref()).collect();
+            let all = all?;
+            let pass = |f: fn(&izb::gpu::frame::GpuPassMillis) -> f64| {
+                median(all.iter().map(|m| f(m)).collect())
+            };
+            Some(izb::gpu::frame::GpuPassMillis {
+                gbuffer: pass(|m| m.gbuffer),
+                light_setup: pass(|m| m.light_setup),
+                bin: pass(|m| m.bin),
+                evaluate: pass(|m| m.evaluate),
+                resolve: pass(|m| m.resolve),
+                total: pass(|m| m.total),
+            })
+        })
+        .collect();
+    let find = |m: SampleMode| {
+        methods
+            .iter()
+            .position(|(_, x)| *x == m)
+            .and_then(|k| medians[k].clone())
+    };
+    let (one, exact) = (find(SampleMode::One), find(SampleMode::Exact32));
+    let shadow = |m: &izb::gpu::frame::GpuPassMillis| m.total - m.gbuffer;
+    let mut rows = Vec::new();
+    for (((name, mode), m), r) in methods.iter().zip(&medians).zip(&runs) {
+        if let Some(m) = m {
+            println!(
+                "{}: {name:<12} vulkan ({}): gbuffer {:.3} ms, light_setup {:.3} ms, bin {:.3} ms, \
+                 evaluate {:.3} ms, resolve {:.3} ms; shadow passes {:.3} ms{}",
+                scene.name,
+                gpu.context.info().name,
+                m.gbuffer,
+                m.light_setup,
+                m.bin,
+                m.evaluate,
+                m.resolve,
+                shadow(m),
+                one.as_ref()
+                    .map_or(String::new(), |o| format!(" ({:.2}x 1 spp)", shadow(m) / shadow(o)))
+            );
+        }
+        let last = r.last().expect("repeat >= 1");
+        rows.push(serde_json::json!({
+            "method": name,
+            "backend": "vulkan",
+            "device": gpu.context.info().name,
+            "mode": mode,
+            "scene": scene_summary(scene),
+            "repeat": r.len(),
+            "median_gpu_milliseconds": m,
+            "shadow_over_1spp": m.as_ref().zip(one.as_ref()).map(|(m, o)| shadow(m) / shadow(o)),
+            "shadow_over_exact": m.as_ref().zip(exact.as_ref()).map(|(m, e)| shadow(m) / shadow(e)),
+            "counters": last.counters,
+            "memory_total_bytes": last.memory_total_bytes,
+            "memory": last.memory,
+            "grid": last.light.cells,
+        }));
+    }
+    Ok(rows)
 }
 
 fn mode_for(spp: u32, exact: bool) -> SampleMode {
