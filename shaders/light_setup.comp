@@ -38,6 +38,26 @@ vec3 to_light_view(vec3 p) {
 }
 
 #if defined(STEP_RECEIVERS) || defined(STEP_EXTENT)
+// Workgroup partial reductions: the tile reduces in shared memory, then
+// one thread per tile touches the global LightState, so the global atomics
+// fall from one per pixel (or corner) to one per 8×8 tile.
+shared uint wg_count;
+shared uint wg_lo[3];
+shared uint wg_hi[3];
+shared uint wg_behind;
+
+void wg_reset() {
+    if (gl_LocalInvocationIndex == 0u) {
+        wg_count = 0u;
+        wg_behind = 0u;
+        for (int k = 0; k < 3; ++k) {
+            wg_lo[k] = 0xFFFFFFFFu;
+            wg_hi[k] = 0u;
+        }
+    }
+    barrier();
+}
+
 bool shadow_tested_pixel(out uint i) {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     i = pixel.y * frame.width + pixel.x;
@@ -48,13 +68,23 @@ bool shadow_tested_pixel(out uint i) {
 
 void main() {
 #ifdef STEP_RECEIVERS
+    wg_reset();
     uint i;
-    if (!shadow_tested_pixel(i)) return;
-    vec3 p = g_position[i];
-    atomicAdd(light.receivers, 1u);
-    for (int k = 0; k < 3; ++k) {
-        atomicMin(light.pos_lo[k], ordered_bits(p[k]));
-        atomicMax(light.pos_hi[k], ordered_bits(p[k]));
+    if (shadow_tested_pixel(i)) {
+        vec3 p = g_position[i];
+        atomicAdd(wg_count, 1u);
+        for (int k = 0; k < 3; ++k) {
+            atomicMin(wg_lo[k], ordered_bits(p[k]));
+            atomicMax(wg_hi[k], ordered_bits(p[k]));
+        }
+    }
+    barrier();
+    if (gl_LocalInvocationIndex == 0u && wg_count > 0u) {
+        atomicAdd(light.receivers, wg_count);
+        for (int k = 0; k < 3; ++k) {
+            atomicMin(light.pos_lo[k], wg_lo[k]);
+            atomicMax(light.pos_hi[k], wg_hi[k]);
+        }
     }
 #endif
 
@@ -91,29 +121,43 @@ void main() {
 #endif
 
 #ifdef STEP_EXTENT
+    // wg_lo/wg_hi hold (ndc.x, ndc.y, z) here.
+    wg_reset();
     uint i;
-    if (!shadow_tested_pixel(i)) return;
-    vec3 p = g_position[i];
-    vec3 hx = g_axis_x[i] * 0.5;
-    vec3 hy = g_axis_y[i] * 0.5;
-    vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
-    for (int k = 0; k < 4; ++k) {
-        vec3 q = to_light_view(corners[k]);
-        atomicMin(light.z_lo, ordered_bits(q.z));
-        atomicMax(light.z_hi, ordered_bits(q.z));
-        vec2 ndc;
-        if (light.projection == 0u) {
-            ndc = q.xy;
-        } else if (q.z > 0.0) {
-            ndc = q.xy / q.z;
-        } else {
-            light.behind_light = 1u;
-            continue;
+    if (shadow_tested_pixel(i)) {
+        atomicAdd(wg_count, 1u);
+        vec3 p = g_position[i];
+        vec3 hx = g_axis_x[i] * 0.5;
+        vec3 hy = g_axis_y[i] * 0.5;
+        vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
+        for (int k = 0; k < 4; ++k) {
+            vec3 q = to_light_view(corners[k]);
+            atomicMin(wg_lo[2], ordered_bits(q.z));
+            atomicMax(wg_hi[2], ordered_bits(q.z));
+            vec2 ndc;
+            if (light.projection == 0u) {
+                ndc = q.xy;
+            } else if (q.z > 0.0) {
+                ndc = q.xy / q.z;
+            } else {
+                wg_behind = 1u;
+                continue;
+            }
+            atomicMin(wg_lo[0], ordered_bits(ndc.x));
+            atomicMin(wg_lo[1], ordered_bits(ndc.y));
+            atomicMax(wg_hi[0], ordered_bits(ndc.x));
+            atomicMax(wg_hi[1], ordered_bits(ndc.y));
         }
-        atomicMin(light.ndc_lo[0], ordered_bits(ndc.x));
-        atomicMin(light.ndc_lo[1], ordered_bits(ndc.y));
-        atomicMax(light.ndc_hi[0], ordered_bits(ndc.x));
-        atomicMax(light.ndc_hi[1], ordered_bits(ndc.y));
+    }
+    barrier();
+    if (gl_LocalInvocationIndex == 0u && wg_count > 0u) {
+        atomicMin(light.ndc_lo[0], wg_lo[0]);
+        atomicMin(light.ndc_lo[1], wg_lo[1]);
+        atomicMax(light.ndc_hi[0], wg_hi[0]);
+        atomicMax(light.ndc_hi[1], wg_hi[1]);
+        atomicMin(light.z_lo, wg_lo[2]);
+        atomicMax(light.z_hi, wg_hi[2]);
+        if (wg_behind != 0u) light.behind_light = 1u;
     }
 #endif
 
