@@ -1,7 +1,9 @@
 #version 460
 // Pass 2, `bin` — GPU twin of `izb::izb::bin::bin`: a counting sort of
 // triangles into the light-space grid (seed 000), in three dispatches:
-//   STEP_COUNT      (per triangle) light-view vertex cache, placement,
+//   STEP_COUNT      (per triangle) light-view vertex cache (written over the
+//                   eye-relative triangle it came from: the two bindings
+//                   alias one buffer), placement,
 //                   atomic count per covered cell, overflow append;
 //   STEP_PREFIX_SUM (1 workgroup)  exclusive prefix sum of the counts into
 //                   cell_start (and a copy as the scatter cursor), total
@@ -16,7 +18,7 @@
 layout(local_size_x = WORKGROUP_LINEAR) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+layout(scalar, binding = B_TRIANGLES) buffer TriBuf { Triangle triangles[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(scalar, binding = B_VERTEX_CACHE) buffer CacheBuf { Triangle vertex_cache[]; };

@@ -20,7 +20,16 @@ use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 use std::sync::{Mutex, OnceLock};
 
+/// Test resolution; `IZB_GPU_TEST_RESOLUTION=scene` runs each scene at its
+/// own resolution (slow on lavapipe: for measurements, not CI).
 const RESOLUTION: [u32; 2] = [240, 135];
+
+fn test_resolution(scene: &Scene) -> [u32; 2] {
+    match std::env::var("IZB_GPU_TEST_RESOLUTION").as_deref() {
+        Ok("scene") => scene.resolution,
+        _ => RESOLUTION,
+    }
+}
 /// Largest fraction of samples GPU and CPU masks may disagree on.
 const MAX_SAMPLE_MISMATCH: f64 = 1e-4;
 /// Largest fraction of hit pixels whose triangle id may differ.
@@ -107,7 +116,8 @@ fn same_surface(scene: &Scene, a: u32, b: u32) -> bool {
 
 /// Runs both comparisons on one scene and every mode.
 fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
-    let scene = scene.with_resolution(RESOLUTION).unwrap();
+    let resolution = test_resolution(&scene);
+    let scene = scene.with_resolution(resolution).unwrap();
     let bvh = SceneBvh::build(&scene);
     for mode in [SampleMode::One, SampleMode::Lut32, SampleMode::Exact32] {
         let cpu = render_cpu(&scene, &bvh, settings(mode));

@@ -43,7 +43,7 @@ enum Command {
     /// Benchmark the ground-truth tracer (rays/s) and the IZB passes; write JSON.
     Bench(BenchArgs),
     /// Print a scene's triangle counts, bounds, camera and light.
-    Info(SceneArgs),
+    Info(InfoArgs),
     /// List the Vulkan devices `--device` can pick, best first.
     Devices,
 }
@@ -57,6 +57,16 @@ struct SceneArgs {
     /// Image size WxH, overriding the scene's.
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<[u32; 2]>,
+}
+
+#[derive(Args)]
+struct InfoArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Also print the device memory a GPU frame allocates, per pass (no
+    /// device needed).
+    #[arg(long)]
+    gpu_memory: bool,
 }
 
 #[derive(Args)]
@@ -859,11 +869,23 @@ fn run_lut(args: LutArgs) -> Result<()> {
     Ok(())
 }
 
-fn run_info(args: SceneArgs) -> Result<()> {
-    let scene = load_scene(&args)?;
+fn run_info(args: InfoArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
     let (lo, hi) = scene.bounds();
     let mut summary = scene_summary(&scene);
     summary["bounds"] = serde_json::json!({"min": lo, "max": hi});
+    if args.gpu_memory {
+        let plan = izb::gpu::frame::planned_memory(&scene, IzbSettings::default())?;
+        let total: u64 = plan.iter().map(|m| m.bytes).sum();
+        let (p, t) = (scene.pixel_count() as u64, scene.triangles.len() as u64);
+        summary["gpu_memory"] = serde_json::json!({
+            "per_pass": plan,
+            "total_bytes": total,
+            "total_mib": total as f64 / (1024.0 * 1024.0),
+            "budget_bytes_64_per_pixel_plus_64_per_triangle": 64 * (p + t),
+            "bytes_per_pixel_plus_triangle": total as f64 / (p + t).max(1) as f64,
+        });
+    }
     println!("{}", serde_json::to_string_pretty(&summary)?);
     Ok(())
 }

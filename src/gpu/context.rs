@@ -17,10 +17,19 @@ use std::time::Duration;
 /// The validation layer's name.
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
-/// How long one submission may run before it is reported as hung. Generous
-/// for lavapipe on 2 cores at full resolution; a real GPU takes
-/// milliseconds.
+/// How long one submission may run before it is reported as hung, unless
+/// `IZB_GPU_TIMEOUT_S` says otherwise. Generous for lavapipe on 2 cores at
+/// 960×540; a real GPU takes milliseconds.
 pub const FRAME_TIMEOUT: Duration = Duration::from_secs(600);
+
+/// [`FRAME_TIMEOUT`] or the `IZB_GPU_TIMEOUT_S` override.
+pub fn frame_timeout() -> Duration {
+    std::env::var("IZB_GPU_TIMEOUT_S")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|s| *s > 0.0 && s.is_finite())
+        .map_or(FRAME_TIMEOUT, Duration::from_secs_f64)
+}
 
 /// How to pick and set up the device.
 #[derive(Clone, Debug, Default)]
@@ -75,9 +84,24 @@ pub struct DeviceShared {
     /// Nanoseconds per timestamp tick; `None` when the queue has no
     /// timestamps.
     pub timestamp_period_ns: Option<f64>,
+    /// Set when a submission timed out or the device was lost: work may
+    /// still be running, so nothing it might touch is destroyed any more
+    /// (every `Drop` leaks instead; the process exit reclaims it).
+    poisoned: std::sync::atomic::AtomicBool,
 }
 
 impl DeviceShared {
+    /// Whether the device may still be executing abandoned work.
+    pub fn is_poisoned(&self) -> bool {
+        self.poisoned.load(std::sync::atomic::Ordering::Acquire)
+    }
+
+    /// Marks the device as possibly busy forever (see `poisoned`).
+    pub fn poison(&self) {
+        self.poisoned
+            .store(true, std::sync::atomic::Ordering::Release);
+    }
+
     /// Names a Vulkan object for validation messages and GPU debuggers.
     pub fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
         if let Some(debug) = &self.debug_device {
@@ -100,6 +124,9 @@ impl DeviceShared {
 
 impl Drop for DeviceShared {
     fn drop(&mut self) {
+        if self.is_poisoned() {
+            return;
+        }
         unsafe {
             let _ = self.device.device_wait_idle();
             ManuallyDrop::drop(&mut self.allocator);
@@ -150,6 +177,9 @@ pub struct GpuContext {
 
 impl Drop for GpuContext {
     fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
         unsafe {
             let _ = self.shared.device.device_wait_idle();
             self.shared
@@ -380,6 +410,7 @@ impl GpuContext {
             debug_device,
             messenger,
             messages,
+            poisoned: Default::default(),
             timestamp_period_ns: chosen
                 .timestamps
                 .then_some(chosen.limits.timestamp_period as f64),
@@ -403,12 +434,15 @@ impl GpuContext {
     }
 
     /// Records commands with `record` into a fresh command buffer, submits
-    /// them, and waits (at most [`FRAME_TIMEOUT`]).
+    /// them, and waits (at most [`frame_timeout`]). On a timeout or a lost
+    /// device the device is poisoned: the caller's buffers are then leaked
+    /// rather than freed under work that may still be running.
     pub fn submit_and_wait(
         &self,
         record: impl FnOnce(vk::CommandBuffer) -> Result<(), GpuError>,
     ) -> Result<(), GpuError> {
         let device = &self.shared.device;
+        let timeout = frame_timeout();
         let alloc = vk::CommandBufferAllocateInfo::default()
             .command_pool(self.command_pool)
             .level(vk::CommandBufferLevel::PRIMARY)
@@ -427,18 +461,19 @@ impl GpuContext {
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
             let waited = unsafe { device.queue_submit(self.shared.queue, &submit, fence) }
                 .and_then(|_| unsafe {
-                    device.wait_for_fences(&[fence], true, FRAME_TIMEOUT.as_nanos() as u64)
+                    device.wait_for_fences(&[fence], true, timeout.as_nanos() as u64)
                 });
             unsafe { device.destroy_fence(fence, None) };
             waited.map_err(|e| match e {
-                vk::Result::TIMEOUT => GpuError::Timeout(FRAME_TIMEOUT),
+                vk::Result::TIMEOUT => GpuError::Timeout(timeout),
                 e => GpuError::vk(e),
             })
         })();
         // After a timeout the buffer may still be in flight: leak it rather
         // than free it under the GPU (the device is unusable anyway).
-        if !matches!(result, Err(GpuError::Timeout(_))) {
-            free();
+        match result {
+            Err(GpuError::Timeout(_)) | Err(GpuError::DeviceLost) => self.shared.poison(),
+            _ => free(),
         }
         result
     }

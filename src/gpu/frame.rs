@@ -119,14 +119,24 @@ pub struct GpuRenderer {
     pub context: GpuContext,
 }
 
-/// The frame's device buffers, in binding order.
+/// The frame's device buffers, in binding order, except that
+/// [`binding::VERTEX_CACHE`] aliases [`binding::TRIANGLES`]: `bin_count`
+/// turns each eye-relative triangle into its light-view copy in place (one
+/// thread reads and writes the same element), after the `gbuffer` pass,
+/// the only other reader, has finished. That saves 36 bytes per triangle.
 struct FrameBuffers {
     buffers: Vec<GpuBuffer>,
 }
 
 impl FrameBuffers {
     fn get(&self, b: u32) -> &GpuBuffer {
-        &self.buffers[b as usize]
+        // `buffers` holds no entry for the alias itself.
+        let index = match b {
+            binding::VERTEX_CACHE => binding::TRIANGLES,
+            b if b > binding::VERTEX_CACHE => b - 1,
+            b => b,
+        };
+        &self.buffers[index as usize]
     }
 }
 
@@ -240,7 +250,7 @@ impl GpuRenderer {
             )));
         }
         let max_cells = u64::from(longest) * u64::from(longest);
-        let mut capacity = (4 * triangles.len() as u64).max(1 << 16);
+        let mut capacity = initial_cell_capacity(triangles.len());
         let mut frames_run = 0;
         loop {
             frames_run += 1;
@@ -293,37 +303,21 @@ impl GpuRenderer {
         let [w, h] = scene.resolution;
         let pixels = scene.pixel_count() as u64;
         let t = triangles.len() as u64;
-        let v3 = 12u64;
         let lut = crate::lut::edge_lut();
-        // Binding order (shared::binding), each with its pass and size.
-        let descs = [
-            BufferDesc::device("frame", "frame_params", size_of::<FrameParams>() as u64),
-            BufferDesc::device("scene", "triangles", t * 36),
-            BufferDesc::device("gbuffer", "bvh_nodes", bvh.nodes.len() as u64 * 32),
-            BufferDesc::device("gbuffer", "bvh_prims", bvh.prims.len() as u64 * 4),
-            BufferDesc::device("gbuffer", "g_position", pixels * v3),
-            BufferDesc::device("gbuffer", "g_normal", pixels * v3),
-            BufferDesc::device("gbuffer", "g_axis_x", pixels * v3),
-            BufferDesc::device("gbuffer", "g_axis_y", pixels * v3),
-            BufferDesc::device("gbuffer", "g_triangle", pixels * 4),
-            BufferDesc::device("gbuffer", "g_flags", pixels * 4),
-            BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
-            BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
-            BufferDesc::device("bin", "vertex_cache", t * 36),
-            BufferDesc::device("bin", "placement", t * 8),
-            BufferDesc::device("bin", "cell_cursor", max_cells * 4),
-            BufferDesc::device("bin", "cell_start", (max_cells + 1) * 4),
-            BufferDesc::device("bin", "cell_triangles", cell_capacity * 4),
-            BufferDesc::device("bin", "overflow", t * 4),
-            BufferDesc::device("evaluate", "edge_lut", lut.masks.len() as u64 * 4),
-            BufferDesc::device("evaluate", "masks", pixels * 4),
-            BufferDesc::device("resolve", "visibility", pixels * 4),
-            BufferDesc::device("resolve", "shaded", pixels * 4),
-        ];
+        let descs = frame_buffer_descs(&FrameSizes {
+            pixels,
+            triangles: t,
+            bvh_nodes: bvh.nodes.len() as u64,
+            bvh_prims: bvh.prims.len() as u64,
+            max_cells,
+            cell_capacity,
+            lut_entries: lut.masks.len() as u64,
+        });
         debug_assert_eq!(descs.len(), binding::COUNT as usize);
         let frame_buffers = FrameBuffers {
             buffers: descs
                 .into_iter()
+                .filter(|d| d.name != "vertex_cache")
                 .map(|d| GpuBuffer::new(shared, d))
                 .collect::<Result<_, _>>()?,
         };
@@ -631,6 +625,92 @@ struct FrameOutput {
     memory: Vec<PassMemory>,
 }
 
+/// The sizes that decide a frame's buffers.
+pub struct FrameSizes {
+    pub pixels: u64,
+    pub triangles: u64,
+    pub bvh_nodes: u64,
+    pub bvh_prims: u64,
+    pub max_cells: u64,
+    pub cell_capacity: u64,
+    pub lut_entries: u64,
+}
+
+/// Every device buffer of a frame, in binding order (`shared::binding`),
+/// each with the pass it counts toward and its size.
+pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usize] {
+    let (p, t, vec3) = (z.pixels, z.triangles, 12u64);
+    [
+        BufferDesc::device("frame", "frame_params", size_of::<FrameParams>() as u64),
+        BufferDesc::device("scene", "triangles_then_vertex_cache", t * 36),
+        BufferDesc::device("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
+        BufferDesc::device("gbuffer", "bvh_prims", z.bvh_prims * 4),
+        BufferDesc::device("gbuffer", "g_position", p * vec3),
+        BufferDesc::device("gbuffer", "g_normal", p * vec3),
+        BufferDesc::device("gbuffer", "g_axis_x", p * vec3),
+        BufferDesc::device("gbuffer", "g_axis_y", p * vec3),
+        BufferDesc::device("gbuffer", "g_triangle", p * 4),
+        BufferDesc::device("gbuffer", "g_flags", p * 4),
+        BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
+        BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
+        // Aliases `triangles_then_vertex_cache` (see `FrameBuffers`).
+        BufferDesc::device("bin", "vertex_cache", 0),
+        BufferDesc::device("bin", "placement", t * 8),
+        BufferDesc::device("bin", "cell_cursor", z.max_cells * 4),
+        BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
+        BufferDesc::device("bin", "cell_triangles", z.cell_capacity * 4),
+        BufferDesc::device("bin", "overflow", t * 4),
+        BufferDesc::device("evaluate", "edge_lut", z.lut_entries * 4),
+        BufferDesc::device("evaluate", "masks", p * 4),
+        BufferDesc::device("resolve", "visibility", p * 4),
+        BufferDesc::device("resolve", "shaded", p * 4),
+    ]
+}
+
+/// The device memory a GPU frame of `scene` allocates before it runs (the
+/// cell list at its first guess), per pass, without a device: for budgets
+/// on machines that cannot run the frame.
+pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMemory>, GpuError> {
+    let triangles: Vec<GpuTriangle> = crate::izb::eye_relative_f32(scene)
+        .iter()
+        .map(|t| GpuTriangle {
+            v: t.map(|v| v.to_array()),
+        })
+        .collect();
+    let bvh = super::gbuffer::build_bvh(&triangles)?;
+    let longest = longest_grid_side(scene.pixel_count(), triangles.len(), settings.cells);
+    let descs = frame_buffer_descs(&FrameSizes {
+        pixels: scene.pixel_count() as u64,
+        triangles: triangles.len() as u64,
+        bvh_nodes: bvh.nodes.len() as u64,
+        bvh_prims: bvh.prims.len() as u64,
+        max_cells: u64::from(longest) * u64::from(longest),
+        cell_capacity: initial_cell_capacity(triangles.len()),
+        lut_entries: crate::lut::edge_lut().masks.len() as u64,
+    });
+    let mut out: Vec<PassMemory> = Vec::new();
+    for d in descs.into_iter().filter(|d| d.name != "vertex_cache") {
+        let size = d.size.max(4).next_multiple_of(4);
+        match out.iter_mut().find(|m| m.pass == d.pass) {
+            Some(m) => {
+                m.bytes += size;
+                m.buffers.push((d.name, size));
+            }
+            None => out.push(PassMemory {
+                pass: d.pass,
+                bytes: size,
+                buffers: vec![(d.name, size)],
+            }),
+        }
+    }
+    Ok(out)
+}
+
+/// First guess of the cell list's entries: 4 per triangle, at least 2^16.
+fn initial_cell_capacity(triangles: usize) -> u64 {
+    (4 * triangles as u64).max(1 << 16)
+}
+
 fn memory_by_pass(buffers: &[GpuBuffer]) -> Vec<PassMemory> {
     let mut out: Vec<PassMemory> = Vec::new();
     for b in buffers {
@@ -781,6 +861,9 @@ impl TimestampPool {
 
 impl Drop for TimestampPool {
     fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
         if let Some(pool) = self.pool {
             unsafe { self.shared.device.destroy_query_pool(pool, None) };
         }

@@ -52,6 +52,9 @@ impl BindingLayout {
 
 impl Drop for BindingLayout {
     fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
         unsafe {
             let d = &self.shared.device;
             d.destroy_pipeline_layout(self.pipeline_layout, None);
@@ -105,6 +108,9 @@ impl ComputeKernel {
 
 impl Drop for ComputeKernel {
     fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
         unsafe { self.shared.device.destroy_pipeline(self.pipeline, None) };
     }
 }
@@ -173,6 +179,9 @@ impl DescriptorSet {
 
 impl Drop for DescriptorSet {
     fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
         unsafe { self.shared.device.destroy_descriptor_pool(self.pool, None) };
     }
 }

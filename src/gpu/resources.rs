@@ -153,6 +153,9 @@ impl GpuBuffer {
 
 impl Drop for GpuBuffer {
     fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
         unsafe { self.shared.device.destroy_buffer(self.buffer, None) };
         if let Some(a) = self.allocation.take() {
             let _ = self

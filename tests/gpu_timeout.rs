@@ -1,0 +1,41 @@
+//! A frame that outlives its time limit is reported as a timeout — no hang,
+//! no crash — and the abandoned work is never freed under the GPU. Its own
+//! test binary: `IZB_GPU_TIMEOUT_S` is read per process, and the device it
+//! poisons must not be shared with other tests.
+
+use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
+use izb::izb::IzbSettings;
+
+#[test]
+fn a_frame_past_its_time_limit_is_a_timeout_error() {
+    // One microsecond: no device finishes a 320×180 frame of the hairball
+    // (20 000 triangles) that fast.
+    std::env::set_var("IZB_GPU_TIMEOUT_S", "0.000001");
+    let renderer = match GpuRenderer::new(&GpuOptions::from_env()) {
+        Ok(r) => r,
+        Err(e) => {
+            if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}");
+            }
+            eprintln!("skipped (no Vulkan device: {e})");
+            return;
+        }
+    };
+    let scene = izb::scene::load("hairball")
+        .unwrap()
+        .with_resolution([320, 180])
+        .unwrap();
+    let start = std::time::Instant::now();
+    let err = renderer
+        .render(&scene, IzbSettings::default(), GBufferSource::Gpu)
+        .err()
+        .expect("the frame cannot finish within a microsecond");
+    println!("{err} after {:?}", start.elapsed());
+    assert!(
+        matches!(err, GpuError::Timeout(_)),
+        "unexpected error: {err}"
+    );
+    assert!(renderer.context.shared.is_poisoned());
+    // Dropping the renderer now must neither block nor free in-flight work.
+    drop(renderer);
+}
