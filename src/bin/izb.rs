@@ -461,25 +461,9 @@ fn bench_izb(
             runs[k].push(pool.install(|| render_cpu(scene, &bvh, settings)).report);
         }
     }
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let medians: Vec<izb::izb::PassSeconds> = runs
+    let medians: Vec<izb::izb::PassTimes> = runs
         .iter()
-        .map(|r| {
-            let pass = |f: fn(&izb::izb::PassSeconds) -> f64| {
-                median(r.iter().map(|x| f(&x.seconds)).collect())
-            };
-            izb::izb::PassSeconds {
-                gbuffer: pass(|s| s.gbuffer),
-                light_setup: pass(|s| s.light_setup),
-                bin: pass(|s| s.bin),
-                evaluate: pass(|s| s.evaluate),
-                resolve: pass(|s| s.resolve),
-                total: pass(|s| s.total),
-            }
-        })
+        .map(|r| izb::izb::PassTimes::median(r.iter().map(|x| &x.seconds)))
         .collect();
     let one = methods
         .iter()
@@ -490,7 +474,7 @@ fn bench_izb(
         .zip(&medians)
         .zip(&runs)
         .map(|(((name, mode), s), r)| {
-            let shadow = s.total - s.gbuffer;
+            let shadow = s.shadow();
             println!(
                 "{}: {name:<12} gbuffer {:.3} s, light_setup {:.4} s, bin {:.3} s, evaluate {:.3} s, \
                  resolve {:.4} s; shadow passes {:.3} s{}",
@@ -503,7 +487,7 @@ fn bench_izb(
                 shadow,
                 one.as_ref().map_or(String::new(), |o| format!(
                     " ({:.2}x 1 spp)",
-                    shadow / (o.total - o.gbuffer)
+                    shadow / o.shadow()
                 ))
             );
             let last = r.last().expect("repeat >= 1");
@@ -515,7 +499,7 @@ fn bench_izb(
                 "repeat": r.len(),
                 "median_seconds": s,
                 "shadow_seconds": shadow,
-                "shadow_seconds_over_1spp": one.as_ref().map(|o| shadow / (o.total - o.gbuffer)),
+                "shadow_seconds_over_1spp": one.as_ref().map(|o| shadow / o.shadow()),
                 "evaluate_over_1spp": one.as_ref().map(|o| s.evaluate / o.evaluate),
                 "bin": last.bin,
                 "evaluate": last.evaluate,
@@ -544,27 +528,12 @@ fn bench_izb_gpu(
             runs[k].push(gpu.render(scene, settings, GBufferSource::Gpu)?.report);
         }
     }
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let medians: Vec<Option<izb::gpu::frame::GpuPassMillis>> = runs
+    let medians: Vec<Option<izb::izb::PassTimes>> = runs
         .iter()
         .map(|r| {
-            let all: Option<Vec<&izb::gpu::frame::GpuPassMillis>> =
+            let all: Option<Vec<&izb::izb::PassTimes>> =
                 r.iter().map(|x| x.gpu_milliseconds.as_ref()).collect();
-            let all = all?;
-            let pass = |f: fn(&izb::gpu::frame::GpuPassMillis) -> f64| {
-                median(all.iter().map(|m| f(m)).collect())
-            };
-            Some(izb::gpu::frame::GpuPassMillis {
-                gbuffer: pass(|m| m.gbuffer),
-                light_setup: pass(|m| m.light_setup),
-                bin: pass(|m| m.bin),
-                evaluate: pass(|m| m.evaluate),
-                resolve: pass(|m| m.resolve),
-                total: pass(|m| m.total),
-            })
+            all.map(|all| izb::izb::PassTimes::median(all.into_iter()))
         })
         .collect();
     let find = |m: SampleMode| {
@@ -574,7 +543,7 @@ fn bench_izb_gpu(
             .and_then(|k| medians[k].clone())
     };
     let (one, exact) = (find(SampleMode::One), find(SampleMode::Exact32));
-    let shadow = |m: &izb::gpu::frame::GpuPassMillis| m.total - m.gbuffer;
+    let shadow = izb::izb::PassTimes::shadow;
     let mut rows = Vec::new();
     for (((name, mode), m), r) in methods.iter().zip(&medians).zip(&runs) {
         if let Some(m) = m {
@@ -655,6 +624,43 @@ fn run_render(args: RenderArgs) -> Result<()> {
     }
 }
 
+/// Writes `visibility.exr` (lit fraction + masks) and `visibility.png`.
+fn write_mask_outputs(out: &Path, scene: &Scene, visibility: &[f32], masks: &[u32]) -> Result<()> {
+    let [w, h] = scene.resolution;
+    write_exr_with_masks(
+        &out.join("visibility.exr"),
+        w,
+        h,
+        &[("visibility", visibility)],
+        &[("mask", masks)],
+    )?;
+    write_visibility_png(&out.join("visibility.png"), w, h, visibility)
+}
+
+/// The one-line summary of a render: grid, binning, tests, timing.
+#[allow(clippy::too_many_arguments)]
+fn print_render_summary(
+    scene: &Scene,
+    mode: SampleMode,
+    backend: &str,
+    [binned, overflow, culled]: [u64; 3],
+    cells: [u32; 2],
+    tests: u64,
+    timing: &str,
+    out: &Path,
+) {
+    let [w, h] = scene.resolution;
+    println!(
+        "render {} ({mode:?}, {backend}): {w}x{h}, {} triangles ({binned} binned, {overflow} overflow, \
+         {culled} culled), grid {}x{}, {tests} tests, {timing} -> {}",
+        scene.name,
+        scene.triangles.len(),
+        cells[0],
+        cells[1],
+        out.display()
+    );
+}
+
 fn render_on_gpu(
     renderer: &GpuRenderer,
     scene: &Scene,
@@ -672,14 +678,7 @@ fn render_on_gpu(
         eprintln!("validation: {m}");
     }
     let [w, h] = scene.resolution;
-    write_exr_with_masks(
-        &args.out.join("visibility.exr"),
-        w,
-        h,
-        &[("visibility", &render.visibility)],
-        &[("mask", &render.masks)],
-    )?;
-    write_visibility_png(&args.out.join("visibility.png"), w, h, &render.visibility)?;
+    write_mask_outputs(&args.out, scene, &render.visibility, &render.masks)?;
     let shaded =
         image::RgbImage::from_raw(w, h, render.shaded.concat()).context("shaded image size")?;
     write_png(&args.out.join("shaded.png"), &shaded)?;
@@ -698,22 +697,19 @@ fn render_on_gpu(
         .map_or("no timestamps".to_string(), |m| {
             format!("GPU {:.3} ms (evaluate {:.3} ms)", m.total, m.evaluate)
         });
-    println!(
-        "render {} ({:?}, vulkan): {}x{}, {} triangles ({} binned, {} overflow, {} culled), grid {}x{}, \
-         {} tests, {ms}, {:.1} MiB -> {}",
-        scene.name,
+    let c = &r.counters;
+    print_render_summary(
+        scene,
         settings.mode,
-        w,
-        h,
-        scene.triangles.len(),
-        r.counters.triangles_binned,
-        r.counters.overflow,
-        r.counters.culled,
-        r.light.cells[0],
-        r.light.cells[1],
-        r.counters.tests_spawned,
-        r.memory_total_bytes as f64 / (1024.0 * 1024.0),
-        args.out.display()
+        "vulkan",
+        [c.triangles_binned, c.overflow, c.culled].map(u64::from),
+        r.light.cells,
+        c.tests_spawned,
+        &format!(
+            "{ms}, {:.1} MiB",
+            r.memory_total_bytes as f64 / (1024.0 * 1024.0)
+        ),
+        &args.out,
     );
     Ok(())
 }
@@ -726,15 +722,7 @@ fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) -> Res
         let bvh_seconds = t.elapsed().as_secs_f64();
         (render_cpu(scene, &bvh, settings), bvh_seconds)
     });
-    let [w, h] = scene.resolution;
-    write_exr_with_masks(
-        &args.out.join("visibility.exr"),
-        w,
-        h,
-        &[("visibility", &render.visibility)],
-        &[("mask", &render.masks)],
-    )?;
-    write_visibility_png(&args.out.join("visibility.png"), w, h, &render.visibility)?;
+    write_mask_outputs(&args.out, scene, &render.visibility, &render.masks)?;
     let light = scene.light.relative_to(scene.camera.eye);
     write_shaded_png(
         &args.out.join("shaded.png"),
@@ -752,23 +740,18 @@ fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) -> Res
     });
     write_json(&args.out.join("report.json"), &report)?;
     let r = &render.report;
-    println!(
-        "render {} ({:?}, cpu): {}x{}, {} triangles ({} binned, {} overflow, {} culled), grid {}x{}, \
-         {} tests, {:.3} s (evaluate {:.3} s) -> {}",
-        scene.name,
+    print_render_summary(
+        scene,
         settings.mode,
-        w,
-        h,
-        scene.triangles.len(),
-        r.bin.binned,
-        r.bin.overflow,
-        r.bin.culled,
-        r.light.cells[0],
-        r.light.cells[1],
+        "cpu",
+        [r.bin.binned, r.bin.overflow, r.bin.culled].map(|n| n as u64),
+        r.light.cells,
         r.evaluate.tests_spawned,
-        r.seconds.total,
-        r.seconds.evaluate,
-        args.out.display()
+        &format!(
+            "{:.3} s (evaluate {:.3} s)",
+            r.seconds.total, r.seconds.evaluate
+        ),
+        &args.out,
     );
     Ok(())
 }

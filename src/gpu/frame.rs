@@ -29,15 +29,7 @@ pub enum GBufferSource<'a> {
 }
 
 /// Per-pass GPU milliseconds from timestamp queries.
-#[derive(Clone, Debug, Default, serde::Serialize)]
-pub struct GpuPassMillis {
-    pub gbuffer: f64,
-    pub light_setup: f64,
-    pub bin: f64,
-    pub evaluate: f64,
-    pub resolve: f64,
-    pub total: f64,
-}
+pub type GpuPassMillis = crate::izb::PassTimes;
 
 /// Device memory of one pass's buffers.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -70,6 +62,8 @@ pub struct GpuCounters {
     pub culled: u32,
     pub cell_entries: u32,
     pub pixels_tested: u32,
+    /// Pixels never shadow-tested (sky, facing away from the light).
+    pub pixels_skipped: u32,
     pub early_outs: u32,
     pub tests_spawned: u64,
     pub depth_passed: u64,
@@ -521,6 +515,7 @@ impl GpuRenderer {
             culled: c[counter::CULLED],
             cell_entries: c[counter::CELL_ENTRIES],
             pixels_tested: c[counter::PIXELS_TESTED],
+            pixels_skipped: (scene.pixel_count() as u32).saturating_sub(c[counter::PIXELS_TESTED]),
             early_outs: c[counter::EARLY_OUTS],
             tests_spawned: wide(counter::TESTS_SPAWNED),
             depth_passed: wide(counter::DEPTH_PASSED),
@@ -688,22 +683,33 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
     });
+    Ok(group_by_pass(
+        descs
+            .iter()
+            .filter(|d| d.name != "vertex_cache")
+            .map(|d| (d.pass, d.name, d.size.max(4).next_multiple_of(4))),
+    ))
+}
+
+/// Sums buffer sizes per owning pass, keeping each buffer's own size.
+fn group_by_pass(
+    buffers: impl Iterator<Item = (&'static str, &'static str, u64)>,
+) -> Vec<PassMemory> {
     let mut out: Vec<PassMemory> = Vec::new();
-    for d in descs.into_iter().filter(|d| d.name != "vertex_cache") {
-        let size = d.size.max(4).next_multiple_of(4);
-        match out.iter_mut().find(|m| m.pass == d.pass) {
+    for (pass, name, size) in buffers {
+        match out.iter_mut().find(|m| m.pass == pass) {
             Some(m) => {
                 m.bytes += size;
-                m.buffers.push((d.name, size));
+                m.buffers.push((name, size));
             }
             None => out.push(PassMemory {
-                pass: d.pass,
+                pass,
                 bytes: size,
-                buffers: vec![(d.name, size)],
+                buffers: vec![(name, size)],
             }),
         }
     }
-    Ok(out)
+    out
 }
 
 /// First guess of the cell list's entries: 4 per triangle, at least 2^16.
@@ -712,21 +718,7 @@ fn initial_cell_capacity(triangles: usize) -> u64 {
 }
 
 fn memory_by_pass(buffers: &[GpuBuffer]) -> Vec<PassMemory> {
-    let mut out: Vec<PassMemory> = Vec::new();
-    for b in buffers {
-        match out.iter_mut().find(|m| m.pass == b.desc.pass) {
-            Some(m) => {
-                m.bytes += b.size();
-                m.buffers.push((b.desc.name, b.size()));
-            }
-            None => out.push(PassMemory {
-                pass: b.desc.pass,
-                bytes: b.size(),
-                buffers: vec![(b.desc.name, b.size())],
-            }),
-        }
-    }
-    out
+    group_by_pass(buffers.iter().map(|b| (b.desc.pass, b.desc.name, b.size())))
 }
 
 /// `FrameParams` for `scene`: camera rays as affine functions of the pixel

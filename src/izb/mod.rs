@@ -42,15 +42,44 @@ impl Default for IzbSettings {
     }
 }
 
-/// Seconds per pass.
+/// Time per pass, the same five passes on both backends; the unit is
+/// the caller's (the CPU reports seconds, the GPU timestamp milliseconds).
 #[derive(Clone, Debug, Default, serde::Serialize)]
-pub struct PassSeconds {
+pub struct PassTimes {
     pub gbuffer: f64,
     pub light_setup: f64,
     pub bin: f64,
     pub evaluate: f64,
     pub resolve: f64,
     pub total: f64,
+}
+
+/// CPU wall seconds per pass.
+pub type PassSeconds = PassTimes;
+
+impl PassTimes {
+    /// The per-pass median of non-empty `runs` (the upper median for an
+    /// even count).
+    pub fn median<'a>(runs: impl Iterator<Item = &'a PassTimes> + Clone) -> PassTimes {
+        let pass = |f: fn(&PassTimes) -> f64| {
+            let mut v: Vec<f64> = runs.clone().map(f).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        PassTimes {
+            gbuffer: pass(|t| t.gbuffer),
+            light_setup: pass(|t| t.light_setup),
+            bin: pass(|t| t.bin),
+            evaluate: pass(|t| t.evaluate),
+            resolve: pass(|t| t.resolve),
+            total: pass(|t| t.total),
+        }
+    }
+
+    /// Everything but the G-buffer: the shadow passes proper.
+    pub fn shadow(&self) -> f64 {
+        self.total - self.gbuffer
+    }
 }
 
 /// Settings, timings and counters of one render (`report.json`).
