@@ -24,29 +24,40 @@
 #define B_BVH_NODES 2
 #define B_BVH_PRIMS 3
 #define B_G_POSITION 4
-#define B_G_NORMAL 5
-#define B_G_AXIS_X 6
-#define B_G_AXIS_Y 7
-#define B_G_TRIANGLE 8
-#define B_G_FLAGS 9
-#define B_LIGHT 10
-#define B_COUNTERS 11
-#define B_VERTEX_CACHE 12
-#define B_PLACEMENT 13
-#define B_CELL_CURSOR 14
-#define B_CELL_START 15
-#define B_CELL_TRIANGLES 16
-#define B_OVERFLOW 17
-#define B_EDGE_LUT 18
-#define B_MASKS 19
-#define B_VISIBILITY 20
-#define B_SHADED 21
+#define B_G_AXIS_X 5
+#define B_G_AXIS_Y 6
+#define B_G_ID_FLAGS 7
+#define B_LIGHT 8
+#define B_COUNTERS 9
+#define B_VERTEX_CACHE 10
+#define B_PLACEMENT 11
+#define B_CELL_CURSOR 12
+#define B_CELL_START 13
+#define B_CELL_TRIANGLES 14
+#define B_OVERFLOW 15
+#define B_EDGE_LUT 16
+#define B_MASKS 17
+#define B_VISIBILITY 18
+#define B_SHADED 19
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u
 #define FLAG_SHADOW_TESTED 2u
 #define FLAG_AXES_CLAMPED 4u
 #define NO_HIT 0xFFFFFFFFu
+// The G-buffer keeps the triangle id and the flags in one word: flags in
+// the top 3 bits, the id below (scenes hold fewer than 2^29 − 1
+// triangles; the host checks). A miss is flags 0 with every id bit set.
+#define ID_BITS 29
+#define ID_MASK 0x1FFFFFFFu
+
+uint gbuffer_flags(uint word) {
+    return word >> ID_BITS;
+}
+
+uint gbuffer_triangle(uint word) {
+    return (word & ID_MASK) == ID_MASK ? NO_HIT : (word & ID_MASK);
+}
 
 // ---- sample modes (src/izb/evaluate.rs: `SampleMode`) ----
 #define MODE_ONE 0u

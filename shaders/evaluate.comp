@@ -24,11 +24,9 @@ layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
-layout(scalar, binding = B_G_NORMAL) readonly buffer NrmBuf { vec3 g_normal[]; };
 layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
-layout(scalar, binding = B_G_TRIANGLE) readonly buffer GtBuf { uint g_triangle[]; };
-layout(scalar, binding = B_G_FLAGS) readonly buffer GfBuf { uint g_flags[]; };
+layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(scalar, binding = B_VERTEX_CACHE) readonly buffer CacheBuf { Triangle vertex_cache[]; };
@@ -171,16 +169,25 @@ vec2 ndc_of(vec3 q) {
     return light.projection == 0u ? q.xy : q.xy / q.z;
 }
 
+// The receiver's unit geometric normal in light view, facing the camera:
+// rebuilt from its light-view vertices instead of stored in the G-buffer
+// (the eye sits at the light-view image of the eye-relative origin).
+vec3 receiver_normal(Triangle t, vec3 p) {
+    precise vec3 n = normalize(cross(t.b - t.a, t.c - t.a));
+    precise float facing = dot(n, to_light_view(vec3(0.0)) - p);
+    return facing < 0.0 ? -n : n;
+}
+
 // evaluate::pixel_frustum: light-view µQuad and its cell rectangle.
 void pixel_frustum(uint i) {
     vec3 p = g_position[i], ex = g_axis_x[i], ey = g_axis_y[i];
     px_p = to_light_view(p);
-    px_normal = rotate(g_normal[i]);
+    px_receiver = gbuffer_triangle(g_id_flags[i]);
+    px_normal = receiver_normal(vertex_cache[px_receiver], px_p);
     px_ex = rotate(ex);
     px_ey = rotate(ey);
     precise float size = max(length(px_ex), length(px_ey));
     px_size = size;
-    px_receiver = g_triangle[i];
     px_has_cells = false;
     if (light.grid_disabled != 0u) return;
     vec3 hx = ex * 0.5, hy = ey * 0.5;
@@ -212,7 +219,7 @@ void main() {
     uint lid = gl_LocalInvocationIndex;
     uint i = pixel.y * frame.width + pixel.x;
     bool inside = pixel.x < frame.width && pixel.y < frame.height;
-    bool live = inside && (g_flags[i] & FLAG_SHADOW_TESTED) != 0u;
+    bool live = inside && (gbuffer_flags(g_id_flags[i]) & FLAG_SHADOW_TESTED) != 0u;
     uint mask = 0u;
     if (live) pixel_frustum(i);
     // A grid overrun (C_CAPACITY_EXCEEDED) leaves cell lists incomplete:

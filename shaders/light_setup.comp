@@ -21,7 +21,7 @@ layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; 
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
-layout(scalar, binding = B_G_FLAGS) readonly buffer GfBuf { uint g_flags[]; };
+layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_LIGHT) buffer LightBuf { LightState light; };
 
 // Closest a receiver may come to the point light's image plane, relative to
@@ -62,7 +62,7 @@ bool shadow_tested_pixel(out uint i) {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     i = pixel.y * frame.width + pixel.x;
     return pixel.x < frame.width && pixel.y < frame.height
-        && (g_flags[i] & FLAG_SHADOW_TESTED) != 0u;
+        && (gbuffer_flags(g_id_flags[i]) & FLAG_SHADOW_TESTED) != 0u;
 }
 #endif
 

@@ -225,7 +225,15 @@ impl GpuRenderer {
             })
             .collect();
         let t_count = u32::try_from(triangles.len())
-            .map_err(|_| GpuError::Unsupported("more than 2^32 triangles".into()))?;
+            .ok()
+            .filter(|&n| n < shared::ID_MASK)
+            .ok_or_else(|| {
+                GpuError::Unsupported(format!(
+                    "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
+                    triangles.len(),
+                    shared::ID_BITS
+                ))
+            })?;
         let bvh_start = Instant::now();
         let bvh = match source {
             GBufferSource::Gpu => super::gbuffer::build_bvh(&triangles)?,
@@ -353,12 +361,16 @@ impl GpuRenderer {
         stage(binding::LIGHT, bytemuck::bytes_of(&LightState::reset()))?;
         stage(binding::EDGE_LUT, as_bytes(&lut.masks))?;
         if let GBufferSource::Upload(g) = source {
+            let words: Vec<u32> = g
+                .triangle_id
+                .iter()
+                .zip(&g.flags)
+                .map(|(&id, &f)| shared::pack_id_flags(id, f))
+                .collect();
             stage(binding::G_POSITION, as_bytes(&g.position))?;
-            stage(binding::G_NORMAL, as_bytes(&g.normal))?;
             stage(binding::G_AXIS_X, as_bytes(&g.axis_x))?;
             stage(binding::G_AXIS_Y, as_bytes(&g.axis_y))?;
-            stage(binding::G_TRIANGLE, as_bytes(&g.triangle_id))?;
-            stage(binding::G_FLAGS, as_bytes(&g.flags))?;
+            stage(binding::G_ID_FLAGS, as_bytes(&words))?;
         }
 
         let readback_of = [
@@ -368,11 +380,9 @@ impl GpuRenderer {
             binding::VISIBILITY,
             binding::SHADED,
             binding::G_POSITION,
-            binding::G_NORMAL,
             binding::G_AXIS_X,
             binding::G_AXIS_Y,
-            binding::G_TRIANGLE,
-            binding::G_FLAGS,
+            binding::G_ID_FLAGS,
         ];
         let readbacks: Vec<(GpuBuffer, u32)> = readback_of
             .iter()
@@ -482,11 +492,9 @@ impl GpuRenderer {
             ),
             shaded: words(binding::SHADED)?,
             position: vec3s(binding::G_POSITION)?,
-            normal: vec3s(binding::G_NORMAL)?,
             axis_x: vec3s(binding::G_AXIS_X)?,
             axis_y: vec3s(binding::G_AXIS_Y)?,
-            triangle_id: words(binding::G_TRIANGLE)?,
-            flags: words(binding::G_FLAGS)?,
+            id_flags: words(binding::G_ID_FLAGS)?,
             millis,
             wall_seconds,
             memory,
@@ -527,10 +535,30 @@ impl GpuRenderer {
         let gbuffer = match source {
             GBufferSource::Upload(g) => g.clone(),
             GBufferSource::Gpu => {
+                let (triangle_id, flags): (Vec<u32>, Vec<u32>) = out
+                    .id_flags
+                    .iter()
+                    .map(|&w| shared::unpack_id_flags(w))
+                    .unzip();
+                // The GPU stores no normal: rebuild it as the CPU twin
+                // defines it (the hit triangle's, in f64, facing the eye).
+                let eye_triangles = scene.eye_relative_triangles();
+                let normal = triangle_id
+                    .iter()
+                    .zip(&out.position)
+                    .map(|(&id, p)| match eye_triangles.get(id as usize) {
+                        Some(t) => {
+                            let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
+                            let n = if n.dot(p.as_dvec3()) > 0.0 { -n } else { n };
+                            n.as_vec3()
+                        }
+                        None => Vec3::ZERO,
+                    })
+                    .collect();
                 let depth = out
                     .position
                     .iter()
-                    .zip(&out.flags)
+                    .zip(&flags)
                     .map(|(p, &f)| {
                         if f & flags::HIT != 0 {
                             p.dot(forward)
@@ -542,13 +570,13 @@ impl GpuRenderer {
                 GBuffer {
                     width: w,
                     height: h,
-                    triangle_id: out.triangle_id,
+                    triangle_id,
                     depth,
                     position: out.position,
-                    normal: out.normal,
+                    normal,
                     axis_x: out.axis_x,
                     axis_y: out.axis_y,
-                    flags: out.flags,
+                    flags,
                     stats: GBufferStats {
                         pixels: scene.pixel_count(),
                         hits: counters.hits as usize,
@@ -610,11 +638,9 @@ struct FrameOutput {
     visibility: Vec<f32>,
     shaded: Vec<u32>,
     position: Vec<Vec3>,
-    normal: Vec<Vec3>,
     axis_x: Vec<Vec3>,
     axis_y: Vec<Vec3>,
-    triangle_id: Vec<u32>,
-    flags: Vec<u32>,
+    id_flags: Vec<u32>,
     millis: Option<GpuPassMillis>,
     wall_seconds: f64,
     memory: Vec<PassMemory>,
@@ -641,11 +667,9 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
         BufferDesc::device("gbuffer", "bvh_prims", z.bvh_prims * 4),
         BufferDesc::device("gbuffer", "g_position", p * vec3),
-        BufferDesc::device("gbuffer", "g_normal", p * vec3),
         BufferDesc::device("gbuffer", "g_axis_x", p * vec3),
         BufferDesc::device("gbuffer", "g_axis_y", p * vec3),
-        BufferDesc::device("gbuffer", "g_triangle", p * 4),
-        BufferDesc::device("gbuffer", "g_flags", p * 4),
+        BufferDesc::device("gbuffer", "g_id_flags", p * 4),
         BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
         BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
         // Aliases `triangles_then_vertex_cache` (see `FrameBuffers`).

@@ -14,25 +14,24 @@ pub mod binding {
     pub const BVH_NODES: u32 = 2;
     pub const BVH_PRIMS: u32 = 3;
     pub const G_POSITION: u32 = 4;
-    pub const G_NORMAL: u32 = 5;
-    pub const G_AXIS_X: u32 = 6;
-    pub const G_AXIS_Y: u32 = 7;
-    pub const G_TRIANGLE: u32 = 8;
-    pub const G_FLAGS: u32 = 9;
-    pub const LIGHT: u32 = 10;
-    pub const COUNTERS: u32 = 11;
-    pub const VERTEX_CACHE: u32 = 12;
-    pub const PLACEMENT: u32 = 13;
-    pub const CELL_CURSOR: u32 = 14;
-    pub const CELL_START: u32 = 15;
-    pub const CELL_TRIANGLES: u32 = 16;
-    pub const OVERFLOW: u32 = 17;
-    pub const EDGE_LUT: u32 = 18;
-    pub const MASKS: u32 = 19;
-    pub const VISIBILITY: u32 = 20;
-    pub const SHADED: u32 = 21;
+    pub const G_AXIS_X: u32 = 5;
+    pub const G_AXIS_Y: u32 = 6;
+    /// Triangle id and flags in one word ([`pack_id_flags`]).
+    pub const G_ID_FLAGS: u32 = 7;
+    pub const LIGHT: u32 = 8;
+    pub const COUNTERS: u32 = 9;
+    pub const VERTEX_CACHE: u32 = 10;
+    pub const PLACEMENT: u32 = 11;
+    pub const CELL_CURSOR: u32 = 12;
+    pub const CELL_START: u32 = 13;
+    pub const CELL_TRIANGLES: u32 = 14;
+    pub const OVERFLOW: u32 = 15;
+    pub const EDGE_LUT: u32 = 16;
+    pub const MASKS: u32 = 17;
+    pub const VISIBILITY: u32 = 18;
+    pub const SHADED: u32 = 19;
     /// Number of bindings.
-    pub const COUNT: u32 = 22;
+    pub const COUNT: u32 = 20;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two
@@ -171,6 +170,34 @@ pub struct BvhNode {
     pub first: u32,
 }
 const _: () = assert!(size_of::<BvhNode>() == 32);
+
+/// Bits of the G-buffer word that hold the triangle id (`ID_BITS`); the
+/// three flag bits sit above them.
+pub const ID_BITS: u32 = 29;
+/// Id field of a miss; also one more than the largest triangle id.
+pub const ID_MASK: u32 = (1 << ID_BITS) - 1;
+
+/// The G-buffer word of a triangle id ([`crate::gbuffer::NO_HIT`] for a
+/// miss) and its flags (`gbuffer_triangle` / `gbuffer_flags` in GLSL).
+pub fn pack_id_flags(triangle: u32, flags: u32) -> u32 {
+    let id = if triangle == crate::gbuffer::NO_HIT {
+        ID_MASK
+    } else {
+        triangle & ID_MASK
+    };
+    (flags << ID_BITS) | id
+}
+
+/// Inverse of [`pack_id_flags`]: (triangle id, flags).
+pub fn unpack_id_flags(word: u32) -> (u32, u32) {
+    let id = word & ID_MASK;
+    let id = if id == ID_MASK {
+        crate::gbuffer::NO_HIT
+    } else {
+        id
+    };
+    (id, word >> ID_BITS)
+}
 
 /// The GLSL float ↔ ordered-uint map (`ordered_bits`), for tests.
 pub fn ordered_bits(f: f32) -> u32 {
