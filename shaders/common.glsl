@@ -39,6 +39,7 @@
 #define B_MASKS 17
 #define B_VISIBILITY 18
 #define B_SHADED 19
+#define B_G_NORMAL 20
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u

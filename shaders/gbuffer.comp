@@ -6,9 +6,8 @@
 // CPU twin does, so both sample the same ray and derive the µQuad axes from
 // the same closed form (design §3: derivatives of the ray/tangent-plane
 // intersection), with no rasterisation rules or depth-buffer precision in
-// between. Output: the struct-of-arrays G-buffer (hit point, µQuad axes,
-// triangle id and flags in one word; the normal is the hit triangle's and
-// is rebuilt from the vertex cache where needed).
+// between. Output: the struct-of-arrays G-buffer (hit point, normal, µQuad
+// axes, triangle id and flags in one word).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -22,6 +21,7 @@ layout(scalar, binding = B_G_POSITION) writeonly buffer PosBuf { vec3 g_position
 layout(scalar, binding = B_G_AXIS_X) writeonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) writeonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) writeonly buffer GidBuf { uint g_id_flags[]; };
+layout(scalar, binding = B_G_NORMAL) writeonly buffer NrmBuf { vec3 g_normal[]; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 
 #define STACK_SIZE 64
@@ -106,6 +106,7 @@ void main() {
     if (best == NO_HIT) {
         g_id_flags[i] = ID_MASK;   // a miss
         g_position[i] = vec3(0.0);
+        g_normal[i] = vec3(0.0);
         g_axis_x[i] = vec3(0.0);
         g_axis_y[i] = vec3(0.0);
         return;
@@ -135,10 +136,9 @@ void main() {
         flags |= FLAG_AXES_CLAMPED;
     }
 
-    // No normal is stored: the later passes rebuild it from the vertex
-    // cache (12 bytes a pixel saved).
     g_id_flags[i] = (flags << ID_BITS) | best;
     g_position[i] = p;
+    g_normal[i] = n;
     g_axis_x[i] = ex;
     g_axis_y[i] = ey;
     atomicAdd(counters[C_HITS], 1u);

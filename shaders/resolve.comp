@@ -11,8 +11,7 @@ layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
-layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
-layout(scalar, binding = B_VERTEX_CACHE) readonly buffer CacheBuf { Triangle vertex_cache[]; };
+layout(scalar, binding = B_G_NORMAL) readonly buffer NrmBuf { vec3 g_normal[]; };
 layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint masks[]; };
 layout(scalar, binding = B_VISIBILITY) writeonly buffer VisBuf { float visibility[]; };
 layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; };
@@ -34,18 +33,9 @@ void main() {
     visibility[i] = lit;
     vec3 rgb = SKY;
     if ((flags & FLAG_HIT) != 0u) {
-        // Lambert in light view, with the receiver's normal rebuilt from
-        // the vertex cache (the G-buffer stores none): the light is at +z
-        // infinity (directional) or at the origin (point).
-        Triangle t = vertex_cache[gbuffer_triangle(word)];
-        vec3 p = g_position[i] - light.origin;
-        p = vec3(dot(light.rot_x, p), dot(light.rot_y, p), dot(light.rot_z, p));
-        vec3 eye = -light.origin;
-        eye = vec3(dot(light.rot_x, eye), dot(light.rot_y, eye), dot(light.rot_z, eye));
-        vec3 n = normalize(cross(t.b - t.a, t.c - t.a));
-        if (dot(n, eye - p) < 0.0) n = -n;
-        vec3 toward = light.projection == 1u ? normalize(-p) : vec3(0.0, 0.0, 1.0);
-        float lambert = max(dot(n, toward), 0.0);
+        vec3 p = g_position[i];
+        vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
+        float lambert = max(dot(g_normal[i], toward), 0.0);
         float v = isnan(lit) ? 0.0 : lit;
         rgb = vec3(AMBIENT + (1.0 - AMBIENT) * DIFFUSE * lambert * v);
     }

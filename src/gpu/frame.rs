@@ -371,6 +371,7 @@ impl GpuRenderer {
             stage(binding::G_AXIS_X, as_bytes(&g.axis_x))?;
             stage(binding::G_AXIS_Y, as_bytes(&g.axis_y))?;
             stage(binding::G_ID_FLAGS, as_bytes(&words))?;
+            stage(binding::G_NORMAL, as_bytes(&g.normal))?;
         }
 
         let readback_of = [
@@ -383,6 +384,7 @@ impl GpuRenderer {
             binding::G_AXIS_X,
             binding::G_AXIS_Y,
             binding::G_ID_FLAGS,
+            binding::G_NORMAL,
         ];
         let readbacks: Vec<(GpuBuffer, u32)> = readback_of
             .iter()
@@ -495,6 +497,7 @@ impl GpuRenderer {
             axis_x: vec3s(binding::G_AXIS_X)?,
             axis_y: vec3s(binding::G_AXIS_Y)?,
             id_flags: words(binding::G_ID_FLAGS)?,
+            normal: vec3s(binding::G_NORMAL)?,
             millis,
             wall_seconds,
             memory,
@@ -540,21 +543,6 @@ impl GpuRenderer {
                     .iter()
                     .map(|&w| shared::unpack_id_flags(w))
                     .unzip();
-                // The GPU stores no normal: rebuild it as the CPU twin
-                // defines it (the hit triangle's, in f64, facing the eye).
-                let eye_triangles = scene.eye_relative_triangles();
-                let normal = triangle_id
-                    .iter()
-                    .zip(&out.position)
-                    .map(|(&id, p)| match eye_triangles.get(id as usize) {
-                        Some(t) => {
-                            let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
-                            let n = if n.dot(p.as_dvec3()) > 0.0 { -n } else { n };
-                            n.as_vec3()
-                        }
-                        None => Vec3::ZERO,
-                    })
-                    .collect();
                 let depth = out
                     .position
                     .iter()
@@ -573,7 +561,7 @@ impl GpuRenderer {
                     triangle_id,
                     depth,
                     position: out.position,
-                    normal,
+                    normal: out.normal,
                     axis_x: out.axis_x,
                     axis_y: out.axis_y,
                     flags,
@@ -638,6 +626,7 @@ struct FrameOutput {
     visibility: Vec<f32>,
     shaded: Vec<u32>,
     position: Vec<Vec3>,
+    normal: Vec<Vec3>,
     axis_x: Vec<Vec3>,
     axis_y: Vec<Vec3>,
     id_flags: Vec<u32>,
@@ -683,6 +672,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("evaluate", "masks", p * 4),
         BufferDesc::device("resolve", "visibility", p * 4),
         BufferDesc::device("resolve", "shaded", p * 4),
+        BufferDesc::device("gbuffer", "g_normal", p * vec3),
     ]
 }
 

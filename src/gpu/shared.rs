@@ -30,8 +30,10 @@ pub mod binding {
     pub const MASKS: u32 = 17;
     pub const VISIBILITY: u32 = 18;
     pub const SHADED: u32 = 19;
+    /// The receiver's camera-facing unit normal (the CPU twin's, in `f32`).
+    pub const G_NORMAL: u32 = 20;
     /// Number of bindings.
-    pub const COUNT: u32 = 20;
+    pub const COUNT: u32 = 21;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two
