@@ -40,6 +40,7 @@
 #define B_VISIBILITY 18
 #define B_SHADED 19
 #define B_G_NORMAL 20
+#define B_TRIANGLE_NORMALS 21
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u

@@ -356,6 +356,20 @@ impl GpuRenderer {
         };
         stage(binding::FRAME, bytemuck::bytes_of(&params))?;
         stage(binding::TRIANGLES, as_bytes(triangles))?;
+        if let GBufferSource::Gpu = source {
+            let normals: Vec<[f32; 3]> = scene
+                .eye_relative_triangles()
+                .iter()
+                .map(|t| {
+                    (t[1] - t[0])
+                        .cross(t[2] - t[0])
+                        .normalize()
+                        .as_vec3()
+                        .to_array()
+                })
+                .collect();
+            stage(binding::TRIANGLE_NORMALS, as_bytes(&normals))?;
+        }
         stage(binding::BVH_NODES, as_bytes(&bvh.nodes))?;
         stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
         stage(binding::LIGHT, bytemuck::bytes_of(&LightState::reset()))?;
@@ -673,6 +687,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("resolve", "visibility", p * 4),
         BufferDesc::device("resolve", "shaded", p * 4),
         BufferDesc::device("gbuffer", "g_normal", p * vec3),
+        BufferDesc::device("scene", "triangle_normals", t * vec3),
     ]
 }
 

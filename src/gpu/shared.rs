@@ -32,8 +32,11 @@ pub mod binding {
     pub const SHADED: u32 = 19;
     /// The receiver's camera-facing unit normal (the CPU twin's, in `f32`).
     pub const G_NORMAL: u32 = 20;
+    /// Unit normal per triangle, computed on the host in `f64` exactly as
+    /// the CPU twin computes it, then rounded.
+    pub const TRIANGLE_NORMALS: u32 = 21;
     /// Number of bindings.
-    pub const COUNT: u32 = 21;
+    pub const COUNT: u32 = 22;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two
