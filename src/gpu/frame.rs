@@ -113,6 +113,38 @@ pub struct GpuRenderer {
     pub context: GpuContext,
 }
 
+/// The scene as the GPU receives it, built once per render (a capacity
+/// rerun reuses it): eye-relative `f32` vertices and the unit normals the
+/// CPU twin computes from the `f64` vertices, rounded.
+struct SceneUpload {
+    triangles: Vec<GpuTriangle>,
+    normals: Vec<[f32; 3]>,
+}
+
+impl SceneUpload {
+    fn new(scene: &Scene) -> Self {
+        let eye_relative = scene.eye_relative_triangles();
+        SceneUpload {
+            triangles: eye_relative
+                .iter()
+                .map(|t| GpuTriangle {
+                    v: t.map(|v| v.as_vec3().to_array()),
+                })
+                .collect(),
+            normals: eye_relative
+                .iter()
+                .map(|t| {
+                    (t[1] - t[0])
+                        .cross(t[2] - t[0])
+                        .normalize()
+                        .as_vec3()
+                        .to_array()
+                })
+                .collect(),
+        }
+    }
+}
+
 /// The frame's device buffers, in binding order, except that
 /// [`binding::VERTEX_CACHE`] aliases [`binding::TRIANGLES`]: `bin_count`
 /// turns each eye-relative triangle into its light-view copy in place (one
@@ -218,12 +250,8 @@ impl GpuRenderer {
                 )));
             }
         }
-        let triangles: Vec<GpuTriangle> = crate::izb::eye_relative_f32(scene)
-            .iter()
-            .map(|t| GpuTriangle {
-                v: t.map(|v| v.to_array()),
-            })
-            .collect();
+        let upload = SceneUpload::new(scene);
+        let triangles = &upload.triangles;
         let t_count = u32::try_from(triangles.len())
             .ok()
             .filter(|&n| n < shared::ID_MASK)
@@ -236,7 +264,7 @@ impl GpuRenderer {
             })?;
         let bvh_start = Instant::now();
         let bvh = match source {
-            GBufferSource::Gpu => super::gbuffer::build_bvh(&triangles)?,
+            GBufferSource::Gpu => super::gbuffer::build_bvh(triangles)?,
             GBufferSource::Upload(_) => super::gbuffer::GpuBvh {
                 nodes: Vec::new(),
                 prims: Vec::new(),
@@ -256,9 +284,8 @@ impl GpuRenderer {
         let mut frames_run = 0;
         loop {
             frames_run += 1;
-            let out = self.run_frame(
-                scene, settings, source, &triangles, &bvh, max_cells, capacity,
-            )?;
+            let out =
+                self.run_frame(scene, settings, source, &upload, &bvh, max_cells, capacity)?;
             let needed = u64::from(out.counters[counter::CELL_ENTRIES]);
             if out.counters[counter::CAPACITY_EXCEEDED] != 0 && frames_run == 1 {
                 capacity = needed;
@@ -296,11 +323,12 @@ impl GpuRenderer {
         scene: &Scene,
         settings: IzbSettings,
         source: GBufferSource,
-        triangles: &[GpuTriangle],
+        upload: &SceneUpload,
         bvh: &super::gbuffer::GpuBvh,
         max_cells: u64,
         cell_capacity: u64,
     ) -> Result<FrameOutput, GpuError> {
+        let triangles = &upload.triangles[..];
         let shared = self.shared();
         let [w, h] = scene.resolution;
         let pixels = scene.pixel_count() as u64;
@@ -319,7 +347,7 @@ impl GpuRenderer {
         let frame_buffers = FrameBuffers {
             buffers: descs
                 .into_iter()
-                .filter(|d| d.name != "vertex_cache")
+                .filter(is_allocated)
                 .map(|d| GpuBuffer::new(shared, d))
                 .collect::<Result<_, _>>()?,
         };
@@ -357,18 +385,7 @@ impl GpuRenderer {
         stage(binding::FRAME, bytemuck::bytes_of(&params))?;
         stage(binding::TRIANGLES, as_bytes(triangles))?;
         if let GBufferSource::Gpu = source {
-            let normals: Vec<[f32; 3]> = scene
-                .eye_relative_triangles()
-                .iter()
-                .map(|t| {
-                    (t[1] - t[0])
-                        .cross(t[2] - t[0])
-                        .normalize()
-                        .as_vec3()
-                        .to_array()
-                })
-                .collect();
-            stage(binding::TRIANGLE_NORMALS, as_bytes(&normals))?;
+            stage(binding::TRIANGLE_NORMALS, as_bytes(&upload.normals))?;
         }
         stage(binding::BVH_NODES, as_bytes(&bvh.nodes))?;
         stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
@@ -649,6 +666,14 @@ struct FrameOutput {
     memory: Vec<PassMemory>,
 }
 
+/// Name of the binding that has no buffer of its own (see `FrameBuffers`).
+const VERTEX_CACHE_ALIAS: &str = "vertex_cache";
+
+/// Whether a frame allocates `d` (every binding but the alias).
+fn is_allocated(d: &BufferDesc) -> bool {
+    d.name != VERTEX_CACHE_ALIAS
+}
+
 /// The sizes that decide a frame's buffers.
 pub struct FrameSizes {
     pub pixels: u64,
@@ -676,7 +701,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
         BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
         // Aliases `triangles_then_vertex_cache` (see `FrameBuffers`).
-        BufferDesc::device("bin", "vertex_cache", 0),
+        BufferDesc::device("bin", VERTEX_CACHE_ALIAS, 0),
         BufferDesc::device("bin", "placement", t * 8),
         BufferDesc::device("bin", "cell_cursor", z.max_cells * 4),
         BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
@@ -695,12 +720,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
 /// cell list at its first guess), per pass, without a device: for budgets
 /// on machines that cannot run the frame.
 pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMemory>, GpuError> {
-    let triangles: Vec<GpuTriangle> = crate::izb::eye_relative_f32(scene)
-        .iter()
-        .map(|t| GpuTriangle {
-            v: t.map(|v| v.to_array()),
-        })
-        .collect();
+    let triangles = SceneUpload::new(scene).triangles;
     let bvh = super::gbuffer::build_bvh(&triangles)?;
     let longest = longest_grid_side(scene.pixel_count(), triangles.len(), settings.cells);
     let descs = frame_buffer_descs(&FrameSizes {
@@ -712,12 +732,9 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
     });
-    Ok(group_by_pass(
-        descs
-            .iter()
-            .filter(|d| d.name != "vertex_cache")
-            .map(|d| (d.pass, d.name, d.size.max(4).next_multiple_of(4))),
-    ))
+    Ok(group_by_pass(descs.iter().filter(|d| is_allocated(d)).map(
+        |d| (d.pass, d.name, d.size.max(4).next_multiple_of(4)),
+    )))
 }
 
 /// Sums buffer sizes per owning pass, keeping each buffer's own size.
