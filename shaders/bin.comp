@@ -3,7 +3,8 @@
 // triangles into the light-space grid (seed 000), in three dispatches:
 //   STEP_COUNT      (per triangle) light-view vertex cache (written over the
 //                   eye-relative triangle it came from: the two bindings
-//                   alias one buffer), placement,
+//                   alias one buffer), placement (the first cell only;
+//                   scatter recomputes the rectangle from the cache),
 //                   atomic count per covered cell, overflow append;
 //   STEP_PREFIX_SUM (1 workgroup)  exclusive prefix sum of the counts into
 //                   cell_start (and a copy as the scatter cursor), total
@@ -22,7 +23,7 @@ layout(scalar, binding = B_TRIANGLES) buffer TriBuf { Triangle triangles[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(scalar, binding = B_VERTEX_CACHE) buffer CacheBuf { Triangle vertex_cache[]; };
-layout(scalar, binding = B_PLACEMENT) buffer PlaceBuf { uvec2 placement[]; };
+layout(scalar, binding = B_PLACEMENT) writeonly buffer PlaceBuf { uint placement[]; };
 layout(scalar, binding = B_CELL_CURSOR) buffer CursorBuf { uint cell_cursor[]; };
 layout(scalar, binding = B_CELL_START) buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) writeonly buffer CellTriBuf { uint cell_triangles[]; };
@@ -82,7 +83,7 @@ void main() {
     Triangle t = Triangle(to_light_view(w.a), to_light_view(w.b), to_light_view(w.c));
     vertex_cache[id] = t;
     uvec2 p = place(t);
-    placement[id] = p;
+    placement[id] = p.x;
     if (p.x == PLACEMENT_CULLED) {
         atomicAdd(counters[C_CULLED], 1u);
     } else if (p.x == PLACEMENT_OVERFLOW) {
@@ -131,7 +132,9 @@ void main() {
 #ifdef STEP_SCATTER
     uint id = gl_GlobalInvocationID.x;
     if (id >= frame.triangle_count) return;
-    uvec2 p = placement[id];
+    // The rectangle again, from the values STEP_COUNT stored and placed:
+    // the same arithmetic on the same floats, so the same cells.
+    uvec2 p = place(vertex_cache[id]);
     if (p.x >= PLACEMENT_CULLED) return;
     for (uint y = p.x >> 16; y <= p.y >> 16; ++y) {
         for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu); ++x) {

@@ -37,21 +37,24 @@
 #define B_OVERFLOW 15
 #define B_EDGE_LUT 16
 #define B_MASKS 17
-#define B_VISIBILITY 18
-#define B_SHADED 19
-#define B_G_NORMAL 20
-#define B_TRIANGLE_NORMALS 21
+#define B_SHADED 18
+#define B_TRIANGLE_NORMALS 19
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u
 #define FLAG_SHADOW_TESTED 2u
 #define FLAG_AXES_CLAMPED 4u
+// GPU only: the receiver's camera-facing normal is −triangle_normals[id].
+// The G-buffer stores this bit instead of a normal (12 bytes per pixel):
+// the normal is the host's f64 triangle normal either way, so evaluate and
+// resolve read exactly what the gbuffer pass saw.
+#define FLAG_NORMAL_FLIPPED 8u
 #define NO_HIT 0xFFFFFFFFu
 // The G-buffer keeps the triangle id and the flags in one word: flags in
-// the top 3 bits, the id below (scenes hold fewer than 2^29 − 1
+// the top 4 bits, the id below (scenes hold fewer than 2^28 − 1
 // triangles; the host checks). A miss is flags 0 with every id bit set.
-#define ID_BITS 29
-#define ID_MASK 0x1FFFFFFFu
+#define ID_BITS 28
+#define ID_MASK 0x0FFFFFFFu
 
 uint gbuffer_flags(uint word) {
     return word >> ID_BITS;
@@ -61,6 +64,16 @@ uint gbuffer_triangle(uint word) {
     return (word & ID_MASK) == ID_MASK ? NO_HIT : (word & ID_MASK);
 }
 
+// The receiver's camera-facing normal from its triangle's stored normal.
+vec3 receiver_normal(vec3 triangle_normal, uint word) {
+    return (gbuffer_flags(word) & FLAG_NORMAL_FLIPPED) != 0u ? -triangle_normal : triangle_normal;
+}
+
+// The resolve pass stores the lit fraction exactly in the shaded image's
+// alpha: the number of lit samples (0..32), or this value where the pixel
+// is not shadow-tested (4 bytes per pixel less than a float image).
+#define ALPHA_NOT_TESTED 255u
+
 // ---- sample modes (src/izb/evaluate.rs: `SampleMode`) ----
 #define MODE_ONE 0u
 #define MODE_LUT32 1u
@@ -68,7 +81,8 @@ uint gbuffer_triangle(uint word) {
 #define FULL_MASK 0xFFFFFFFFu
 
 // ---- placement of a triangle (src/izb/bin.rs: `Placement`) ----
-// .x = x0 | y0 << 16, .y = x1 | y1 << 16 for a cell rectangle.
+// A cell rectangle is packed as .x = x0 | y0 << 16, .y = x1 | y1 << 16;
+// the placement buffer keeps .x only (the first cell, or one of these).
 #define PLACEMENT_CULLED 0xFFFFFFFEu
 #define PLACEMENT_OVERFLOW 0xFFFFFFFFu
 

@@ -27,11 +27,11 @@ layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[
 layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
-layout(scalar, binding = B_G_NORMAL) readonly buffer NrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(scalar, binding = B_VERTEX_CACHE) readonly buffer CacheBuf { Triangle vertex_cache[]; };
-layout(scalar, binding = B_PLACEMENT) readonly buffer PlaceBuf { uvec2 placement[]; };
+layout(scalar, binding = B_PLACEMENT) readonly buffer PlaceBuf { uint placement[]; };
 layout(scalar, binding = B_CELL_START) readonly buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) readonly buffer CellTriBuf { uint cell_triangles[]; };
 layout(scalar, binding = B_OVERFLOW) readonly buffer OverflowBuf { uint overflow_list[]; };
@@ -155,10 +155,10 @@ uint triangle_mask(Triangle tri) {
 
 // Whether this pixel tests triangle `id` found in cell (x, y): not its own
 // receiver, and (binned triangles) (x, y) is the first cell of the overlap.
-bool tests_in_cell(uint id, uvec2 rect, uint x, uint y) {
+bool tests_in_cell(uint id, uint first_cell, uint x, uint y) {
     if (id == px_receiver) return false;
-    if (rect.x >= PLACEMENT_CULLED) return true;   // overflow list
-    return x == max(rect.x & 0xFFFFu, px_cells.x) && y == max(rect.x >> 16, px_cells.y);
+    if (first_cell >= PLACEMENT_CULLED) return true;   // overflow list
+    return x == max(first_cell & 0xFFFFu, px_cells.x) && y == max(first_cell >> 16, px_cells.y);
 }
 
 vec2 grid_coords(vec2 ndc) {
@@ -174,12 +174,13 @@ vec2 ndc_of(vec3 q) {
 void pixel_frustum(uint i) {
     vec3 p = g_position[i], ex = g_axis_x[i], ey = g_axis_y[i];
     px_p = to_light_view(p);
-    px_receiver = gbuffer_triangle(g_id_flags[i]);
-    // The stored normal, not one rebuilt from the light-view vertices: the
-    // tangent-plane test compares heights against 2^-8 of a µQuad, and a
-    // normal rebuilt from f32 light-view vertices (error ~ε·|v|/|edge|)
+    uint word = g_id_flags[i];
+    px_receiver = gbuffer_triangle(word);
+    // The host's f64 normal, not one rebuilt from the light-view vertices:
+    // the tangent-plane test compares heights against 2^-8 of a µQuad, and
+    // a normal rebuilt from f32 light-view vertices (error ~ε·|v|/|edge|)
     // flipped 1.1–1.8e-4 of the samples at 960×540 (wires, deckchair).
-    px_normal = rotate(g_normal[i]);
+    px_normal = rotate(receiver_normal(triangle_normals[px_receiver], word));
     px_ex = rotate(ex);
     px_ey = rotate(ey);
     precise float size = max(length(px_ex), length(px_ey));
@@ -265,13 +266,13 @@ void main() {
             if (lid < count) {
                 uint id = cell_triangles[base + lid];
                 sm_id[lid] = id;
-                sm_first_cell[lid] = placement[id].x;
+                sm_first_cell[lid] = placement[id];
                 sm_tri[lid] = vertex_cache[id];
             }
             barrier();
             if (in_elected && mask != FULL_MASK) {
                 for (uint k = 0u; k < count && mask != FULL_MASK && spend_trip(); ++k) {
-                    if (!tests_in_cell(sm_id[k], uvec2(sm_first_cell[k], 0u), cx, cy)) continue;
+                    if (!tests_in_cell(sm_id[k], sm_first_cell[k], cx, cy)) continue;
                     tests_spawned += 1u;
                     mask |= triangle_mask(sm_tri[k]);
                 }

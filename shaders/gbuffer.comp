@@ -6,8 +6,9 @@
 // CPU twin does, so both sample the same ray and derive the µQuad axes from
 // the same closed form (design §3: derivatives of the ray/tangent-plane
 // intersection), with no rasterisation rules or depth-buffer precision in
-// between. Output: the struct-of-arrays G-buffer (hit point, normal, µQuad
-// axes, triangle id and flags in one word).
+// between. Output: the struct-of-arrays G-buffer (hit point, µQuad axes,
+// triangle id and flags in one word; the normal is the triangle's, with
+// FLAG_NORMAL_FLIPPED when it faces the other way).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -21,7 +22,6 @@ layout(scalar, binding = B_G_POSITION) writeonly buffer PosBuf { vec3 g_position
 layout(scalar, binding = B_G_AXIS_X) writeonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) writeonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) writeonly buffer GidBuf { uint g_id_flags[]; };
-layout(scalar, binding = B_G_NORMAL) writeonly buffer NrmBuf { vec3 g_normal[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 
@@ -38,23 +38,48 @@ float box_entry(vec3 lo, vec3 hi, vec3 inv_dir, float t_max) {
     return enter <= leave ? enter : 1.0 / 0.0;
 }
 
-// Möller–Trumbore from the eye (origin 0); the ray parameter along the
-// unnormalised direction is the view depth. Edges inclusive, so a ray
-// through a shared edge hits one of its two triangles.
-float hit_triangle(Triangle t, vec3 d) {
-    precise vec3 e1 = t.b - t.a;
-    precise vec3 e2 = t.c - t.a;
-    precise vec3 pv = cross(d, e2);
-    precise float det = dot(e1, pv);
-    if (det == 0.0) return -1.0;
-    float inv = 1.0 / det;
-    precise vec3 s = -t.a;
-    precise float u = dot(s, pv) * inv;
-    if (u < 0.0 || u > 1.0) return -1.0;
-    precise vec3 q = cross(s, e1);
-    precise float v = dot(d, q) * inv;
-    if (v < 0.0 || u + v > 1.0) return -1.0;
-    return dot(e2, q) * inv;
+// Watertight ray/triangle test (Woop, Benthin, Wald, JCGT 2013), the CPU
+// twin's `WatertightRay` in f32: the ray is sheared so that it runs along
+// +z through the origin (the eye), and the 2D edge functions of the
+// sheared vertices decide the hit. A shared edge's function is the same
+// products of the same floats in both triangles (`precise`: no fused
+// multiply-add may differ between them), so a ray through a seam hits one
+// of the two triangles or both, never neither (Möller–Trumbore can miss
+// both and report whatever lies behind the seam).
+struct ShearedRay {
+    int kx, ky, kz;
+    vec3 shear;
+};
+
+ShearedRay sheared_ray(vec3 d) {
+    vec3 a = abs(d);
+    int kz = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+    int kx = (kz + 1) % 3;
+    int ky = (kx + 1) % 3;
+    if (d[kz] < 0.0) {
+        int swap = kx;
+        kx = ky;
+        ky = swap;
+    }
+    return ShearedRay(kx, ky, kz, vec3(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]));
+}
+
+// Ray parameter along the unnormalised direction (the view depth), or −1.
+float hit_triangle(Triangle t, ShearedRay r) {
+    precise float ax = t.a[r.kx] - r.shear.x * t.a[r.kz];
+    precise float ay = t.a[r.ky] - r.shear.y * t.a[r.kz];
+    precise float bx = t.b[r.kx] - r.shear.x * t.b[r.kz];
+    precise float by = t.b[r.ky] - r.shear.y * t.b[r.kz];
+    precise float cx = t.c[r.kx] - r.shear.x * t.c[r.kz];
+    precise float cy = t.c[r.ky] - r.shear.y * t.c[r.kz];
+    precise float u = cx * by - cy * bx;
+    precise float v = ax * cy - ay * cx;
+    precise float w = bx * ay - by * ax;
+    if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) return -1.0;
+    precise float det = u + v + w;
+    if (det == 0.0) return -1.0;   // the ray runs in the triangle's plane
+    precise float t_scaled = r.shear.z * (u * t.a[r.kz] + v * t.b[r.kz] + w * t.c[r.kz]);
+    return t_scaled / det;
 }
 
 void main() {
@@ -64,6 +89,7 @@ void main() {
     vec2 image_point = vec2(pixel) + 0.5;
     vec3 d = frame.cam_corner + image_point.x * frame.cam_dx + image_point.y * frame.cam_dy;
     vec3 inv_dir = 1.0 / d;
+    ShearedRay ray = sheared_ray(d);
 
     float best_t = frame.far;
     uint best = NO_HIT;
@@ -76,7 +102,7 @@ void main() {
         if (n.prim_count > 0u) {
             for (uint k = 0u; k < n.prim_count; ++k) {
                 uint id = prims[n.first + k];
-                float t = hit_triangle(triangles[id], d);
+                float t = hit_triangle(triangles[id], ray);
                 if (t > frame.near && t < best_t) {
                     best_t = t;
                     best = id;
@@ -107,7 +133,6 @@ void main() {
     if (best == NO_HIT) {
         g_id_flags[i] = ID_MASK;   // a miss
         g_position[i] = vec3(0.0);
-        g_normal[i] = vec3(0.0);
         g_axis_x[i] = vec3(0.0);
         g_axis_y[i] = vec3(0.0);
         return;
@@ -117,8 +142,12 @@ void main() {
     // samples at 960×540 in the tangent-plane test, which compares heights
     // against 2^-8 of a µQuad.
     vec3 n = triangle_normals[best];
-    if (dot(n, d) > 0.0) n = -n;
-    // Refine the hit on the triangle's plane: Möller–Trumbore's t comes out
+    uint flags = FLAG_HIT;
+    if (dot(n, d) > 0.0) {
+        n = -n;
+        flags |= FLAG_NORMAL_FLIPPED;
+    }
+    // Refine the hit on the triangle's plane: the hit test's t comes out
     // of a cancellation (the deckchair's slats: 1.3e-5 relative, several
     // times the 2^-8 µQuad depth tolerance, so neighbours shadowed their
     // receiver); t = (n·A)/(n·D) with the host's f64 normal is good to a
@@ -126,7 +155,6 @@ void main() {
     precise float t_plane = dot(n, triangles[best].a) / dot(n, d);
     if (t_plane > 0.0 && !isinf(t_plane)) best_t = t_plane;
     vec3 p = d * best_t;
-    uint flags = FLAG_HIT;
     vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
     if (dot(n, toward) > 0.0) flags |= FLAG_SHADOW_TESTED;
 
@@ -149,7 +177,6 @@ void main() {
 
     g_id_flags[i] = (flags << ID_BITS) | best;
     g_position[i] = p;
-    g_normal[i] = n;
     g_axis_x[i] = ex;
     g_axis_y[i] = ey;
     atomicAdd(counters[C_HITS], 1u);

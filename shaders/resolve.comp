@@ -1,8 +1,9 @@
 #version 460
 // Pass 4, `resolve` — GPU twin of `izb::izb::resolve` and
-// `izb::output::shade_pixel`: lit fraction = 1 − popcount(mask)/32 (NaN
-// where the pixel is not shadow-tested), and the shaded image (ambient +
-// Lambert × lit fraction, display gamma 2.2) as packed RGBA8.
+// `izb::output::shade_pixel`: the shaded image (ambient + Lambert × lit
+// fraction, display gamma 2.2) as packed RGB8, with the lit fraction in
+// alpha as the count of lit samples, 32 − popcount(mask), exact (the host
+// divides by 32), or ALPHA_NOT_TESTED.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -11,9 +12,8 @@ layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
-layout(scalar, binding = B_G_NORMAL) readonly buffer NrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint masks[]; };
-layout(scalar, binding = B_VISIBILITY) writeonly buffer VisBuf { float visibility[]; };
 layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; };
 
 // output::AMBIENT, output::DIFFUSE and output::SKY_RGB.
@@ -27,18 +27,18 @@ void main() {
     uint i = pixel.y * frame.width + pixel.x;
     uint word = g_id_flags[i];
     uint flags = gbuffer_flags(word);
-    float lit = (flags & FLAG_SHADOW_TESTED) != 0u
-        ? 1.0 - float(bitCount(masks[i])) / 32.0
-        : uintBitsToFloat(0x7FC00000u);   // NaN
-    visibility[i] = lit;
+    bool tested = (flags & FLAG_SHADOW_TESTED) != 0u;
+    uint lit_samples = 32u - uint(bitCount(masks[i]));
     vec3 rgb = SKY;
     if ((flags & FLAG_HIT) != 0u) {
         vec3 p = g_position[i];
         vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
-        float lambert = max(dot(g_normal[i], toward), 0.0);
-        float v = isnan(lit) ? 0.0 : lit;
+        vec3 n = receiver_normal(triangle_normals[gbuffer_triangle(word)], word);
+        float lambert = max(dot(n, toward), 0.0);
+        float v = tested ? float(lit_samples) / 32.0 : 0.0;
         rgb = vec3(AMBIENT + (1.0 - AMBIENT) * DIFFUSE * lambert * v);
     }
     uvec3 c = uvec3(round(pow(clamp(rgb, 0.0, 1.0), vec3(1.0 / 2.2)) * 255.0));
-    shaded[i] = c.r | (c.g << 8) | (c.b << 16) | (255u << 24);
+    uint alpha = tested ? lit_samples : ALPHA_NOT_TESTED;
+    shaded[i] = c.r | (c.g << 8) | (c.b << 16) | (alpha << 24);
 }

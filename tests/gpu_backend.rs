@@ -31,6 +31,15 @@ fn test_resolution(scene: &Scene) -> [u32; 2] {
         _ => RESOLUTION,
     }
 }
+/// Whether to run scene `name`: all, or those listed in
+/// `IZB_GPU_TEST_SCENES=a,b,…` (for full-resolution measurements).
+fn selected(name: &str) -> bool {
+    match std::env::var("IZB_GPU_TEST_SCENES") {
+        Ok(list) => list.split(',').any(|s| s.trim() == name),
+        Err(_) => true,
+    }
+}
+
 /// Largest fraction of samples GPU and CPU masks may disagree on.
 const MAX_SAMPLE_MISMATCH: f64 = 1e-4;
 /// Largest fraction of hit pixels whose triangle id may differ.
@@ -233,7 +242,7 @@ fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
 fn gpu_matches_cpu_on_procedural_scenes() {
     let Some(r) = renderer() else { return };
     let r = r.lock().unwrap_or_else(|e| e.into_inner());
-    for name in scene::procedural::NAMES {
+    for name in scene::procedural::NAMES.into_iter().filter(|n| selected(n)) {
         check_scene(&r, name, scene::load(name).unwrap());
     }
 }
@@ -247,7 +256,10 @@ fn gpu_matches_cpu_on_shared_scenes() {
     }
     let Some(r) = renderer() else { return };
     let r = r.lock().unwrap_or_else(|e| e.into_inner());
-    for name in ["deckchair", "tablefan", "ficus", "engine", "courtyard"] {
+    for name in ["deckchair", "tablefan", "ficus", "engine", "courtyard"]
+        .into_iter()
+        .filter(|n| selected(n))
+    {
         check_scene(
             &r,
             name,

@@ -143,6 +143,43 @@ impl SceneUpload {
                 .collect(),
         }
     }
+
+    /// The camera-facing normal of a receiver on triangle `id` with GPU
+    /// G-buffer flags `gpu_flags` (zero for a miss).
+    fn receiver_normal(&self, id: u32, gpu_flags: u32) -> Vec3 {
+        match self.normals.get(id as usize) {
+            None => Vec3::ZERO,
+            Some(&n) if gpu_flags & shared::FLAG_NORMAL_FLIPPED != 0 => -Vec3::from(n),
+            Some(&n) => Vec3::from(n),
+        }
+    }
+
+    /// The GPU G-buffer words of a CPU G-buffer: id, flags, and whether the
+    /// CPU's normal is its triangle's negated. The CPU twin computes the
+    /// same `f64` normal and rounds it the same way, so anything but an
+    /// exact match up to sign is an inconsistent upload.
+    fn gbuffer_words(&self, g: &GBuffer) -> Result<Vec<u32>, GpuError> {
+        (0..g.triangle_id.len())
+            .map(|i| {
+                let (id, f) = (g.triangle_id[i], g.flags[i]);
+                let mut gpu_flags = f;
+                if f & flags::HIT != 0 {
+                    let stored = self.normals.get(id as usize).map(|&n| Vec3::from(n));
+                    match stored {
+                        Some(n) if n == g.normal[i] => {}
+                        Some(n) if -n == g.normal[i] => gpu_flags |= shared::FLAG_NORMAL_FLIPPED,
+                        _ => {
+                            return Err(GpuError::Unsupported(format!(
+                                "uploaded G-buffer: pixel {i}'s normal {} is not triangle {id}'s                                  normal up to sign",
+                                g.normal[i]
+                            )))
+                        }
+                    }
+                }
+                Ok(shared::pack_id_flags(id, gpu_flags))
+            })
+            .collect()
+    }
 }
 
 /// The frame's device buffers, in binding order, except that
@@ -252,7 +289,7 @@ impl GpuRenderer {
         }
         let upload = SceneUpload::new(scene);
         let triangles = &upload.triangles;
-        let t_count = u32::try_from(triangles.len())
+        u32::try_from(triangles.len())
             .ok()
             .filter(|&n| n < shared::ID_MASK)
             .ok_or_else(|| {
@@ -312,7 +349,7 @@ impl GpuRenderer {
                 out,
                 frames_run,
                 bvh_build_seconds,
-                t_count,
+                &upload,
             ));
         }
     }
@@ -384,38 +421,28 @@ impl GpuRenderer {
         };
         stage(binding::FRAME, bytemuck::bytes_of(&params))?;
         stage(binding::TRIANGLES, as_bytes(triangles))?;
-        if let GBufferSource::Gpu = source {
-            stage(binding::TRIANGLE_NORMALS, as_bytes(&upload.normals))?;
-        }
+        stage(binding::TRIANGLE_NORMALS, as_bytes(&upload.normals))?;
         stage(binding::BVH_NODES, as_bytes(&bvh.nodes))?;
         stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
         stage(binding::LIGHT, bytemuck::bytes_of(&LightState::reset()))?;
         stage(binding::EDGE_LUT, as_bytes(&lut.masks))?;
         if let GBufferSource::Upload(g) = source {
-            let words: Vec<u32> = g
-                .triangle_id
-                .iter()
-                .zip(&g.flags)
-                .map(|(&id, &f)| shared::pack_id_flags(id, f))
-                .collect();
+            let words = upload.gbuffer_words(g)?;
             stage(binding::G_POSITION, as_bytes(&g.position))?;
             stage(binding::G_AXIS_X, as_bytes(&g.axis_x))?;
             stage(binding::G_AXIS_Y, as_bytes(&g.axis_y))?;
             stage(binding::G_ID_FLAGS, as_bytes(&words))?;
-            stage(binding::G_NORMAL, as_bytes(&g.normal))?;
         }
 
         let readback_of = [
             binding::COUNTERS,
             binding::LIGHT,
             binding::MASKS,
-            binding::VISIBILITY,
             binding::SHADED,
             binding::G_POSITION,
             binding::G_AXIS_X,
             binding::G_AXIS_Y,
             binding::G_ID_FLAGS,
-            binding::G_NORMAL,
         ];
         let readbacks: Vec<(GpuBuffer, u32)> = readback_of
             .iter()
@@ -520,15 +547,11 @@ impl GpuRenderer {
             counters,
             light,
             masks: words(binding::MASKS)?,
-            visibility: bytemuck::pod_collect_to_vec(
-                &read(binding::VISIBILITY)?[..pixels as usize * 4],
-            ),
             shaded: words(binding::SHADED)?,
             position: vec3s(binding::G_POSITION)?,
             axis_x: vec3s(binding::G_AXIS_X)?,
             axis_y: vec3s(binding::G_AXIS_Y)?,
             id_flags: words(binding::G_ID_FLAGS)?,
-            normal: vec3s(binding::G_NORMAL)?,
             millis,
             wall_seconds,
             memory,
@@ -544,8 +567,9 @@ impl GpuRenderer {
         out: FrameOutput,
         frames_run: u32,
         bvh_build_seconds: f64,
-        triangles: u32,
+        upload: &SceneUpload,
     ) -> GpuRender {
+        let triangles = upload.triangles.len() as u32;
         let c = &out.counters;
         let wide = |i: usize| u64::from(c[i]) | (u64::from(c[i + 1]) << 32);
         let counters = GpuCounters {
@@ -569,11 +593,20 @@ impl GpuRenderer {
         let gbuffer = match source {
             GBufferSource::Upload(g) => g.clone(),
             GBufferSource::Gpu => {
-                let (triangle_id, flags): (Vec<u32>, Vec<u32>) = out
+                let (triangle_id, gpu_flags): (Vec<u32>, Vec<u32>) = out
                     .id_flags
                     .iter()
                     .map(|&w| shared::unpack_id_flags(w))
                     .unzip();
+                let normal = triangle_id
+                    .iter()
+                    .zip(&gpu_flags)
+                    .map(|(&id, &f)| upload.receiver_normal(id, f))
+                    .collect();
+                let flags: Vec<u32> = gpu_flags
+                    .iter()
+                    .map(|f| f & !shared::FLAG_NORMAL_FLIPPED)
+                    .collect();
                 let depth = out
                     .position
                     .iter()
@@ -592,7 +625,7 @@ impl GpuRenderer {
                     triangle_id,
                     depth,
                     position: out.position,
-                    normal: out.normal,
+                    normal,
                     axis_x: out.axis_x,
                     axis_y: out.axis_y,
                     flags,
@@ -639,9 +672,14 @@ impl GpuRenderer {
             .iter()
             .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
             .collect();
+        let visibility = out
+            .shaded
+            .iter()
+            .map(|&p| shared::lit_fraction_of_alpha((p >> 24) as u8))
+            .collect();
         GpuRender {
             masks: out.masks,
-            visibility: out.visibility,
+            visibility,
             shaded,
             gbuffer,
             report,
@@ -654,10 +692,8 @@ struct FrameOutput {
     counters: Vec<u32>,
     light: LightState,
     masks: Vec<u32>,
-    visibility: Vec<f32>,
     shaded: Vec<u32>,
     position: Vec<Vec3>,
-    normal: Vec<Vec3>,
     axis_x: Vec<Vec3>,
     axis_y: Vec<Vec3>,
     id_flags: Vec<u32>,
@@ -702,16 +738,14 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
         // Aliases `triangles_then_vertex_cache` (see `FrameBuffers`).
         BufferDesc::device("bin", VERTEX_CACHE_ALIAS, 0),
-        BufferDesc::device("bin", "placement", t * 8),
+        BufferDesc::device("bin", "placement_first_cell", t * 4),
         BufferDesc::device("bin", "cell_cursor", z.max_cells * 4),
         BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
         BufferDesc::device("bin", "cell_triangles", z.cell_capacity * 4),
         BufferDesc::device("bin", "overflow", t * 4),
         BufferDesc::device("evaluate", "edge_lut", z.lut_entries * 4),
         BufferDesc::device("evaluate", "masks", p * 4),
-        BufferDesc::device("resolve", "visibility", p * 4),
-        BufferDesc::device("resolve", "shaded", p * 4),
-        BufferDesc::device("gbuffer", "g_normal", p * vec3),
+        BufferDesc::device("resolve", "shaded_and_lit_samples", p * 4),
         BufferDesc::device("scene", "triangle_normals", t * vec3),
     ]
 }

@@ -28,15 +28,15 @@ pub mod binding {
     pub const OVERFLOW: u32 = 15;
     pub const EDGE_LUT: u32 = 16;
     pub const MASKS: u32 = 17;
-    pub const VISIBILITY: u32 = 18;
-    pub const SHADED: u32 = 19;
-    /// The receiver's camera-facing unit normal (the CPU twin's, in `f32`).
-    pub const G_NORMAL: u32 = 20;
+    /// Shaded RGB8 with the lit sample count in alpha ([`ALPHA_NOT_TESTED`]).
+    pub const SHADED: u32 = 18;
     /// Unit normal per triangle, computed on the host in `f64` exactly as
-    /// the CPU twin computes it, then rounded.
-    pub const TRIANGLE_NORMALS: u32 = 21;
+    /// the CPU twin computes it, then rounded. A receiver's normal is its
+    /// triangle's, negated when its G-buffer word has
+    /// [`super::FLAG_NORMAL_FLIPPED`].
+    pub const TRIANGLE_NORMALS: u32 = 19;
     /// Number of bindings.
-    pub const COUNT: u32 = 22;
+    pub const COUNT: u32 = 20;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two
@@ -177,10 +177,29 @@ pub struct BvhNode {
 const _: () = assert!(size_of::<BvhNode>() == 32);
 
 /// Bits of the G-buffer word that hold the triangle id (`ID_BITS`); the
-/// three flag bits sit above them.
-pub const ID_BITS: u32 = 29;
+/// four flag bits sit above them.
+pub const ID_BITS: u32 = 28;
 /// Id field of a miss; also one more than the largest triangle id.
 pub const ID_MASK: u32 = (1 << ID_BITS) - 1;
+
+/// GPU-only G-buffer flag (`FLAG_NORMAL_FLIPPED`): the receiver's
+/// camera-facing normal is minus its triangle's stored normal. Stored
+/// instead of a per-pixel normal (12 bytes per pixel).
+pub const FLAG_NORMAL_FLIPPED: u32 = 8;
+
+/// Alpha of a shaded pixel that is not shadow-tested (`ALPHA_NOT_TESTED`);
+/// otherwise alpha is the count of lit samples, 0..=32.
+pub const ALPHA_NOT_TESTED: u8 = 255;
+
+/// The lit fraction a shaded pixel's alpha encodes: exact (k/32), NaN
+/// where not shadow-tested, as [`crate::izb::resolve`] gives it.
+pub fn lit_fraction_of_alpha(alpha: u8) -> f32 {
+    if alpha == ALPHA_NOT_TESTED {
+        f32::NAN
+    } else {
+        f32::from(alpha) / 32.0
+    }
+}
 
 /// The G-buffer word of a triangle id ([`crate::gbuffer::NO_HIT`] for a
 /// miss) and its flags (`gbuffer_triangle` / `gbuffer_flags` in GLSL).
