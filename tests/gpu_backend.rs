@@ -242,7 +242,7 @@ fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
 fn gpu_matches_cpu_on_procedural_scenes() {
     let Some(r) = renderer() else { return };
     let r = r.lock().unwrap_or_else(|e| e.into_inner());
-    for name in scene::procedural::NAMES.into_iter().filter(|n| selected(n)) {
+    for name in scene::procedural::NAMES.iter().filter(|n| selected(n)) {
         check_scene(&r, name, scene::load(name).unwrap());
     }
 }
