@@ -83,6 +83,9 @@ void main() {
     Triangle t = Triangle(to_light_view(w.a), to_light_view(w.b), to_light_view(w.c));
     vertex_cache[id] = t;
     uvec2 p = place(t);
+    // Without the outside-bounds skip a triangle that misses the grid is
+    // tested by every pixel (the overflow list) instead of dropped.
+    if (p.x == PLACEMENT_CULLED && (frame.skips & SKIP_OUTSIDE_BOUNDS) == 0u) p = uvec2(PLACEMENT_OVERFLOW);
     placement[id] = p.x;
     if (p.x == PLACEMENT_CULLED) {
         atomicAdd(counters[C_CULLED], 1u);

@@ -74,6 +74,19 @@ vec3 receiver_normal(vec3 triangle_normal, uint word) {
 // is not shadow-tested (4 bytes per pixel less than a float image).
 #define ALPHA_NOT_TESTED 255u
 
+// ---- skips (src/izb/skips.rs: `Skips::bits`) ----
+#define SKIP_FACING_AWAY 1u
+#define SKIP_OUTSIDE_BOUNDS 2u
+#define SKIP_FULL_MASK 4u
+#define SKIP_SATURATED_EDGES 8u
+
+// izb::is_receiver: shadow-tested pixels, and with the facing-away skip
+// off every hit.
+bool is_receiver(uint flags, uint skips) {
+    return (flags & FLAG_SHADOW_TESTED) != 0u
+        || ((skips & SKIP_FACING_AWAY) == 0u && (flags & FLAG_HIT) != 0u);
+}
+
 // ---- sample modes (src/izb/evaluate.rs: `SampleMode`) ----
 #define MODE_ONE 0u
 #define MODE_LUT32 1u
@@ -101,7 +114,8 @@ vec3 receiver_normal(vec3 triangle_normal, uint word) {
 #define C_DEPTH_PASSED 12    // 64-bit
 #define C_CELLS_VISITED 14   // 64-bit
 #define C_LOOP_BUDGET_EXCEEDED 16
-#define COUNTER_WORDS 17
+#define C_SATURATED_MASKS 17 // 64-bit
+#define COUNTER_WORDS 19
 
 // Per-frame constants, written by the host once per frame.
 struct FrameParams {
@@ -129,8 +143,8 @@ struct FrameParams {
     uint lut_distances;
     uint max_cells;       // cell_cursor / cell_start capacity
     uint loop_budget;     // evaluate's loop iterations per pixel (lavapipe's cap), else ~0u
-    uint pad1;
-    uint pad2;
+    uint skips;           // SKIP_* bits (src/izb/skips.rs)
+    float pattern_radius; // frustum::pattern_radius: largest sample distance from the µQuad centre
     vec2 pattern[32];
 };
 

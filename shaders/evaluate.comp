@@ -96,10 +96,12 @@ vec3 edge_function(vec3 x, vec3 y, vec3 z, vec3 light_rel) {
     return e;
 }
 
-// EdgeLut::lookup, in f32 as the CPU twin computes it.
-uint lut_mask(vec3 e) {
+// EdgeLut::lookup, in f32 as the CPU twin computes it; `cheap` says the
+// saturated branch answered (no table read).
+uint lut_mask(vec3 e, out bool cheap) {
     precise float r = sqrt(e.y * e.y + e.z * e.z);
-    if (!(abs(e.x) < HALF_DIAGONAL * r)) {
+    cheap = !(abs(e.x) < HALF_DIAGONAL * r);
+    if (cheap) {
         return (e.x >= 0.0 && r >= 0.0) ? FULL_MASK : 0u;
     }
     precise float d = e.x / r;
@@ -122,7 +124,36 @@ uint exact_mask(vec3 e) {
     return mask;
 }
 
-uint tests_spawned = 0u, depth_passed = 0u, cells_visited = 0u;
+// frustum::saturated_edge: whether the edge keeps every sample on one side
+// (2^-10 relative margin over the pattern's radius), and which.
+#define SATURATION_MARGIN (1.0 / 1024.0)
+bool saturated_edge(vec3 e, out uint m) {
+    precise float r = sqrt(e.y * e.y + e.z * e.z);
+    precise float reach = r * frame.pattern_radius * (1.0 + SATURATION_MARGIN);
+    m = e.x > reach ? FULL_MASK : 0u;
+    return e.x > reach || -e.x > reach;
+}
+
+// MaskRule::edge_mask: the samples edge e keeps inside, and whether the
+// cheap path decided them.
+uint edge_mask(vec3 e, out bool cheap) {
+    if (frame.mode == MODE_ONE) {
+        cheap = true;
+        return e.x >= 0.0 ? FULL_MASK : 0u;
+    }
+    if (frame.mode == MODE_LUT32) return lut_mask(e, cheap);
+    uint m;
+    cheap = saturated_edge(e, m);
+    return cheap ? m : exact_mask(e);
+}
+
+uint tests_spawned = 0u, depth_passed = 0u, cells_visited = 0u, saturated_masks = 0u;
+bool stop_when_full;   // the full-mask skip
+
+// Whether the pixel is done testing.
+bool done(uint mask) {
+    return stop_when_full && mask == FULL_MASK;
+}
 // Loop trips so far; past frame.loop_budget the pixel stops testing and
 // raises C_LOOP_BUDGET_EXCEEDED (lavapipe would cut its loops silently).
 uint trips = 0u;
@@ -142,15 +173,25 @@ uint triangle_mask(Triangle tri) {
     precise vec3 light_rel = -px_p;   // point light at the light-view origin
     if (!may_shadow(t0, t1, t2, light_rel)) return 0u;
     depth_passed += 1u;
-    vec3 e0 = edge_function(t0, t1, t2, light_rel);
-    vec3 e1 = edge_function(t1, t2, t0, light_rel);
-    vec3 e2 = edge_function(t2, t0, t1, light_rel);
-    if (frame.mode == MODE_ONE) {
-        return (e0.x >= 0.0 && e1.x >= 0.0 && e2.x >= 0.0) ? FULL_MASK : 0u;
-    } else if (frame.mode == MODE_LUT32) {
-        return lut_mask(e0) & lut_mask(e1) & lut_mask(e2);
+    bool cheap;
+    if ((frame.skips & SKIP_SATURATED_EDGES) == 0u) {
+        return edge_mask(edge_function(t0, t1, t2, light_rel), cheap)
+            & edge_mask(edge_function(t1, t2, t0, light_rel), cheap)
+            & edge_mask(edge_function(t2, t0, t1, light_rel), cheap);
     }
-    return exact_mask(e0) & exact_mask(e1) & exact_mask(e2);
+    // The cheap path: stop at the first edge that leaves no sample.
+    uint mask = edge_mask(edge_function(t0, t1, t2, light_rel), cheap);
+    bool all_cheap = cheap;
+    if (mask != 0u) {
+        mask &= edge_mask(edge_function(t1, t2, t0, light_rel), cheap);
+        all_cheap = all_cheap && cheap;
+    }
+    if (mask != 0u) {
+        mask &= edge_mask(edge_function(t2, t0, t1, light_rel), cheap);
+        all_cheap = all_cheap && cheap;
+    }
+    if (all_cheap) saturated_masks += 1u;
+    return mask;
 }
 
 // Whether this pixel tests triangle `id` found in cell (x, y): not its own
@@ -216,7 +257,9 @@ void main() {
     uint lid = gl_LocalInvocationIndex;
     uint i = pixel.y * frame.width + pixel.x;
     bool inside = pixel.x < frame.width && pixel.y < frame.height;
-    bool live = inside && (gbuffer_flags(g_id_flags[i]) & FLAG_SHADOW_TESTED) != 0u;
+    uint pixel_flags = inside ? gbuffer_flags(g_id_flags[i]) : 0u;
+    bool live = inside && is_receiver(pixel_flags, frame.skips);
+    stop_when_full = (frame.skips & SKIP_FULL_MASK) != 0u;
     uint mask = 0u;
     if (live) pixel_frustum(i);
     // A grid overrun (C_CAPACITY_EXCEEDED) leaves cell lists incomplete:
@@ -234,8 +277,8 @@ void main() {
             sm_tri[lid] = vertex_cache[id];
         }
         barrier();
-        if (live && mask != FULL_MASK) {
-            for (uint k = 0u; k < count && mask != FULL_MASK && spend_trip(); ++k) {
+        if (live && !done(mask)) {
+            for (uint k = 0u; k < count && !done(mask) && spend_trip(); ++k) {
                 if (sm_id[k] == px_receiver) continue;
                 tests_spawned += 1u;
                 mask |= triangle_mask(sm_tri[k]);
@@ -245,7 +288,7 @@ void main() {
     }
 
     // 2. Elect the tile's cell: the lowest first cell of its live pixels.
-    bool wants_cells = live && px_has_cells && grid_usable && mask != FULL_MASK;
+    bool wants_cells = live && px_has_cells && grid_usable && !done(mask);
     if (lid == 0u) sm_cell = NO_CELL;
     barrier();
     if (wants_cells) atomicMin(sm_cell, px_cells.y * light.cells_x + px_cells.x);
@@ -270,8 +313,8 @@ void main() {
                 sm_tri[lid] = vertex_cache[id];
             }
             barrier();
-            if (in_elected && mask != FULL_MASK) {
-                for (uint k = 0u; k < count && mask != FULL_MASK && spend_trip(); ++k) {
+            if (in_elected && !done(mask)) {
+                for (uint k = 0u; k < count && !done(mask) && spend_trip(); ++k) {
                     if (!tests_in_cell(sm_id[k], sm_first_cell[k], cx, cy)) continue;
                     tests_spawned += 1u;
                     mask |= triangle_mask(sm_tri[k]);
@@ -283,13 +326,13 @@ void main() {
 
     // 3. The pixel's other cells, from global memory.
     if (wants_cells) {
-        for (uint y = px_cells.y; y <= px_cells.w && mask != FULL_MASK && spend_trip(); ++y) {
-            for (uint x = px_cells.x; x <= px_cells.z && mask != FULL_MASK && spend_trip(); ++x) {
+        for (uint y = px_cells.y; y <= px_cells.w && !done(mask) && spend_trip(); ++y) {
+            for (uint x = px_cells.x; x <= px_cells.z && !done(mask) && spend_trip(); ++x) {
                 if (in_elected && x == cx && y == cy) continue;
                 cells_visited += 1u;
                 uint c = y * light.cells_x + x;
                 uint end = cell_start[c + 1u];
-                for (uint k = cell_start[c]; k < end && mask != FULL_MASK && spend_trip(); ++k) {
+                for (uint k = cell_start[c]; k < end && !done(mask) && spend_trip(); ++k) {
                     uint id = cell_triangles[k];
                     if (!tests_in_cell(id, placement[id], x, y)) continue;
                     tests_spawned += 1u;
@@ -300,11 +343,13 @@ void main() {
     }
 
     if (!inside) return;
-    masks[i] = mask;
+    // Facing-away pixels tested with that skip off keep mask 0, as skipped.
+    masks[i] = (pixel_flags & FLAG_SHADOW_TESTED) != 0u ? mask : 0u;
     if (!live) return;
     if (over_budget) atomicMax(counters[C_LOOP_BUDGET_EXCEEDED], trips);
     atomicAdd(counters[C_PIXELS_TESTED], 1u);
-    if (mask == FULL_MASK) atomicAdd(counters[C_EARLY_OUTS], 1u);
+    if (done(mask)) atomicAdd(counters[C_EARLY_OUTS], 1u);
+    add_counter64(C_SATURATED_MASKS, saturated_masks);
     add_counter64(C_TESTS_SPAWNED, tests_spawned);
     add_counter64(C_DEPTH_PASSED, depth_passed);
     add_counter64(C_CELLS_VISITED, cells_visited);

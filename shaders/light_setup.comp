@@ -58,7 +58,9 @@ void wg_reset() {
     barrier();
 }
 
-bool shadow_tested_pixel(out uint i) {
+// The fit covers the shadow-tested pixels whatever the facing-away skip
+// says (see izb::is_receiver).
+bool receiver_pixel(out uint i) {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     i = pixel.y * frame.width + pixel.x;
     return pixel.x < frame.width && pixel.y < frame.height
@@ -70,7 +72,7 @@ void main() {
 #ifdef STEP_RECEIVERS
     wg_reset();
     uint i;
-    if (shadow_tested_pixel(i)) {
+    if (receiver_pixel(i)) {
         vec3 p = g_position[i];
         atomicAdd(wg_count, 1u);
         for (int k = 0; k < 3; ++k) {
@@ -124,7 +126,7 @@ void main() {
     // wg_lo/wg_hi hold (ndc.x, ndc.y, z) here.
     wg_reset();
     uint i;
-    if (shadow_tested_pixel(i)) {
+    if (receiver_pixel(i)) {
         atomicAdd(wg_count, 1u);
         vec3 p = g_position[i];
         vec3 hx = g_axis_x[i] * 0.5;

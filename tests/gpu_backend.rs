@@ -283,6 +283,7 @@ fn grid_capacity_overrun_reruns_with_room() {
         mode: SampleMode::Exact32,
         cells: Some(200),
         max_span: 200,
+        ..Default::default()
     };
     let cpu = render_cpu(&scene, &bvh, s);
     let gpu = r

@@ -6,7 +6,7 @@
 use izb::gbuffer::{flags, gbuffer};
 use izb::izb::bin::{bin, Placement};
 use izb::izb::evaluate::{for_each_candidate, triangle_mask_for_pixel};
-use izb::izb::{eye_relative_f32, light_setup, SampleMode};
+use izb::izb::{eye_relative_f32, light_setup, MaskRule, SampleMode, Skips};
 use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 use std::collections::HashSet;
@@ -20,7 +20,7 @@ fn check_grid(
     let bvh = SceneBvh::build(scene);
     let g = gbuffer(scene, &bvh);
     let setup = light_setup(scene, &g, cells);
-    let bins = bin(&setup, &eye_relative_f32(scene), max_span);
+    let bins = bin(&setup, &eye_relative_f32(scene), max_span, Skips::ALL);
 
     // Scatter against the placements, cell by cell.
     for y in 0..setup.cells[1] {
@@ -40,8 +40,8 @@ fn check_grid(
 
     // Every occluder of a sample is a candidate, checked by brute force over
     // every triangle of the scene.
-    let pattern = izb::lut::sample_pattern();
-    let lut = izb::lut::edge_lut();
+    // Without the cheap path, so every edge of every triangle is evaluated.
+    let rule = MaskRule::new(SampleMode::Exact32, Skips::NONE);
     let (mut pixels, mut occluder_pairs) = (0, 0);
     for i in (0..g.flags.len()).step_by(pixel_stride) {
         if g.flags[i] & flags::SHADOW_TESTED == 0 {
@@ -57,16 +57,7 @@ fn check_grid(
             false
         });
         for id in 0..scene.triangles.len() as u32 {
-            let mask = triangle_mask_for_pixel(
-                &setup,
-                &bins,
-                &g,
-                i,
-                id,
-                SampleMode::Exact32,
-                pattern,
-                lut,
-            );
+            let mask = triangle_mask_for_pixel(&setup, &bins, &g, i, id, &rule);
             if mask != 0 {
                 occluder_pairs += 1;
                 assert!(

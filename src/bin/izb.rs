@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use izb::gbuffer::gbuffer;
 use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
-use izb::izb::{render_cpu, IzbSettings, SampleMode};
+use izb::izb::{render_cpu, IzbSettings, SampleMode, Skips};
 use izb::metrics::{error_heat_map, metrics, sample_mismatches};
 use izb::output::{
     write_exr, write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
@@ -126,6 +126,10 @@ struct RenderArgs {
     /// Grid cells along the longer side (default: from the pixel count).
     #[arg(long)]
     cells: Option<u32>,
+    /// Exact shortcuts to take: all, none, or a comma-separated list of
+    /// facing-away, outside-bounds, full-mask, saturated-edges.
+    #[arg(long, default_value = "all")]
+    skip: Skips,
     /// Output folder.
     #[arg(long, default_value = "out")]
     out: PathBuf,
@@ -193,6 +197,10 @@ struct BenchArgs {
     /// Vulkan device index (see `izb devices`).
     #[arg(long)]
     device: Option<usize>,
+    /// Skip settings to time, each as `render --skip` takes it; repeat the
+    /// flag to time several (e.g. `--skip all --skip none`).
+    #[arg(long, default_value = "all")]
+    skip: Vec<Skips>,
     /// Output JSON file.
     #[arg(long, default_value = "out/bench.json")]
     out: PathBuf,
@@ -372,12 +380,22 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         args.scenes.clone()
     };
     let settings = ReferenceSettings::from_spp(args.spp, 1).map_err(anyhow::Error::msg)?;
-    let izb_methods: Vec<(String, SampleMode)> = args
-        .methods
-        .iter()
-        .filter(|m| m.as_str() != "reference")
-        .map(|m| parse_method(m).map(|mode| (m.clone(), mode)))
-        .collect::<Result<_>>()?;
+    let mut izb_methods: Vec<(String, IzbSettings)> = Vec::new();
+    for &skips in &args.skip {
+        for m in args.methods.iter().filter(|m| m.as_str() != "reference") {
+            let name = if args.skip.len() > 1 {
+                format!("{m} skip={skips}")
+            } else {
+                m.clone()
+            };
+            let settings = IzbSettings {
+                mode: parse_method(m)?,
+                skips,
+                ..Default::default()
+            };
+            izb_methods.push((name, settings));
+        }
+    }
     let with_reference = args.methods.iter().any(|m| m == "reference");
     anyhow::ensure!(args.repeat > 0, "--repeat must be at least 1");
     let pool = thread_pool(args.threads)?;
@@ -447,18 +465,14 @@ fn run_bench(args: BenchArgs) -> Result<()> {
 fn bench_izb(
     pool: &rayon::ThreadPool,
     scene: &Scene,
-    methods: &[(String, SampleMode)],
+    methods: &[(String, IzbSettings)],
     repeat: usize,
 ) -> Vec<serde_json::Value> {
     let bvh = pool.install(|| SceneBvh::build(scene));
     let mut runs: Vec<Vec<izb::izb::RenderReport>> = vec![Vec::new(); methods.len()];
     for _ in 0..repeat {
-        for (k, (_, mode)) in methods.iter().enumerate() {
-            let settings = IzbSettings {
-                mode: *mode,
-                ..Default::default()
-            };
-            runs[k].push(pool.install(|| render_cpu(scene, &bvh, settings)).report);
+        for (k, (_, settings)) in methods.iter().enumerate() {
+            runs[k].push(pool.install(|| render_cpu(scene, &bvh, *settings)).report);
         }
     }
     let medians: Vec<izb::izb::PassTimes> = runs
@@ -467,13 +481,13 @@ fn bench_izb(
         .collect();
     let one = methods
         .iter()
-        .position(|(_, m)| *m == SampleMode::One)
+        .position(|(_, s)| s.mode == SampleMode::One)
         .map(|k| medians[k].clone());
     methods
         .iter()
         .zip(&medians)
         .zip(&runs)
-        .map(|(((name, mode), s), r)| {
+        .map(|(((name, settings), s), r)| {
             let shadow = s.shadow();
             println!(
                 "{}: {name:<12} gbuffer {:.3} s, light_setup {:.4} s, bin {:.3} s, evaluate {:.3} s, \
@@ -494,7 +508,8 @@ fn bench_izb(
             serde_json::json!({
                 "method": name,
                 "backend": "cpu",
-                "mode": mode,
+                "mode": settings.mode,
+                "skips": settings.skips.to_string(),
                 "scene": scene_summary(scene),
                 "repeat": r.len(),
                 "median_seconds": s,
@@ -515,17 +530,13 @@ fn bench_izb(
 fn bench_izb_gpu(
     gpu: &GpuRenderer,
     scene: &Scene,
-    methods: &[(String, SampleMode)],
+    methods: &[(String, IzbSettings)],
     repeat: usize,
 ) -> Result<Vec<serde_json::Value>> {
     let mut runs: Vec<Vec<izb::gpu::GpuRenderReport>> = vec![Vec::new(); methods.len()];
     for _ in 0..repeat {
-        for (k, (_, mode)) in methods.iter().enumerate() {
-            let settings = IzbSettings {
-                mode: *mode,
-                ..Default::default()
-            };
-            runs[k].push(gpu.render(scene, settings, GBufferSource::Gpu)?.report);
+        for (k, (_, settings)) in methods.iter().enumerate() {
+            runs[k].push(gpu.render(scene, *settings, GBufferSource::Gpu)?.report);
         }
     }
     let medians: Vec<Option<izb::izb::PassTimes>> = runs
@@ -539,13 +550,13 @@ fn bench_izb_gpu(
     let find = |m: SampleMode| {
         methods
             .iter()
-            .position(|(_, x)| *x == m)
+            .position(|(_, x)| x.mode == m)
             .and_then(|k| medians[k].clone())
     };
     let (one, exact) = (find(SampleMode::One), find(SampleMode::Exact32));
     let shadow = izb::izb::PassTimes::shadow;
     let mut rows = Vec::new();
-    for (((name, mode), m), r) in methods.iter().zip(&medians).zip(&runs) {
+    for (((name, settings), m), r) in methods.iter().zip(&medians).zip(&runs) {
         if let Some(m) = m {
             println!(
                 "{}: {name:<12} vulkan ({}): gbuffer {:.3} ms, light_setup {:.3} ms, bin {:.3} ms, \
@@ -567,7 +578,8 @@ fn bench_izb_gpu(
             "method": name,
             "backend": "vulkan",
             "device": gpu.context.info().name,
-            "mode": mode,
+            "mode": settings.mode,
+            "skips": settings.skips.to_string(),
             "scene": scene_summary(scene),
             "repeat": r.len(),
             "median_gpu_milliseconds": m,
@@ -599,6 +611,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let settings = IzbSettings {
         mode: mode_for(args.spp, args.exact),
         cells: args.cells,
+        skips: args.skip,
         ..Default::default()
     };
     let renderer = match args.backend {

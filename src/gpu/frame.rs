@@ -65,6 +65,7 @@ pub struct GpuCounters {
     /// Pixels never shadow-tested (sky, facing away from the light).
     pub pixels_skipped: u32,
     pub early_outs: u32,
+    pub saturated_masks: u64,
     pub tests_spawned: u64,
     pub depth_passed: u64,
     pub cells_visited: u64,
@@ -583,6 +584,7 @@ impl GpuRenderer {
             pixels_tested: c[counter::PIXELS_TESTED],
             pixels_skipped: (scene.pixel_count() as u32).saturating_sub(c[counter::PIXELS_TESTED]),
             early_outs: c[counter::EARLY_OUTS],
+            saturated_masks: wide(counter::SATURATED_MASKS),
             tests_spawned: wide(counter::TESTS_SPAWNED),
             depth_passed: wide(counter::DEPTH_PASSED),
             cells_visited: wide(counter::CELLS_VISITED),
@@ -848,7 +850,8 @@ fn frame_params(
         lut_distances: lut.distances,
         max_cells: max_cells as u32,
         loop_budget,
-        pad: [0; 2],
+        skips: settings.skips.bits(),
+        pattern_radius: crate::izb::frustum::pattern_radius(crate::lut::sample_pattern()),
         pattern: *crate::lut::sample_pattern(),
     }
 }

@@ -56,8 +56,9 @@ pub mod counter {
     pub const DEPTH_PASSED: usize = 12;
     pub const CELLS_VISITED: usize = 14;
     pub const LOOP_BUDGET_EXCEEDED: usize = 16;
+    pub const SATURATED_MASKS: usize = 17;
     /// Words in the counters buffer.
-    pub const WORDS: usize = 17;
+    pub const WORDS: usize = 19;
 }
 
 /// Local sizes of the pixel passes (8×8 tiles) and the linear passes.
@@ -103,7 +104,9 @@ pub struct FrameParams {
     /// there the shader stops early and raises `LOOP_BUDGET_EXCEEDED`
     /// instead of returning a wrong mask; `u32::MAX` elsewhere.
     pub loop_budget: u32,
-    pub pad: [u32; 2],
+    /// [`crate::izb::Skips::bits`].
+    pub skips: u32,
+    pub pattern_radius: f32,
     pub pattern: [[f32; 2]; 32],
 }
 const _: () = assert!(size_of::<FrameParams>() == 160 + 256);

@@ -106,14 +106,24 @@ fn place(setup: &LightSetup, tri: &[Vec3; 3], max_span: u32) -> Placement {
 }
 
 /// Bins eye-relative `f32` triangles (`triangles[id]`) into the grid.
-pub fn bin(setup: &LightSetup, triangles: &[[Vec3; 3]], max_span: u32) -> Bins {
+/// With the `outside_bounds` skip off, triangles that miss the grid go to
+/// the overflow list instead of being culled.
+pub fn bin(
+    setup: &LightSetup,
+    triangles: &[[Vec3; 3]],
+    max_span: u32,
+    skips: super::Skips,
+) -> Bins {
     let vertex_cache: Vec<[Vec3; 3]> = triangles
         .par_iter()
         .map(|t| t.map(|v| setup.to_light_view(v)))
         .collect();
     let placement: Vec<Placement> = vertex_cache
         .par_iter()
-        .map(|t| place(setup, t, max_span))
+        .map(|t| match place(setup, t, max_span) {
+            Placement::Culled if !skips.outside_bounds => Placement::Overflow,
+            p => p,
+        })
         .collect();
     let cells = (setup.cells[0] * setup.cells[1]) as usize;
     // Count.

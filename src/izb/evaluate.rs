@@ -11,8 +11,9 @@
 //! visits every triangle able to shadow any of the 32 samples.
 
 use super::bin::{cell_range, Bins, Placement};
-use super::frustum::{edge_functions, exact_edge_mask, may_shadow, LightRel};
+use super::frustum::{edge_function, exact_edge_mask, may_shadow, saturated_edge, LightRel};
 use super::light_setup::{microquad_corners, LightSetup};
+use super::{is_receiver, Skips};
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -44,6 +45,10 @@ pub struct EvaluateStats {
     pub depth_passed: u64,
     /// Pixels that stopped early because their mask was full.
     pub early_outs: usize,
+    /// Depth-passing triangles whose mask the cheap path decided (shadow
+    /// prism containing or missing the whole µQuad: no LUT read, no sample
+    /// loop, later edges not computed).
+    pub saturated_masks: u64,
     /// Grid cells visited over all pixels.
     pub cells_visited: u64,
 }
@@ -84,17 +89,71 @@ fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
     }
 }
 
+/// How `evaluate` forms masks: the mode, the sample pattern, the LUT, and
+/// the skips that shape the work.
+#[derive(Clone, Copy)]
+pub struct MaskRule<'a> {
+    pub mode: SampleMode,
+    pub pattern: &'a [[f32; 2]; 32],
+    pub lut: &'a izb_lut::EdgeLut,
+    pub skips: Skips,
+    /// [`super::frustum::pattern_radius`] of `pattern`.
+    pub radius: f32,
+}
+
+impl<'a> MaskRule<'a> {
+    pub fn new(mode: SampleMode, skips: Skips) -> MaskRule<'static> {
+        let pattern = crate::lut::sample_pattern();
+        MaskRule {
+            mode,
+            pattern,
+            lut: crate::lut::edge_lut(),
+            skips,
+            radius: super::frustum::pattern_radius(pattern),
+        }
+    }
+
+    /// The samples edge `e` keeps inside (bit set = inside), and whether
+    /// the cheap path decided them: the line keeps every sample on one
+    /// side. For the LUT that is exactly its own saturation branch; for
+    /// exact evaluation [`saturated_edge`]; one sample is always cheap.
+    #[inline]
+    fn edge_mask(&self, e: [f32; 3]) -> (u32, bool) {
+        match self.mode {
+            SampleMode::One => (if e[0] >= 0.0 { FULL } else { 0 }, true),
+            SampleMode::Lut32 => match self.lut.cell(e[0], e[1], e[2]) {
+                izb_lut::LutCell::Constant(mask) => (mask, true),
+                izb_lut::LutCell::Cell { angle, distance } => (
+                    self.lut.masks[(angle * self.lut.distances + distance) as usize],
+                    false,
+                ),
+            },
+            SampleMode::Exact32 => match saturated_edge(e, self.radius) {
+                Some(mask) => (mask, true),
+                None => (exact_edge_mask(e, self.pattern), false),
+            },
+        }
+    }
+}
+
+/// Counters one pixel's triangle tests add to.
+#[derive(Default)]
+struct TestCounters {
+    depth_passed: u64,
+    saturated_masks: u64,
+}
+
 /// Occluded samples of `tri` (light view, not yet relative to P) for one
-/// pixel, or 0 when it fails the depth test.
+/// pixel, or 0 when it fails the depth test: the AND of its three edge
+/// masks. With the `saturated_edges` skip an edge that misses the whole
+/// µQuad ends the test and an edge that contains it costs one comparison.
 #[inline]
 fn triangle_mask(
     px: &PixelFrustum,
     tri: &[Vec3; 3],
     setup: &LightSetup,
-    mode: SampleMode,
-    pattern: &[[f32; 2]; 32],
-    lut: &izb_lut::EdgeLut,
-    depth_passed: &mut u64,
+    rule: &MaskRule,
+    counters: &mut TestCounters,
 ) -> u32 {
     let t = tri.map(|v| v - px.p);
     let light = match setup.light_position() {
@@ -105,19 +164,25 @@ fn triangle_mask(
     if !may_shadow(&t, px.normal, size, light) {
         return 0;
     }
-    *depth_passed += 1;
-    let e = edge_functions(&t, px.ex, px.ey, light);
-    match mode {
-        SampleMode::One => {
-            if e.iter().all(|e| e[0] >= 0.0) {
-                FULL
-            } else {
-                0
-            }
-        }
-        SampleMode::Lut32 => e.iter().fold(FULL, |m, e| m & lut.lookup(e[0], e[1], e[2])),
-        SampleMode::Exact32 => e.iter().fold(FULL, |m, e| m & exact_edge_mask(*e, pattern)),
+    counters.depth_passed += 1;
+    let edge = |k| edge_function(&t, k, px.ex, px.ey, light);
+    if !rule.skips.saturated_edges {
+        return (0..3).fold(FULL, |m, k| m & rule.edge_mask(edge(k)).0);
     }
+    // The cheap path: stop at the first edge that leaves no sample, and
+    // count the triangles no LUT read or sample loop was needed for.
+    let mut mask = FULL;
+    let mut all_cheap = true;
+    for k in 0..3 {
+        let (m, cheap) = rule.edge_mask(edge(k));
+        mask &= m;
+        all_cheap &= cheap;
+        if mask == 0 {
+            break;
+        }
+    }
+    counters.saturated_masks += all_cheap as u64;
+    mask
 }
 
 /// Calls `visit(id)` once for every candidate triangle of shadow-tested
@@ -164,21 +229,20 @@ pub fn for_each_candidate(
     cells
 }
 
-/// The occlusion mask of shadow-tested pixel `i` (and its counters).
-#[allow(clippy::too_many_arguments)]
+/// The occlusion mask of receiver pixel `i` (and its counters).
 fn evaluate_pixel(
     setup: &LightSetup,
     bins: &Bins,
     g: &GBuffer,
     i: usize,
-    mode: SampleMode,
-    pattern: &[[f32; 2]; 32],
-    lut: &izb_lut::EdgeLut,
+    rule: &MaskRule,
     stats: &mut EvaluateStats,
 ) -> u32 {
     let px = pixel_frustum(setup, g, i);
     let mut mask = 0u32;
-    let (mut tests, mut passed) = (0u64, 0u64);
+    let mut tests = 0u64;
+    let mut counters = TestCounters::default();
+    let stop_when_full = rule.skips.full_mask;
     let cells = for_each_candidate(setup, bins, g, i, |id| {
         if id != px.receiver {
             tests += 1;
@@ -186,34 +250,30 @@ fn evaluate_pixel(
                 &px,
                 &bins.vertex_cache[id as usize],
                 setup,
-                mode,
-                pattern,
-                lut,
-                &mut passed,
+                rule,
+                &mut counters,
             );
         }
-        mask == FULL
+        stop_when_full && mask == FULL
     });
     stats.tests_spawned += tests;
-    stats.depth_passed += passed;
+    stats.depth_passed += counters.depth_passed;
+    stats.saturated_masks += counters.saturated_masks;
     stats.cells_visited += cells;
-    stats.early_outs += (mask == FULL) as usize;
+    stats.early_outs += (stop_when_full && mask == FULL) as usize;
     mask
 }
 
 /// The occluded samples of triangle `id` for shadow-tested pixel `i`,
 /// whether or not the grid would have offered it (for tests that check the
 /// grid against brute force).
-#[allow(clippy::too_many_arguments)]
 pub fn triangle_mask_for_pixel(
     setup: &LightSetup,
     bins: &Bins,
     g: &GBuffer,
     i: usize,
     id: u32,
-    mode: SampleMode,
-    pattern: &[[f32; 2]; 32],
-    lut: &izb_lut::EdgeLut,
+    rule: &MaskRule,
 ) -> u32 {
     let px = pixel_frustum(setup, g, i);
     if id == px.receiver {
@@ -223,21 +283,19 @@ pub fn triangle_mask_for_pixel(
         &px,
         &bins.vertex_cache[id as usize],
         setup,
-        mode,
-        pattern,
-        lut,
-        &mut 0,
+        rule,
+        &mut TestCounters::default(),
     )
 }
 
-/// Occlusion masks of every pixel (0 for pixels not shadow-tested).
+/// Occlusion masks of every pixel: 0 for pixels not shadow-tested (with the
+/// `facing_away` skip off those facing away from the light are evaluated
+/// all the same, and their masks then dropped).
 pub fn evaluate(
     setup: &LightSetup,
     bins: &Bins,
     g: &GBuffer,
-    mode: SampleMode,
-    pattern: &[[f32; 2]; 32],
-    lut: &izb_lut::EdgeLut,
+    rule: &MaskRule,
 ) -> (Vec<u32>, EvaluateStats) {
     let w = g.width as usize;
     let rows: Vec<(Vec<u32>, EvaluateStats)> = (0..g.height as usize)
@@ -246,11 +304,16 @@ pub fn evaluate(
             let mut stats = EvaluateStats::default();
             let masks = (y * w..(y + 1) * w)
                 .map(|i| {
-                    if g.flags[i] & flags::SHADOW_TESTED == 0 {
+                    if !is_receiver(g.flags[i], rule.skips) {
                         return 0;
                     }
                     stats.pixels_tested += 1;
-                    evaluate_pixel(setup, bins, g, i, mode, pattern, lut, &mut stats)
+                    let mask = evaluate_pixel(setup, bins, g, i, rule, &mut stats);
+                    if g.flags[i] & flags::SHADOW_TESTED == 0 {
+                        0
+                    } else {
+                        mask
+                    }
                 })
                 .collect();
             (masks, stats)
@@ -263,6 +326,7 @@ pub fn evaluate(
         stats.pixels_tested += s.pixels_tested;
         stats.tests_spawned += s.tests_spawned;
         stats.depth_passed += s.depth_passed;
+        stats.saturated_masks += s.saturated_masks;
         stats.early_outs += s.early_outs;
         stats.cells_visited += s.cells_visited;
     }

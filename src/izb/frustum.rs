@@ -158,16 +158,55 @@ pub fn edge_functions<V: Vector>(
     ey: V,
     light: LightRel<V>,
 ) -> EdgeFunctions<V::Scalar> {
-    let edge = |x: V, y: V, z: V| {
-        let n = side_plane_normal(x, y, light);
-        let n = if n.dot(z - x) < V::zero() { -n } else { n };
-        [-(n.dot(x)), n.dot(ex), n.dot(ey)]
-    };
-    [
-        edge(t[0], t[1], t[2]),
-        edge(t[1], t[2], t[0]),
-        edge(t[2], t[0], t[1]),
-    ]
+    [0, 1, 2].map(|k| edge_function(t, k, ex, ey, light))
+}
+
+/// Edge function `k` of [`edge_functions`] alone (edge from vertex k to
+/// k + 1), the same arithmetic, so a caller may stop after one edge.
+#[inline]
+pub fn edge_function<V: Vector>(
+    t: &[V; 3],
+    k: usize,
+    ex: V,
+    ey: V,
+    light: LightRel<V>,
+) -> [V::Scalar; 3] {
+    let (x, y, z) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+    let n = side_plane_normal(x, y, light);
+    let n = if n.dot(z - x) < V::zero() { -n } else { n };
+    [-(n.dot(x)), n.dot(ex), n.dot(ey)]
+}
+
+/// Whether edge `e` = (α, β, γ) keeps every sample of the pattern on one
+/// side, and which: `Some(FULL)` all inside, `Some(0)` all outside, `None`
+/// when the line may cross a sample (then the LUT or the 32 evaluations
+/// decide). `radius` is the pattern's largest distance from the µQuad
+/// centre. Exact against [`exact_edge_mask`]: |β(u−½) + γ(v−½)| ≤ r·radius,
+/// and the 2⁻¹⁰ relative margin is ~10³ times the f32 rounding of r and of
+/// the sample sums, so every sample then has the sign of α. NaN → `None`.
+#[inline]
+pub fn saturated_edge(e: [f32; 3], radius: f32) -> Option<u32> {
+    let r = (e[1] * e[1] + e[2] * e[2]).sqrt();
+    let reach = r * radius * (1.0 + SATURATION_MARGIN);
+    if e[0] > reach {
+        Some(u32::MAX)
+    } else if -e[0] > reach {
+        Some(0)
+    } else {
+        None
+    }
+}
+
+/// Relative margin of [`saturated_edge`] (2⁻¹⁰).
+pub const SATURATION_MARGIN: f32 = 1.0 / 1024.0;
+
+/// Largest distance of a pattern sample from the µQuad centre, in µQuad
+/// sides (below √2/2: samples lie strictly inside the square).
+pub fn pattern_radius(pattern: &[[f32; 2]; 32]) -> f32 {
+    pattern
+        .iter()
+        .map(|s| (s[0] - 0.5).hypot(s[1] - 0.5))
+        .fold(0.0, f32::max)
 }
 
 /// Occluded samples of one edge, evaluated exactly at every sample of the

@@ -13,9 +13,11 @@ pub mod bin;
 pub mod evaluate;
 pub mod frustum;
 pub mod light_setup;
+pub mod skips;
 
-pub use evaluate::{SampleMode, FULL};
+pub use evaluate::{MaskRule, SampleMode, FULL};
 pub use light_setup::{light_setup, LightSetup};
+pub use skips::Skips;
 
 use crate::gbuffer::{flags, gbuffer, GBuffer, GBufferStats};
 use crate::reference::bvh::SceneBvh;
@@ -30,6 +32,17 @@ pub struct IzbSettings {
     pub cells: Option<u32>,
     /// Triangles spanning more cells than this on an axis overflow.
     pub max_span: u32,
+    /// Exact shortcuts to take (all by default).
+    pub skips: Skips,
+}
+
+/// Whether `evaluate` tests a pixel with G-buffer `flags`: shadow-tested
+/// pixels, and with the `facing_away` skip off also the hits that face away
+/// from the light. The light view and grid are fitted to the shadow-tested
+/// pixels either way: moving the light-view origin changes the f32
+/// rounding of every test, and the skips must leave masks bit-identical.
+pub fn is_receiver(pixel_flags: u32, skips: Skips) -> bool {
+    pixel_flags & flags::SHADOW_TESTED != 0 || (!skips.facing_away && pixel_flags & flags::HIT != 0)
 }
 
 impl Default for IzbSettings {
@@ -38,6 +51,7 @@ impl Default for IzbSettings {
             mode: SampleMode::Lut32,
             cells: None,
             max_span: bin::DEFAULT_MAX_SPAN,
+            skips: Skips::ALL,
         }
     }
 }
@@ -145,16 +159,10 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let setup = light_setup(scene, &g, settings.cells);
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
-    let bins = bin::bin(&setup, &triangles, settings.max_span);
+    let bins = bin::bin(&setup, &triangles, settings.max_span, settings.skips);
     seconds.bin = lap();
-    let (masks, eval_stats) = evaluate::evaluate(
-        &setup,
-        &bins,
-        &g,
-        settings.mode,
-        crate::lut::sample_pattern(),
-        crate::lut::edge_lut(),
-    );
+    let rule = MaskRule::new(settings.mode, settings.skips);
+    let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &g, &rule);
     seconds.evaluate = lap();
     let visibility = resolve(&masks, &g);
     seconds.resolve = lap();

@@ -1,0 +1,136 @@
+//! Work a render may skip because it cannot change any mask (seed 002
+//! §6.5–6.6, seed 000's culling), each behind its own switch so its effect
+//! can be measured (`--skip all|none|name,name,…`) and each with a counter
+//! in the report. Every skip is exact: `tests/skips_are_exact.rs` renders
+//! every scene with all skips on and all off and requires bit-identical
+//! masks, on both backends.
+
+use std::fmt;
+
+/// Which exact shortcuts a render takes. `Default` is all of them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Skips {
+    /// Pixels that face away from the light (N·L ≤ 0, seed 002 §6.5) are
+    /// neither fitted, binned against nor tested: their lit fraction is 0
+    /// by the shading model. Off: they are fitted and tested like any
+    /// receiver, and their masks are then discarded.
+    pub facing_away: bool,
+    /// Triangles whose light-space box misses every cell (they cannot
+    /// shadow any receiver) are dropped. Off: they join the overflow list
+    /// that every pixel tests.
+    pub outside_bounds: bool,
+    /// A pixel stops testing once its mask is full (seed 002 §6.6).
+    pub full_mask: bool,
+    /// An occluder whose shadow prism contains or misses the whole µQuad
+    /// takes the cheap path: one comparison per edge instead of a LUT read
+    /// or 32 sample evaluations, and the remaining edges are not computed
+    /// once one edge misses the µQuad.
+    pub saturated_edges: bool,
+}
+
+impl Default for Skips {
+    fn default() -> Self {
+        Skips::ALL
+    }
+}
+
+/// One skip's name (as `--skip` spells it) and its field.
+type SkipField = (&'static str, fn(&mut Skips) -> &mut bool);
+
+const FIELDS: [SkipField; 4] = [
+    ("facing-away", |s| &mut s.facing_away),
+    ("outside-bounds", |s| &mut s.outside_bounds),
+    ("full-mask", |s| &mut s.full_mask),
+    ("saturated-edges", |s| &mut s.saturated_edges),
+];
+
+impl Skips {
+    pub const ALL: Skips = Skips {
+        facing_away: true,
+        outside_bounds: true,
+        full_mask: true,
+        saturated_edges: true,
+    };
+    pub const NONE: Skips = Skips {
+        facing_away: false,
+        outside_bounds: false,
+        full_mask: false,
+        saturated_edges: false,
+    };
+
+    /// Every skip's `--skip` name.
+    pub fn names() -> impl Iterator<Item = &'static str> {
+        FIELDS.iter().map(|(n, _)| *n)
+    }
+
+    /// Parses `all`, `none` or a comma-separated list of names.
+    pub fn parse(text: &str) -> Result<Skips, String> {
+        match text.trim() {
+            "all" => return Ok(Skips::ALL),
+            "none" | "" => return Ok(Skips::NONE),
+            _ => {}
+        }
+        let mut skips = Skips::NONE;
+        for name in text.split(',').map(str::trim) {
+            let (_, field) = FIELDS.iter().find(|(n, _)| *n == name).ok_or_else(|| {
+                format!(
+                    "unknown skip {name:?}: expected all, none or some of {}",
+                    Skips::names().collect::<Vec<_>>().join(", ")
+                )
+            })?;
+            *field(&mut skips) = true;
+        }
+        Ok(skips)
+    }
+
+    /// The `SKIP_*` bits of `FrameParams::skips` (shaders/common.glsl).
+    pub fn bits(self) -> u32 {
+        FIELDS
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, field))| *field(&mut self.clone()))
+            .map(|(k, _)| 1 << k)
+            .sum()
+    }
+}
+
+impl fmt::Display for Skips {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Skips::ALL => write!(f, "all"),
+            Skips::NONE => write!(f, "none"),
+            s => {
+                let on: Vec<&str> = FIELDS
+                    .iter()
+                    .filter(|(_, field)| *field(&mut s.clone()))
+                    .map(|(n, _)| *n)
+                    .collect();
+                write!(f, "{}", on.join(","))
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for Skips {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Skips::parse(s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_and_print_round_trip() {
+        for text in ["all", "none", "full-mask", "facing-away,saturated-edges"] {
+            assert_eq!(Skips::parse(text).unwrap().to_string(), text);
+        }
+        assert_eq!(Skips::ALL.bits(), 0b1111);
+        assert_eq!(Skips::NONE.bits(), 0);
+        assert_eq!(Skips::parse("outside-bounds").unwrap().bits(), 0b10);
+        let e = Skips::parse("full-mask,bogus").unwrap_err();
+        assert!(e.contains("bogus") && e.contains("saturated-edges"), "{e}");
+    }
+}
