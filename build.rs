@@ -78,6 +78,7 @@ const SHADERS: &[(&str, &str, Defines)] = &[
         "light_setup.comp",
         &[("STEP_GRID", "1")],
     ),
+    ("bin_receivers", "bin.comp", &[("STEP_RECEIVERS", "1")]),
     ("bin_count", "bin.comp", &[("STEP_COUNT", "1")]),
     ("bin_prefix_sum", "bin.comp", &[("STEP_PREFIX_SUM", "1")]),
     ("bin_scatter", "bin.comp", &[("STEP_SCATTER", "1")]),

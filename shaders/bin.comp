@@ -28,22 +28,49 @@ layout(scalar, binding = B_CELL_CURSOR) buffer CursorBuf { uint cell_cursor[]; }
 layout(scalar, binding = B_CELL_START) buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) writeonly buffer CellTriBuf { uint cell_triangles[]; };
 layout(scalar, binding = B_OVERFLOW) writeonly buffer OverflowBuf { uint overflow_list[]; };
+layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
+layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
+layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
+layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 
-// bin::CELL_PADDING: cell rectangles grow by 1/64 cell on every side, far
-// above the f32 rounding of a grid coordinate.
-#define CELL_PADDING (1.0 / 64.0)
+#include "light_view.glsl"
 
-// The CPU twin's rotation · (p − origin), same operation order; `precise`
-// keeps the compiler from fusing multiply-adds the CPU does not fuse.
-vec3 to_light_view(vec3 p) {
-    precise vec3 q = p - light.origin;
-    precise vec3 r = vec3(dot(light.rot_x, q), dot(light.rot_y, q), dot(light.rot_z, q));
-    return r;
-}
+// Per cell (binding B_CELL_RECEIVERS, filled with ~0 before the frame):
+// .x = ordered bits of the lowest light-view z of the µQuad centres of the
+// receivers touching the cell (atomicMin), .y = ~reach (atomicMin, so the
+// largest reach wins): bin::CellReceivers.
+layout(scalar, binding = B_CELL_RECEIVERS) buffer CellRecvBuf { uvec2 cell_receivers[]; };
 
-vec2 grid_coords(vec2 ndc) {
-    return (ndc - light.ndc_min) / (light.ndc_max - light.ndc_min)
-        * vec2(float(light.cells_x), float(light.cells_y));
+// bin::BEHIND_MARGIN.
+#define BEHIND_MARGIN (1.0 / 1024.0)
+
+// bin::behind_receivers: whether triangle t (light view) lies behind every
+// receiver that can test it in cell (x, y), so the cell need not list it.
+// Directional lights only; the host skips the pass otherwise.
+bool behind_receivers(Triangle t, uint x, uint y) {
+    if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || light.projection != 0u) return false;
+    uvec2 r = cell_receivers[y * light.cells_x + x];
+    if (r.x == 0xFFFFFFFFu) return true;   // no receiver touches the cell
+    float z_min = from_ordered_bits(r.x);
+    precise vec3 n = cross(t.b - t.a, t.c - t.a);
+    if (n.z < 0.0) n = -n;
+    if (!(n.z > 0.0)) return false;
+    float reach = float(~r.y) + CELL_PADDING;
+    vec2 lo = ndc_of_grid(vec2(float(x) - reach, float(y) - reach));
+    vec2 hi = ndc_of_grid(vec2(float(x) + 1.0 + reach, float(y) + 1.0 + reach));
+    vec2 q[4] = vec2[4](lo, vec2(hi.x, lo.y), hi, vec2(lo.x, hi.y));
+    float plane_max = -1.0 / 0.0;
+    [[unroll]] for (int k = 0; k < 4; ++k) {
+        precise float h = t.a.z - (n.x * (q[k].x - t.a.x) + n.y * (q[k].y - t.a.y)) / n.z;
+        plane_max = max(plane_max, h);
+    }
+    vec2 box_lo = min(min(lo, t.a.xy), min(t.b.xy, t.c.xy));
+    vec2 box_hi = max(max(hi, t.a.xy), max(t.b.xy, t.c.xy));
+    float z_lo = min(min(z_min, t.a.z), min(t.b.z, t.c.z));
+    float z_hi = max(max(z_min, t.a.z), max(t.b.z, t.c.z));
+    float size = length(box_hi - box_lo) + (z_hi - z_lo);
+    float margin = BEHIND_MARGIN * size * (length(n) / n.z);
+    return plane_max < z_min - margin;
 }
 
 // bin::place: PLACEMENT_CULLED, PLACEMENT_OVERFLOW or a packed cell rectangle.
@@ -76,6 +103,28 @@ shared uint partial[WORKGROUP_LINEAR];
 #endif
 
 void main() {
+#ifdef STEP_RECEIVERS
+    // One thread per pixel: bin::cell_receivers.
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= frame.width * frame.height || light.grid_disabled != 0u) return;
+    if (!is_receiver(gbuffer_flags(g_id_flags[i]), frame.skips)) return;
+    vec3 p = g_position[i];
+    vec2 lo, hi;
+    microquad_grid_box(p, g_axis_x[i], g_axis_y[i], lo, hi);
+    uvec4 cells;
+    if (!cell_range(lo, hi, cells)) return;
+    uint z = ordered_bits(to_light_view(p).z);
+    vec2 extent = hi - lo;
+    uint reach = uint(ceil(max(extent.x, extent.y))) + 1u;
+    for (uint y = cells.y; y <= cells.w; ++y) {
+        for (uint x = cells.x; x <= cells.z; ++x) {
+            uint c = y * light.cells_x + x;
+            atomicMin(cell_receivers[c].x, z);
+            atomicMin(cell_receivers[c].y, ~reach);
+        }
+    }
+#endif
+
 #ifdef STEP_COUNT
     uint id = gl_GlobalInvocationID.x;
     if (id >= frame.triangle_count) return;
@@ -93,9 +142,20 @@ void main() {
         overflow_list[atomicAdd(counters[C_OVERFLOW], 1u)] = id;
     } else {
         atomicAdd(counters[C_BINNED], 1u);
-        for (uint y = p.x >> 16; y <= p.y >> 16; ++y)
-            for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu); ++x)
-                atomicAdd(cell_cursor[y * light.cells_x + x], 1u);
+        uint dropped = 0u;
+        bool listed = false;
+        for (uint y = p.x >> 16; y <= p.y >> 16; ++y) {
+            for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu); ++x) {
+                if (behind_receivers(t, x, y)) {
+                    dropped += 1u;
+                } else {
+                    atomicAdd(cell_cursor[y * light.cells_x + x], 1u);
+                    listed = true;
+                }
+            }
+        }
+        if (dropped != 0u) atomicAdd(counters[C_ENTRIES_BEHIND], dropped);
+        if (!listed) atomicAdd(counters[C_TRIANGLES_BEHIND], 1u);
     }
 #endif
 
@@ -137,10 +197,12 @@ void main() {
     if (id >= frame.triangle_count) return;
     // The rectangle again, from the values STEP_COUNT stored and placed:
     // the same arithmetic on the same floats, so the same cells.
-    uvec2 p = place(vertex_cache[id]);
+    Triangle t = vertex_cache[id];
+    uvec2 p = place(t);
     if (p.x >= PLACEMENT_CULLED) return;
     for (uint y = p.x >> 16; y <= p.y >> 16; ++y) {
         for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu); ++x) {
+            if (behind_receivers(t, x, y)) continue;
             uint slot = atomicAdd(cell_cursor[y * light.cells_x + x], 1u);
             if (slot < frame.cell_capacity) cell_triangles[slot] = id;
         }

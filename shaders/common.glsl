@@ -39,6 +39,7 @@
 #define B_MASKS 17
 #define B_SHADED 18
 #define B_TRIANGLE_NORMALS 19
+#define B_CELL_RECEIVERS 20
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u
@@ -79,6 +80,7 @@ vec3 receiver_normal(vec3 triangle_normal, uint word) {
 #define SKIP_OUTSIDE_BOUNDS 2u
 #define SKIP_FULL_MASK 4u
 #define SKIP_SATURATED_EDGES 8u
+#define SKIP_BEHIND_RECEIVERS 16u
 
 // izb::is_receiver: shadow-tested pixels, and with the facing-away skip
 // off every hit.
@@ -115,7 +117,9 @@ bool is_receiver(uint flags, uint skips) {
 #define C_CELLS_VISITED 14   // 64-bit
 #define C_LOOP_BUDGET_EXCEEDED 16
 #define C_SATURATED_MASKS 17 // 64-bit
-#define COUNTER_WORDS 19
+#define C_ENTRIES_BEHIND 19  // cell entries the behind-receivers skip dropped
+#define C_TRIANGLES_BEHIND 20 // binned triangles dropped from every cell
+#define COUNTER_WORDS 21
 
 // Per-frame constants, written by the host once per frame.
 struct FrameParams {

@@ -19,6 +19,7 @@
 // triangle, ORed per pixel, stopping when the mask is full (seed 002 §6.6).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#extension GL_KHR_shader_subgroup_basic : require
 
 layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 
@@ -38,7 +39,8 @@ layout(scalar, binding = B_OVERFLOW) readonly buffer OverflowBuf { uint overflow
 layout(scalar, binding = B_EDGE_LUT) readonly buffer LutBuf { uint edge_lut[]; };
 layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
 
-#define CELL_PADDING (1.0 / 64.0)
+#include "light_view.glsl"
+
 #define NO_CELL 0xFFFFFFFFu
 // frustum::DEPTH_TOLERANCE_MICROQUAD and DEPTH_TOLERANCE_ROUNDING (16 ε₃₂).
 #define DEPTH_TOLERANCE_MICROQUAD (1.0 / 256.0)
@@ -58,17 +60,6 @@ float px_size;
 uint px_receiver;
 uvec4 px_cells;   // x0, y0, x1, y1
 bool px_has_cells;
-
-vec3 to_light_view(vec3 p) {
-    precise vec3 q = p - light.origin;
-    precise vec3 r = vec3(dot(light.rot_x, q), dot(light.rot_y, q), dot(light.rot_z, q));
-    return r;
-}
-
-vec3 rotate(vec3 v) {
-    precise vec3 r = vec3(dot(light.rot_x, v), dot(light.rot_y, v), dot(light.rot_z, v));
-    return r;
-}
 
 // frustum::may_shadow: the per-pixel depth test at P (t = vertices − P).
 bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
@@ -159,9 +150,22 @@ bool done(uint mask) {
 uint trips = 0u;
 bool over_budget = false;
 
+// lavapipe vectorises a subgroup's invocations into one SIMD loop and
+// counts the loop's iterations for the whole subgroup: one pass of a loop
+// counts once however many lanes run it, and lanes that loop in different
+// places add up. A per-lane count missed the second part and let the cap
+// cut a courtyard pixel's candidates silently (160×90, skips off, one
+// sample lost). So on a capped device each pass of a loop is counted once
+// per subgroup, by the one lane `subgroupElect` picks among those running
+// it, in shared memory, and the budget applies to that count.
+shared uint sm_subgroup_trips[WORKGROUP_PIXELS];
+
 bool spend_trip() {
     trips += 1u;
-    if (trips > frame.loop_budget) over_budget = true;
+    if (frame.loop_budget != 0xFFFFFFFFu) {
+        if (subgroupElect()) atomicAdd(sm_subgroup_trips[gl_SubgroupID], 1u);
+        if (atomicAdd(sm_subgroup_trips[gl_SubgroupID], 0u) >= frame.loop_budget) over_budget = true;
+    }
     return !over_budget;
 }
 
@@ -202,15 +206,6 @@ bool tests_in_cell(uint id, uint first_cell, uint x, uint y) {
     return x == max(first_cell & 0xFFFFu, px_cells.x) && y == max(first_cell >> 16, px_cells.y);
 }
 
-vec2 grid_coords(vec2 ndc) {
-    return (ndc - light.ndc_min) / (light.ndc_max - light.ndc_min)
-        * vec2(float(light.cells_x), float(light.cells_y));
-}
-
-vec2 ndc_of(vec3 q) {
-    return light.projection == 0u ? q.xy : q.xy / q.z;
-}
-
 // evaluate::pixel_frustum: light-view µQuad and its cell rectangle.
 void pixel_frustum(uint i) {
     vec3 p = g_position[i], ex = g_axis_x[i], ey = g_axis_y[i];
@@ -228,21 +223,9 @@ void pixel_frustum(uint i) {
     px_size = size;
     px_has_cells = false;
     if (light.grid_disabled != 0u) return;
-    vec3 hx = ex * 0.5, hy = ey * 0.5;
-    vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
-    vec2 lo = vec2(1.0 / 0.0), hi = vec2(-1.0 / 0.0);
-    [[unroll]] for (int k = 0; k < 4; ++k) {
-        vec2 g = grid_coords(ndc_of(to_light_view(corners[k])));
-        lo = min(lo, g);
-        hi = max(hi, g);
-    }
-    lo -= CELL_PADDING;
-    hi += CELL_PADDING;
-    float w = float(light.cells_x), h = float(light.cells_y);
-    if (hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || isnan(lo.x) || isnan(hi.x)) return;
-    uint x0 = uint(max(lo.x, 0.0)), y0 = uint(max(lo.y, 0.0));
-    px_cells = uvec4(x0, y0, max(uint(min(hi.x, w - 1.0)), x0), max(uint(min(hi.y, h - 1.0)), y0));
-    px_has_cells = true;
+    vec2 lo, hi;
+    microquad_grid_box(p, ex, ey, lo, hi);
+    px_has_cells = cell_range(lo, hi, px_cells);
 }
 
 // Adds a 64-bit counter held as (lo, hi) words.
@@ -261,6 +244,8 @@ void main() {
     bool live = inside && is_receiver(pixel_flags, frame.skips);
     stop_when_full = (frame.skips & SKIP_FULL_MASK) != 0u;
     uint mask = 0u;
+    sm_subgroup_trips[lid] = 0u;
+    barrier();
     if (live) pixel_frustum(i);
     // A grid overrun (C_CAPACITY_EXCEEDED) leaves cell lists incomplete:
     // skip them (uniformly); the host reruns the frame with room.

@@ -4,25 +4,40 @@
 //! pixel visits (zero light leaks by construction, design §5).
 
 use izb::gbuffer::{flags, gbuffer};
-use izb::izb::bin::{bin, Placement};
+use izb::izb::bin::{bin, cell_receivers, Placement};
 use izb::izb::evaluate::{for_each_candidate, triangle_mask_for_pixel};
 use izb::izb::{eye_relative_f32, light_setup, MaskRule, SampleMode, Skips};
 use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 use std::collections::HashSet;
 
+/// `cull`: bin with the `behind_receivers` skip, so the brute force below
+/// also proves that skip never drops an occluder.
 fn check_grid(
     scene: &Scene,
     cells: Option<u32>,
     max_span: u32,
     pixel_stride: usize,
+    cull: bool,
 ) -> (usize, usize) {
     let bvh = SceneBvh::build(scene);
     let g = gbuffer(scene, &bvh);
     let setup = light_setup(scene, &g, cells);
-    let bins = bin(&setup, &eye_relative_f32(scene), max_span, Skips::ALL);
+    let receivers = if cull {
+        cell_receivers(&setup, &g, Skips::ALL)
+    } else {
+        None
+    };
+    let bins = bin(
+        &setup,
+        &eye_relative_f32(scene),
+        max_span,
+        Skips::ALL,
+        receivers.as_ref(),
+    );
 
-    // Scatter against the placements, cell by cell.
+    // Scatter against the placements, cell by cell (with the cull, a
+    // subset of them).
     for y in 0..setup.cells[1] {
         for x in 0..setup.cells[0] {
             let got: Vec<u32> = bins.cell(&setup, x, y).to_vec();
@@ -34,7 +49,14 @@ fn check_grid(
                     _ => false,
                 })
                 .collect();
-            assert_eq!(got, expected, "cell ({x}, {y})");
+            if cull {
+                assert!(
+                    got.iter().all(|id| expected.contains(id)),
+                    "cell ({x}, {y}) lists a triangle not placed there"
+                );
+            } else {
+                assert_eq!(got, expected, "cell ({x}, {y})");
+            }
         }
     }
 
@@ -90,11 +112,14 @@ fn grid_offers_every_occluder_on_thin_and_grazing_scenes() {
             let p = scene::procedural::hairball(3000);
             scene = Scene::new("hairball", p.triangles, p.camera, p.light, [96, 54]).unwrap();
         }
-        let (pixels, pairs) = check_grid(&scene, cells, 8, 3);
-        println!(
-            "{name} (cells {cells:?}): {pixels} pixels, {pairs} occluder/pixel pairs, all offered"
-        );
-        assert!(pixels > 300 && pairs > 100, "{name}: too little exercised");
+        for cull in [false, true] {
+            let (pixels, pairs) = check_grid(&scene, cells, 8, 3, cull);
+            println!(
+                "{name} (cells {cells:?}, behind-receivers cull {cull}): {pixels} pixels, \
+                 {pairs} occluder/pixel pairs, all offered"
+            );
+            assert!(pixels > 300 && pairs > 100, "{name}: too little exercised");
+        }
     }
 }
 
@@ -111,7 +136,7 @@ fn point_light_grid_offers_every_occluder() {
         .unwrap()
         .with_resolution([64, 36])
         .unwrap();
-    let (pixels, pairs) = check_grid(&scene, Some(32), 4, 5);
+    let (pixels, pairs) = check_grid(&scene, Some(32), 4, 5, false);
     println!("engine: {pixels} pixels, {pairs} occluder/pixel pairs, all offered");
     assert!(pixels > 50 && pairs > 50);
 }

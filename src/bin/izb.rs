@@ -127,7 +127,8 @@ struct RenderArgs {
     #[arg(long)]
     cells: Option<u32>,
     /// Exact shortcuts to take: all, none, or a comma-separated list of
-    /// facing-away, outside-bounds, full-mask, saturated-edges.
+    /// facing-away, outside-bounds, full-mask, saturated-edges,
+    /// behind-receivers.
     #[arg(long, default_value = "all")]
     skip: Skips,
     /// Output folder.

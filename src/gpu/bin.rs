@@ -12,9 +12,15 @@
 
 use super::{Kernels, Recorder};
 
-/// Records the pass over `triangles` triangles.
-pub fn bin(rec: &Recorder, kernels: &Kernels, triangles: u32) {
+/// Records the pass over `triangles` triangles; with `pixels` (the
+/// behind-receivers skip) it first gathers each cell's receivers
+/// (`STEP_RECEIVERS`, [`crate::izb::bin::cell_receivers`]).
+pub fn bin(rec: &Recorder, kernels: &Kernels, triangles: u32, pixels: Option<u32>) {
     rec.begin_label("bin");
+    if let Some(pixels) = pixels {
+        rec.dispatch_linear(&kernels.bin_receivers, pixels);
+        rec.barrier();
+    }
     rec.dispatch_linear(&kernels.bin_count, triangles);
     rec.barrier();
     rec.dispatch(&kernels.bin_prefix_sum, [1, 1, 1]);

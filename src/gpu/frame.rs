@@ -66,6 +66,8 @@ pub struct GpuCounters {
     pub pixels_skipped: u32,
     pub early_outs: u32,
     pub saturated_masks: u64,
+    pub entries_behind_receivers: u32,
+    pub triangles_behind_receivers: u32,
     pub tests_spawned: u64,
     pub depth_passed: u64,
     pub cells_visited: u64,
@@ -331,12 +333,11 @@ impl GpuRenderer {
             }
             let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
             if trips != 0 {
-                return Err(GpuError::Unsupported(format!(
-                    "{} ends a shader's loops after {LLVMPIPE_LOOP_CAP} iterations, and a pixel \
-                     of this frame needs more than {trips} candidate tests: refine the grid \
-                     (--cells) or use --backend cpu",
-                    self.context.info().name
-                )));
+                return Err(GpuError::LoopCap {
+                    device: self.context.info().name.clone(),
+                    cap: LLVMPIPE_LOOP_CAP,
+                    trips,
+                });
             }
             if out.counters[counter::CAPACITY_EXCEEDED] != 0 {
                 return Err(GpuError::Unsupported(format!(
@@ -484,6 +485,14 @@ impl GpuRenderer {
                     vk::WHOLE_SIZE,
                     0,
                 );
+                // Empty cells: no receiver (z = ~0), reach 0 (stored as !0).
+                device.cmd_fill_buffer(
+                    cmd,
+                    fb.get(binding::CELL_RECEIVERS).buffer,
+                    0,
+                    vk::WHOLE_SIZE,
+                    u32::MAX,
+                );
             }
             rec.barrier();
             timestamps.reset(cmd);
@@ -494,7 +503,8 @@ impl GpuRenderer {
             timestamps.write(cmd, 1);
             super::light_setup::light_setup(&rec, &self.kernels, [w, h]);
             timestamps.write(cmd, 2);
-            super::bin::bin(&rec, &self.kernels, triangles.len() as u32);
+            let receivers = settings.skips.behind_receivers.then_some(w * h);
+            super::bin::bin(&rec, &self.kernels, triangles.len() as u32, receivers);
             timestamps.write(cmd, 3);
             super::evaluate::evaluate(&rec, &self.kernels, [w, h]);
             timestamps.write(cmd, 4);
@@ -585,6 +595,8 @@ impl GpuRenderer {
             pixels_skipped: (scene.pixel_count() as u32).saturating_sub(c[counter::PIXELS_TESTED]),
             early_outs: c[counter::EARLY_OUTS],
             saturated_masks: wide(counter::SATURATED_MASKS),
+            entries_behind_receivers: c[counter::ENTRIES_BEHIND],
+            triangles_behind_receivers: c[counter::TRIANGLES_BEHIND],
             tests_spawned: wide(counter::TESTS_SPAWNED),
             depth_passed: wide(counter::DEPTH_PASSED),
             cells_visited: wide(counter::CELLS_VISITED),
@@ -749,6 +761,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("evaluate", "masks", p * 4),
         BufferDesc::device("resolve", "shaded_and_lit_samples", p * 4),
         BufferDesc::device("scene", "triangle_normals", t * vec3),
+        BufferDesc::device("bin", "cell_receivers", z.max_cells * 8),
     ]
 }
 

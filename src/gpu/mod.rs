@@ -59,6 +59,18 @@ pub enum GpuError {
     },
     #[error("buffer `{0}` is not host-visible")]
     NotMapped(&'static str),
+    /// The device stops shader loops after a fixed count (lavapipe), and a
+    /// subgroup of pixels needs more candidate tests than that.
+    #[error(
+        "{device} ends a shader's loops after {cap} iterations per subgroup, and a subgroup \
+         of pixels in this frame needs more ({trips} candidate tests in one of its pixels when \
+         it stopped): use a GPU or --backend cpu"
+    )]
+    LoopCap {
+        device: String,
+        cap: u32,
+        trips: u32,
+    },
     #[error("{0}")]
     Unsupported(String),
 }
@@ -86,6 +98,7 @@ pub struct Kernels {
     pub light_setup_frame: ComputeKernel,
     pub light_setup_extent: ComputeKernel,
     pub light_setup_grid: ComputeKernel,
+    pub bin_receivers: ComputeKernel,
     pub bin_count: ComputeKernel,
     pub bin_prefix_sum: ComputeKernel,
     pub bin_scatter: ComputeKernel,
@@ -105,6 +118,7 @@ impl Kernels {
             light_setup_frame: k("light_setup_frame", spirv!("light_setup_frame"))?,
             light_setup_extent: k("light_setup_extent", spirv!("light_setup_extent"))?,
             light_setup_grid: k("light_setup_grid", spirv!("light_setup_grid"))?,
+            bin_receivers: k("bin_receivers", spirv!("bin_receivers"))?,
             bin_count: k("bin_count", spirv!("bin_count"))?,
             bin_prefix_sum: k("bin_prefix_sum", spirv!("bin_prefix_sum"))?,
             bin_scatter: k("bin_scatter", spirv!("bin_scatter"))?,

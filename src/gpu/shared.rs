@@ -35,8 +35,11 @@ pub mod binding {
     /// triangle's, negated when its G-buffer word has
     /// [`super::FLAG_NORMAL_FLIPPED`].
     pub const TRIANGLE_NORMALS: u32 = 19;
+    /// Per cell: lowest receiver z (ordered bits) and !reach
+    /// ([`crate::izb::bin::CellReceivers`]).
+    pub const CELL_RECEIVERS: u32 = 20;
     /// Number of bindings.
-    pub const COUNT: u32 = 20;
+    pub const COUNT: u32 = 21;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two
@@ -57,8 +60,10 @@ pub mod counter {
     pub const CELLS_VISITED: usize = 14;
     pub const LOOP_BUDGET_EXCEEDED: usize = 16;
     pub const SATURATED_MASKS: usize = 17;
+    pub const ENTRIES_BEHIND: usize = 19;
+    pub const TRIANGLES_BEHIND: usize = 20;
     /// Words in the counters buffer.
-    pub const WORDS: usize = 19;
+    pub const WORDS: usize = 21;
 }
 
 /// Local sizes of the pixel passes (8×8 tiles) and the linear passes.

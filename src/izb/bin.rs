@@ -6,6 +6,8 @@
 //! of cells.
 
 use super::light_setup::{LightSetup, Projection};
+use super::{is_receiver, Skips};
+use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -38,6 +40,10 @@ pub struct BinStats {
     pub culled: usize,
     /// Total (cell, triangle) entries written by the scatter.
     pub cell_entries: usize,
+    /// (cell, triangle) entries the `behind_receivers` skip dropped.
+    pub entries_behind_receivers: usize,
+    /// Binned triangles dropped from every cell they cover.
+    pub triangles_behind_receivers: usize,
     pub max_span: u32,
 }
 
@@ -105,14 +111,128 @@ fn place(setup: &LightSetup, tri: &[Vec3; 3], max_span: u32) -> Placement {
     }
 }
 
+/// What the `behind_receivers` skip knows of each cell: the lowest
+/// light-view z (farthest from the light) of the µQuad centres P of the
+/// receivers whose µQuad touches the cell, and how many cells those centres
+/// may lie away from it.
+pub struct CellReceivers {
+    /// +∞ where no receiver touches the cell.
+    pub z_min: Vec<f32>,
+    pub reach: Vec<u32>,
+}
+
+/// [`CellReceivers`] of the receivers of `g` (directional lights only:
+/// `None` for a point light or a disabled grid).
+pub fn cell_receivers(setup: &LightSetup, g: &GBuffer, skips: Skips) -> Option<CellReceivers> {
+    if setup.grid_disabled || setup.projection != Projection::Orthographic {
+        return None;
+    }
+    let cells = (setup.cells[0] * setup.cells[1]) as usize;
+    let mut out = CellReceivers {
+        z_min: vec![f32::INFINITY; cells],
+        reach: vec![0; cells],
+    };
+    for i in 0..g.flags.len() {
+        if !is_receiver(g.flags[i], skips) {
+            continue;
+        }
+        let (lo, hi) = setup.microquad_grid_box(g.position[i], g.axis_x[i], g.axis_y[i]);
+        let Some([x0, y0, x1, y1]) = cell_range(setup, lo, hi) else {
+            continue;
+        };
+        let z = setup.to_light_view(g.position[i]).z;
+        let reach = receiver_reach(lo, hi);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let c = (y * setup.cells[0] + x) as usize;
+                out.z_min[c] = out.z_min[c].min(z);
+                out.reach[c] = out.reach[c].max(reach);
+            }
+        }
+    }
+    Some(out)
+}
+
+/// How many cells the µQuad centre may lie from a cell its grid box
+/// `[lo, hi]` touches: the box's larger side, rounded up, plus one for
+/// the cell itself and the padding.
+#[inline]
+pub fn receiver_reach(lo: Vec2, hi: Vec2) -> u32 {
+    ((hi - lo).max_element().ceil() as u32).saturating_add(1)
+}
+
+/// Relative margin of [`behind_receivers`] (2⁻¹⁰), about 10⁴ times the
+/// `f32` rounding of the depth test it must agree with.
+pub const BEHIND_MARGIN: f32 = 1.0 / 1024.0;
+
+/// Whether triangle `tri` (light view) is behind every receiver that can
+/// test it in cell (`x`, `y`): its plane, over every place a µQuad centre P
+/// of those receivers can be (the cell grown by their reach, z ≥ their
+/// lowest z), stays farther from the light than P by a margin. Then the
+/// per-pixel depth test ([`super::frustum::may_shadow`]: P beyond the
+/// plane, away from the light) fails for each of them and the cell need not
+/// list the triangle. The plane's height is linear in x, y, so its maximum
+/// over the box is at a corner. Directional lights only (+z toward the
+/// light); a cell no receiver touches never needs a list.
+pub fn behind_receivers(
+    setup: &LightSetup,
+    receivers: &CellReceivers,
+    tri: &[Vec3; 3],
+    x: u32,
+    y: u32,
+) -> bool {
+    let c = (y * setup.cells[0] + x) as usize;
+    let z_min = receivers.z_min[c];
+    if z_min == f32::INFINITY {
+        return true;
+    }
+    let mut n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+    if n.z < 0.0 {
+        n = -n;
+    }
+    // Seen edge-on from the light (or NaN): no height function to bound.
+    if n.z.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return false;
+    }
+    let r = receivers.reach[c] as f32 + CELL_PADDING;
+    let (g_lo, g_hi) = (
+        Vec2::new(x as f32 - r, y as f32 - r),
+        Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r),
+    );
+    let (lo, hi) = (setup.ndc_of_grid(g_lo), setup.ndc_of_grid(g_hi));
+    let a = tri[0];
+    let height = |q: Vec2| a.z - (n.x * (q.x - a.x) + n.y * (q.y - a.y)) / n.z;
+    let plane_max = height(lo)
+        .max(height(Vec2::new(hi.x, lo.y)))
+        .max(height(hi))
+        .max(height(Vec2::new(lo.x, hi.y)));
+    // Size of the whole configuration, for the margin.
+    let box_lo = lo
+        .min(a.truncate())
+        .min(tri[1].truncate())
+        .min(tri[2].truncate());
+    let box_hi = hi
+        .max(a.truncate())
+        .max(tri[1].truncate())
+        .max(tri[2].truncate());
+    let z_lo = z_min.min(a.z).min(tri[1].z).min(tri[2].z);
+    let z_hi = z_min.max(a.z).max(tri[1].z).max(tri[2].z);
+    let size = (box_hi - box_lo).length() + (z_hi - z_lo);
+    let margin = BEHIND_MARGIN * size * (n.length() / n.z);
+    plane_max < z_min - margin
+}
+
 /// Bins eye-relative `f32` triangles (`triangles[id]`) into the grid.
 /// With the `outside_bounds` skip off, triangles that miss the grid go to
-/// the overflow list instead of being culled.
+/// the overflow list instead of being culled; with `receivers` (the
+/// `behind_receivers` skip) a cell does not list triangles that are behind
+/// all of its receivers.
 pub fn bin(
     setup: &LightSetup,
     triangles: &[[Vec3; 3]],
     max_span: u32,
-    skips: super::Skips,
+    skips: Skips,
+    receivers: Option<&CellReceivers>,
 ) -> Bins {
     let vertex_cache: Vec<[Vec3; 3]> = triangles
         .par_iter()
@@ -126,6 +246,10 @@ pub fn bin(
         })
         .collect();
     let cells = (setup.cells[0] * setup.cells[1]) as usize;
+    let lists = |id: usize, x: u32, y: u32| match receivers {
+        Some(r) => !behind_receivers(setup, r, &vertex_cache[id], x, y),
+        None => true,
+    };
     // Count.
     let mut counts = vec![0u32; cells + 1];
     let mut stats = BinStats {
@@ -140,11 +264,18 @@ pub fn bin(
             Placement::Overflow => overflow.push(id as u32),
             Placement::Cells { x0, y0, x1, y1 } => {
                 stats.binned += 1;
+                let mut listed = false;
                 for y in y0..=y1 {
                     for x in x0..=x1 {
-                        counts[(y * setup.cells[0] + x) as usize] += 1;
+                        if lists(id, x, y) {
+                            counts[(y * setup.cells[0] + x) as usize] += 1;
+                            listed = true;
+                        } else {
+                            stats.entries_behind_receivers += 1;
+                        }
                     }
                 }
+                stats.triangles_behind_receivers += !listed as usize;
             }
         }
     }
@@ -166,6 +297,9 @@ pub fn bin(
         if let Placement::Cells { x0, y0, x1, y1 } = *p {
             for y in y0..=y1 {
                 for x in x0..=x1 {
+                    if !lists(id, x, y) {
+                        continue;
+                    }
                     let c = (y * setup.cells[0] + x) as usize;
                     cell_triangles[cursor[c] as usize] = id as u32;
                     cursor[c] += 1;

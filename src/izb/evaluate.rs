@@ -12,10 +12,10 @@
 
 use super::bin::{cell_range, Bins, Placement};
 use super::frustum::{edge_function, exact_edge_mask, may_shadow, saturated_edge, LightRel};
-use super::light_setup::{microquad_corners, LightSetup};
+use super::light_setup::LightSetup;
 use super::{is_receiver, Skips};
 use crate::gbuffer::{flags, GBuffer};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Samples per pixel and how each triangle's mask is formed.
@@ -68,15 +68,9 @@ fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
     let cells = if setup.grid_disabled {
         None
     } else {
-        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for c in microquad_corners(p, ex, ey) {
-            // Every receiver corner is in front of the light (else the grid
-            // is disabled), so `ndc` is Some.
-            let n = setup.ndc(setup.to_light_view(c)).unwrap_or(Vec2::NAN);
-            let gc = setup.grid_coords(n);
-            lo = lo.min(gc);
-            hi = hi.max(gc);
-        }
+        // Every receiver corner is in front of the light (else the grid is
+        // disabled), so the box is not NaN.
+        let (lo, hi) = setup.microquad_grid_box(p, ex, ey);
         cell_range(setup, lo, hi)
     };
     PixelFrustum {

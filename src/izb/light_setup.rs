@@ -81,6 +81,28 @@ impl LightSetup {
         (ndc - self.ndc_min) / (self.ndc_max - self.ndc_min) * size
     }
 
+    /// Light NDC of grid coordinates (the inverse of [`Self::grid_coords`]).
+    #[inline]
+    pub fn ndc_of_grid(&self, g: Vec2) -> Vec2 {
+        let size = Vec2::new(self.cells[0] as f32, self.cells[1] as f32);
+        self.ndc_min + g / size * (self.ndc_max - self.ndc_min)
+    }
+
+    /// Grid-space bounding box of the µQuad (centre `p`, axes `ex`, `ey`,
+    /// eye-relative): the box of its projected corners, which holds the
+    /// projection of every point of the µQuad, its centre included. NaN
+    /// when a corner is not in front of a point light.
+    pub fn microquad_grid_box(&self, p: Vec3, ex: Vec3, ey: Vec3) -> (Vec2, Vec2) {
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for c in microquad_corners(p, ex, ey) {
+            let n = self.ndc(self.to_light_view(c)).unwrap_or(Vec2::NAN);
+            let gc = self.grid_coords(n);
+            lo = lo.min(gc);
+            hi = hi.max(gc);
+        }
+        (lo, hi)
+    }
+
     /// Light-view position of the light: the origin for a point light,
     /// `None` for a directional one (it is at +z infinity).
     pub fn light_position(&self) -> Option<Vec3> {

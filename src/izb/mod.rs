@@ -159,7 +159,18 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let setup = light_setup(scene, &g, settings.cells);
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
-    let bins = bin::bin(&setup, &triangles, settings.max_span, settings.skips);
+    let receivers = settings
+        .skips
+        .behind_receivers
+        .then(|| bin::cell_receivers(&setup, &g, settings.skips))
+        .flatten();
+    let bins = bin::bin(
+        &setup,
+        &triangles,
+        settings.max_span,
+        settings.skips,
+        receivers.as_ref(),
+    );
     seconds.bin = lap();
     let rule = MaskRule::new(settings.mode, settings.skips);
     let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &g, &rule);

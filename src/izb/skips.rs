@@ -26,6 +26,11 @@ pub struct Skips {
     /// or 32 sample evaluations, and the remaining edges are not computed
     /// once one edge misses the µQuad.
     pub saturated_edges: bool,
+    /// A cell does not list a triangle that lies behind (farther from the
+    /// light than) every receiver that can test it there, nor anything at
+    /// all when no receiver touches it (seed 002 §5.4): see
+    /// [`super::bin::behind_receivers`]. Directional lights only.
+    pub behind_receivers: bool,
 }
 
 impl Default for Skips {
@@ -37,11 +42,12 @@ impl Default for Skips {
 /// One skip's name (as `--skip` spells it) and its field.
 type SkipField = (&'static str, fn(&mut Skips) -> &mut bool);
 
-const FIELDS: [SkipField; 4] = [
+const FIELDS: [SkipField; 5] = [
     ("facing-away", |s| &mut s.facing_away),
     ("outside-bounds", |s| &mut s.outside_bounds),
     ("full-mask", |s| &mut s.full_mask),
     ("saturated-edges", |s| &mut s.saturated_edges),
+    ("behind-receivers", |s| &mut s.behind_receivers),
 ];
 
 impl Skips {
@@ -50,12 +56,14 @@ impl Skips {
         outside_bounds: true,
         full_mask: true,
         saturated_edges: true,
+        behind_receivers: true,
     };
     pub const NONE: Skips = Skips {
         facing_away: false,
         outside_bounds: false,
         full_mask: false,
         saturated_edges: false,
+        behind_receivers: false,
     };
 
     /// Every skip's `--skip` name.
@@ -127,7 +135,7 @@ mod tests {
         for text in ["all", "none", "full-mask", "facing-away,saturated-edges"] {
             assert_eq!(Skips::parse(text).unwrap().to_string(), text);
         }
-        assert_eq!(Skips::ALL.bits(), 0b1111);
+        assert_eq!(Skips::ALL.bits(), 0b11111);
         assert_eq!(Skips::NONE.bits(), 0);
         assert_eq!(Skips::parse("outside-bounds").unwrap().bits(), 0b10);
         let e = Skips::parse("full-mask,bogus").unwrap_err();

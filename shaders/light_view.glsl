@@ -1,0 +1,64 @@
+// light_view.glsl — light-view and grid arithmetic shared by the passes
+// that run after light_setup (bin, evaluate): the CPU twin's
+// `LightSetup::{to_light_view, rotate, grid_coords, ndc_of_grid,
+// microquad_grid_box}` and `bin::cell_range`, same operation order.
+// Include after declaring `LightState light` (binding B_LIGHT).
+
+// bin::CELL_PADDING: cell rectangles grow by 1/64 cell on every side, far
+// above the f32 rounding of a grid coordinate.
+#define CELL_PADDING (1.0 / 64.0)
+
+// rotation · (p − origin); `precise` keeps the compiler from fusing
+// multiply-adds the CPU does not fuse.
+vec3 to_light_view(vec3 p) {
+    precise vec3 q = p - light.origin;
+    precise vec3 r = vec3(dot(light.rot_x, q), dot(light.rot_y, q), dot(light.rot_z, q));
+    return r;
+}
+
+vec3 rotate(vec3 v) {
+    precise vec3 r = vec3(dot(light.rot_x, v), dot(light.rot_y, v), dot(light.rot_z, v));
+    return r;
+}
+
+vec2 grid_size() {
+    return vec2(float(light.cells_x), float(light.cells_y));
+}
+
+vec2 grid_coords(vec2 ndc) {
+    return (ndc - light.ndc_min) / (light.ndc_max - light.ndc_min) * grid_size();
+}
+
+vec2 ndc_of_grid(vec2 g) {
+    return light.ndc_min + g / grid_size() * (light.ndc_max - light.ndc_min);
+}
+
+vec2 ndc_of(vec3 q) {
+    return light.projection == 0u ? q.xy : q.xy / q.z;
+}
+
+// Grid-space box of the µQuad's projected corners (eye-relative p, ex, ey).
+void microquad_grid_box(vec3 p, vec3 ex, vec3 ey, out vec2 lo, out vec2 hi) {
+    vec3 hx = ex * 0.5, hy = ey * 0.5;
+    vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
+    lo = vec2(1.0 / 0.0);
+    hi = vec2(-1.0 / 0.0);
+    [[unroll]] for (int k = 0; k < 4; ++k) {
+        vec2 g = grid_coords(ndc_of(to_light_view(corners[k])));
+        lo = min(lo, g);
+        hi = max(hi, g);
+    }
+}
+
+// bin::cell_range: inclusive cells (x0, y0, x1, y1) of the padded box, or
+// false when it misses the grid (or is NaN).
+bool cell_range(vec2 lo, vec2 hi, out uvec4 cells) {
+    lo -= CELL_PADDING;
+    hi += CELL_PADDING;
+    float w = float(light.cells_x), h = float(light.cells_y);
+    cells = uvec4(0u);
+    if (hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || isnan(lo.x) || isnan(hi.x)) return false;
+    uint x0 = uint(max(lo.x, 0.0)), y0 = uint(max(lo.y, 0.0));
+    cells = uvec4(x0, y0, max(uint(min(hi.x, w - 1.0)), x0), max(uint(min(hi.y, h - 1.0)), y0));
+    return true;
+}
