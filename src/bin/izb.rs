@@ -633,9 +633,26 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
     };
     match renderer {
-        Some(r) => render_on_gpu(&r, &scene, settings, &args),
+        Some(r) => match render_on_gpu(&r, &scene, settings, &args) {
+            // lavapipe refuses frames its loop cap would cut short: with
+            // --backend auto the CPU renders the same masks instead.
+            Err(e) if args.backend == Backend::Auto && is_loop_cap(&e) => {
+                eprintln!("backend: cpu ({e:#})");
+                render_on_cpu(&scene, settings, &args)
+            }
+            other => other,
+        },
         None => render_on_cpu(&scene, settings, &args),
     }
+}
+
+fn is_loop_cap(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        matches!(
+            c.downcast_ref::<izb::gpu::GpuError>(),
+            Some(izb::gpu::GpuError::LoopCap { .. })
+        )
+    })
 }
 
 /// Writes `visibility.exr` (lit fraction + masks) and `visibility.png`.
