@@ -46,7 +46,7 @@ layout(scalar, binding = B_CELL_RECEIVERS) buffer CellRecvBuf { uvec2 cell_recei
 
 // bin::behind_receivers: whether triangle t (light view) lies behind every
 // receiver that can test it in cell (x, y), so the cell need not list it.
-// Directional lights only; the host skips the pass otherwise.
+// Directional lights only (STEP_RECEIVERS gathers nothing for a point light).
 bool behind_receivers(Triangle t, uint x, uint y) {
     if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || light.projection != 0u) return false;
     uvec2 r = cell_receivers[y * light.cells_x + x];
@@ -105,8 +105,10 @@ shared uint partial[WORKGROUP_LINEAR];
 void main() {
 #ifdef STEP_RECEIVERS
     // One thread per pixel: bin::cell_receivers.
+    // Directional lights only, as behind_receivers (the CPU twin returns
+    // no bounds for a point light).
     uint i = gl_GlobalInvocationID.x;
-    if (i >= frame.width * frame.height || light.grid_disabled != 0u) return;
+    if (i >= frame.width * frame.height || light.grid_disabled != 0u || light.projection != 0u) return;
     if (!is_receiver(gbuffer_flags(g_id_flags[i]), frame.skips)) return;
     vec3 p = g_position[i];
     vec2 lo, hi;

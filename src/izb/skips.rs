@@ -91,14 +91,19 @@ impl Skips {
         Ok(skips)
     }
 
-    /// The `SKIP_*` bits of `FrameParams::skips` (shaders/common.glsl).
-    pub fn bits(self) -> u32 {
+    /// (position in [`FIELDS`], name) of every skip that is on.
+    fn enabled(mut self) -> impl Iterator<Item = (usize, &'static str)> {
+        let on: Vec<bool> = FIELDS.iter().map(|(_, field)| *field(&mut self)).collect();
         FIELDS
             .iter()
             .enumerate()
-            .filter(|(_, (_, field))| *field(&mut self.clone()))
-            .map(|(k, _)| 1 << k)
-            .sum()
+            .filter(move |(k, _)| on[*k])
+            .map(|(k, (name, _))| (k, *name))
+    }
+
+    /// The `SKIP_*` bits of `FrameParams::skips` (shaders/common.glsl).
+    pub fn bits(self) -> u32 {
+        self.enabled().map(|(k, _)| 1 << k).sum()
     }
 }
 
@@ -108,11 +113,7 @@ impl fmt::Display for Skips {
             Skips::ALL => write!(f, "all"),
             Skips::NONE => write!(f, "none"),
             s => {
-                let on: Vec<&str> = FIELDS
-                    .iter()
-                    .filter(|(_, field)| *field(&mut s.clone()))
-                    .map(|(n, _)| *n)
-                    .collect();
+                let on: Vec<&str> = s.enabled().map(|(_, name)| name).collect();
                 write!(f, "{}", on.join(","))
             }
         }
