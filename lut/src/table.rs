@@ -244,7 +244,14 @@ impl EdgeLut {
     /// The LUT's mask for edge f = α + β(u−½) + γ(v−½) (bit set = inside,
     /// f ≥ 0): [`Self::cell`], then one table read.
     pub fn lookup(&self, alpha: f32, beta: f32, gamma: f32) -> u32 {
-        match self.cell(alpha, beta, gamma) {
+        self.cell_mask(self.cell(alpha, beta, gamma))
+    }
+
+    /// The mask of a cell [`Self::cell`] returned (one table read, or the
+    /// saturated constant).
+    #[inline]
+    pub fn cell_mask(&self, cell: LutCell) -> u32 {
+        match cell {
             LutCell::Constant(mask) => mask,
             LutCell::Cell { angle, distance } => {
                 self.masks[(angle * self.distances + distance) as usize]

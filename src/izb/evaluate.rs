@@ -115,13 +115,11 @@ impl<'a> MaskRule<'a> {
     fn edge_mask(&self, e: [f32; 3]) -> (u32, bool) {
         match self.mode {
             SampleMode::One => (if e[0] >= 0.0 { FULL } else { 0 }, true),
-            SampleMode::Lut32 => match self.lut.cell(e[0], e[1], e[2]) {
-                izb_lut::LutCell::Constant(mask) => (mask, true),
-                izb_lut::LutCell::Cell { angle, distance } => (
-                    self.lut.masks[(angle * self.lut.distances + distance) as usize],
-                    false,
-                ),
-            },
+            SampleMode::Lut32 => {
+                let cell = self.lut.cell(e[0], e[1], e[2]);
+                let cheap = matches!(cell, izb_lut::LutCell::Constant(_));
+                (self.lut.cell_mask(cell), cheap)
+            }
             SampleMode::Exact32 => match saturated_edge(e, self.radius) {
                 Some(mask) => (mask, true),
                 None => (exact_edge_mask(e, self.pattern), false),
