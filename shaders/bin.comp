@@ -1,15 +1,21 @@
 #version 460
 // Pass 2, `bin` — GPU twin of `izb::izb::bin::bin`: a counting sort of
-// triangles into the light-space grid (seed 000), in three dispatches:
+// triangles into every cascade's light-space grid (seed 000; the grids lie
+// back to back in the cell arrays), in these dispatches:
+//   STEP_RECEIVERS  (per pixel, behind-receivers skip only) per cell the
+//                   lowest receiver z and reach (bin::cell_receivers);
 //   STEP_COUNT      (per triangle) light-view vertex cache (written over the
 //                   eye-relative triangle it came from: the two bindings
-//                   alias one buffer), placement (the first cell only;
-//                   scatter recomputes the rectangle from the cache),
-//                   atomic count per covered cell, overflow append;
+//                   alias one buffer); per cascade its placement, an atomic
+//                   count per covered cell and the cover floor (the
+//                   conservative shadow map); one overflow entry tagged
+//                   with the cascades it overflows in;
 //   STEP_PREFIX_SUM (1 workgroup)  exclusive prefix sum of the counts into
 //                   cell_start (and a copy as the scatter cursor), total
 //                   checked against the cell list's capacity;
-//   STEP_SCATTER    (per triangle) triangle ids into their cells.
+//   STEP_SCATTER    (per triangle) entries into their cells (the rectangle
+//                   recomputed from the cache with the count's arithmetic),
+//                   and each cell's cover triangle among the best floors.
 // When the total exceeds the capacity nothing is scattered past it and
 // C_CAPACITY_EXCEEDED is raised: the host grows the list and runs the frame
 // again, it never reads a corrupt grid.
@@ -23,7 +29,10 @@ layout(scalar, binding = B_TRIANGLES) buffer TriBuf { Triangle triangles[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(scalar, binding = B_VERTEX_CACHE) buffer CacheBuf { Triangle vertex_cache[]; };
-layout(scalar, binding = B_PLACEMENT) writeonly buffer PlaceBuf { uint placement[]; };
+// Per cell, the conservative shadow map: .x = ordered bits of the best
+// cover floor (atomicMax; 0 = none), .y = ~id of the lowest-id triangle
+// with that floor (atomicMax; 0 = bin::NO_COVER). Filled with 0.
+layout(scalar, binding = B_CELL_COVER) buffer CellCoverBuf { uvec2 cell_cover[]; };
 layout(scalar, binding = B_CELL_CURSOR) buffer CursorBuf { uint cell_cursor[]; };
 layout(scalar, binding = B_CELL_START) buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) writeonly buffer CellTriBuf { uint cell_triangles[]; };
@@ -32,6 +41,8 @@ layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[
 layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
+// Before evaluate, a hit pixel's word holds its cascade (light_setup.comp).
+layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint pixel_cascade[]; };
 
 #include "light_view.glsl"
 
@@ -44,26 +55,37 @@ layout(scalar, binding = B_CELL_RECEIVERS) buffer CellRecvBuf { uvec2 cell_recei
 // bin::BEHIND_MARGIN.
 #define BEHIND_MARGIN (1.0 / 1024.0)
 
+// bin::upward_normal: the plane normal turned toward the light (+z);
+// false when the light sees the triangle edge-on (or it is NaN).
+bool upward_normal(Triangle t, out vec3 n) {
+    precise vec3 m = cross(t.b - t.a, t.c - t.a);
+    n = m.z < 0.0 ? -m : m;
+    return n.z > 0.0;
+}
+
+// Height of t's plane (normal n) over light-view xy q.
+float plane_height(Triangle t, vec3 n, vec2 q) {
+    precise float h = t.a.z - (n.x * (q.x - t.a.x) + n.y * (q.y - t.a.y)) / n.z;
+    return h;
+}
+
 // bin::behind_receivers: whether triangle t (light view) lies behind every
-// receiver that can test it in cell (x, y), so the cell need not list it.
-// Directional lights only (STEP_RECEIVERS gathers nothing for a point light).
-bool behind_receivers(Triangle t, uint x, uint y) {
+// receiver that can test it in cell (x, y) of cascade k, so the cell need
+// not list it. Directional lights only (STEP_RECEIVERS gathers nothing for
+// a point light).
+bool behind_receivers(Triangle t, uint k, uint x, uint y) {
     if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || light.projection != 0u) return false;
-    uvec2 r = cell_receivers[y * light.cells_x + x];
+    uvec2 r = cell_receivers[cell_index(k, x, y)];
     if (r.x == 0xFFFFFFFFu) return true;   // no receiver touches the cell
     float z_min = from_ordered_bits(r.x);
-    precise vec3 n = cross(t.b - t.a, t.c - t.a);
-    if (n.z < 0.0) n = -n;
-    if (!(n.z > 0.0)) return false;
+    vec3 n;
+    if (!upward_normal(t, n)) return false;
     float reach = float(~r.y) + CELL_PADDING;
-    vec2 lo = ndc_of_grid(vec2(float(x) - reach, float(y) - reach));
-    vec2 hi = ndc_of_grid(vec2(float(x) + 1.0 + reach, float(y) + 1.0 + reach));
+    vec2 lo = ndc_of_grid(k, vec2(float(x) - reach, float(y) - reach));
+    vec2 hi = ndc_of_grid(k, vec2(float(x) + 1.0 + reach, float(y) + 1.0 + reach));
     vec2 q[4] = vec2[4](lo, vec2(hi.x, lo.y), hi, vec2(lo.x, hi.y));
     float plane_max = -1.0 / 0.0;
-    [[unroll]] for (int k = 0; k < 4; ++k) {
-        precise float h = t.a.z - (n.x * (q[k].x - t.a.x) + n.y * (q[k].y - t.a.y)) / n.z;
-        plane_max = max(plane_max, h);
-    }
+    [[unroll]] for (int c = 0; c < 4; ++c) plane_max = max(plane_max, plane_height(t, n, q[c]));
     vec2 box_lo = min(min(lo, t.a.xy), min(t.b.xy, t.c.xy));
     vec2 box_hi = max(max(hi, t.a.xy), max(t.b.xy, t.c.xy));
     float z_lo = min(min(z_min, t.a.z), min(t.b.z, t.c.z));
@@ -73,8 +95,36 @@ bool behind_receivers(Triangle t, uint x, uint y) {
     return plane_max < z_min - margin;
 }
 
-// bin::place: PLACEMENT_CULLED, PLACEMENT_OVERFLOW or a packed cell rectangle.
-uvec2 place(Triangle t) {
+// bin::cover_floor: when t's light-space projection contains cell (x, y)
+// of cascade k, the lowest height of its plane over the cell (as ordered
+// bits, never 0); else 0. Only with the shadow-map skip and a directional
+// light.
+uint cover_floor(Triangle t, uint k, uint x, uint y) {
+    if ((frame.skips & SKIP_SHADOW_MAP) == 0u || light.projection != 0u) return 0u;
+    vec3 n;
+    if (!upward_normal(t, n)) return 0u;
+    vec2 q[4] = vec2[4](ndc_of_grid(k, vec2(float(x), float(y))), ndc_of_grid(k, vec2(float(x) + 1.0, float(y))),
+                        ndc_of_grid(k, vec2(float(x) + 1.0, float(y) + 1.0)), ndc_of_grid(k, vec2(float(x), float(y) + 1.0)));
+    vec2 v[3] = vec2[3](t.a.xy, t.b.xy, t.c.xy);
+    // Inside: on the same side of every edge as the third vertex (glam's
+    // perp_dot a.x·b.y − a.y·b.x).
+    vec2 d1 = v[1] - v[0], d2 = v[2] - v[0];
+    precise float winding = d1.x * d2.y - d1.y * d2.x;
+    float floor_z = 1.0 / 0.0;
+    [[unroll]] for (int c = 0; c < 4; ++c) {
+        [[unroll]] for (int e = 0; e < 3; ++e) {
+            vec2 d = v[(e + 1) % 3] - v[e], r = q[c] - v[e];
+            precise float side = winding * (d.x * r.y - d.y * r.x);
+            if (!(side > 0.0)) return 0u;
+        }
+        floor_z = min(floor_z, plane_height(t, n, q[c]));
+    }
+    return max(ordered_bits(floor_z), 1u);
+}
+
+// bin::place in cascade k: PLACEMENT_CULLED, PLACEMENT_OVERFLOW or a packed
+// cell rectangle.
+uvec2 place(Triangle t, uint k) {
     if (light.grid_disabled != 0u) return uvec2(PLACEMENT_OVERFLOW);
     vec2 n0, n1, n2;
     if (light.projection == 0u) {
@@ -85,17 +135,21 @@ uvec2 place(Triangle t) {
         if (in_front < 3u) return uvec2(PLACEMENT_OVERFLOW);  // crosses the light's plane
         n0 = t.a.xy / t.a.z; n1 = t.b.xy / t.b.z; n2 = t.c.xy / t.c.z;
     }
-    vec2 g0 = grid_coords(n0), g1 = grid_coords(n1), g2 = grid_coords(n2);
-    vec2 lo = min(min(g0, g1), g2) - CELL_PADDING;
-    vec2 hi = max(max(g0, g1), g2) + CELL_PADDING;
-    float w = float(light.cells_x), h = float(light.cells_y);
-    if (hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || isnan(lo.x) || isnan(hi.x)) {
-        return uvec2(PLACEMENT_CULLED);
-    }
-    uint x0 = uint(max(lo.x, 0.0)), y0 = uint(max(lo.y, 0.0));
-    uint x1 = max(uint(min(hi.x, w - 1.0)), x0), y1 = max(uint(min(hi.y, h - 1.0)), y0);
-    if (x1 - x0 >= frame.max_span || y1 - y0 >= frame.max_span) return uvec2(PLACEMENT_OVERFLOW);
-    return uvec2(x0 | (y0 << 16), x1 | (y1 << 16));
+    vec2 g0 = grid_coords(k, n0), g1 = grid_coords(k, n1), g2 = grid_coords(k, n2);
+    uvec4 r;
+    if (!cell_range(k, min(min(g0, g1), g2), max(max(g0, g1), g2), r)) return uvec2(PLACEMENT_CULLED);
+    // Sides are below 2^16 (the host checks), so the area fits a uint.
+    if ((r.z - r.x + 1u) * (r.w - r.y + 1u) > light.cascade[k].overflow_cells) return uvec2(PLACEMENT_OVERFLOW);
+    return uvec2(r.x | (r.y << 16), r.z | (r.w << 16));
+}
+
+// The placement the bin uses: without the outside-bounds skip a triangle
+// that misses the grid is tested by every pixel of the cascade (the
+// overflow list) instead of dropped.
+uvec2 placement_in(Triangle t, uint k) {
+    uvec2 p = place(t, k);
+    if (p.x == PLACEMENT_CULLED && (frame.skips & SKIP_OUTSIDE_BOUNDS) == 0u) p = uvec2(PLACEMENT_OVERFLOW);
+    return p;
 }
 
 #ifdef STEP_PREFIX_SUM
@@ -104,23 +158,24 @@ shared uint partial[WORKGROUP_LINEAR];
 
 void main() {
 #ifdef STEP_RECEIVERS
-    // One thread per pixel: bin::cell_receivers.
+    // One thread per pixel: bin::cell_receivers, in the pixel's cascade.
     // Directional lights only, as behind_receivers (the CPU twin returns
     // no bounds for a point light).
     uint i = gl_GlobalInvocationID.x;
     if (i >= frame.width * frame.height || light.grid_disabled != 0u || light.projection != 0u) return;
     if (!is_receiver(gbuffer_flags(g_id_flags[i]), frame.skips)) return;
+    uint k = pixel_cascade[i];
     vec3 p = g_position[i];
     vec2 lo, hi;
-    microquad_grid_box(p, g_axis_x[i], g_axis_y[i], lo, hi);
+    microquad_grid_box(k, p, g_axis_x[i], g_axis_y[i], lo, hi);
     uvec4 cells;
-    if (!cell_range(lo, hi, cells)) return;
+    if (!cell_range(k, lo, hi, cells)) return;
     uint z = ordered_bits(to_light_view(p).z);
     vec2 extent = hi - lo;
     uint reach = uint(ceil(max(extent.x, extent.y))) + 1u;
     for (uint y = cells.y; y <= cells.w; ++y) {
         for (uint x = cells.x; x <= cells.z; ++x) {
-            uint c = y * light.cells_x + x;
+            uint c = cell_index(k, x, y);
             atomicMin(cell_receivers[c].x, z);
             atomicMin(cell_receivers[c].y, ~reach);
         }
@@ -133,38 +188,48 @@ void main() {
     Triangle w = triangles[id];
     Triangle t = Triangle(to_light_view(w.a), to_light_view(w.b), to_light_view(w.c));
     vertex_cache[id] = t;
-    uvec2 p = place(t);
-    // Without the outside-bounds skip a triangle that misses the grid is
-    // tested by every pixel (the overflow list) instead of dropped.
-    if (p.x == PLACEMENT_CULLED && (frame.skips & SKIP_OUTSIDE_BOUNDS) == 0u) p = uvec2(PLACEMENT_OVERFLOW);
-    placement[id] = p.x;
-    if (p.x == PLACEMENT_CULLED) {
-        atomicAdd(counters[C_CULLED], 1u);
-    } else if (p.x == PLACEMENT_OVERFLOW) {
-        overflow_list[atomicAdd(counters[C_OVERFLOW], 1u)] = id;
-    } else {
-        atomicAdd(counters[C_BINNED], 1u);
-        uint dropped = 0u;
+    uint overflows = 0u;
+    bool placed = false;
+    uint binned = 0u, dropped = 0u, dropped_everywhere = 0u;
+    for (uint k = 0u; k < light.cascade_count; ++k) {
+        uvec2 p = placement_in(t, k);
+        if (p.x == PLACEMENT_CULLED) continue;
+        if (p.x == PLACEMENT_OVERFLOW) {
+            overflows |= 1u << k;
+            continue;
+        }
+        placed = true;
+        binned += 1u;
         bool listed = false;
         for (uint y = p.x >> 16; y <= p.y >> 16; ++y) {
             for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu); ++x) {
-                if (behind_receivers(t, x, y)) {
+                if (behind_receivers(t, k, x, y)) {
                     dropped += 1u;
-                } else {
-                    atomicAdd(cell_cursor[y * light.cells_x + x], 1u);
-                    listed = true;
+                    continue;
                 }
+                uint c = cell_index(k, x, y);
+                atomicAdd(cell_cursor[c], 1u);
+                listed = true;
+                uint f = cover_floor(t, k, x, y);
+                if (f != 0u) atomicMax(cell_cover[c].x, f);
             }
         }
-        if (dropped != 0u) atomicAdd(counters[C_ENTRIES_BEHIND], dropped);
-        if (!listed) atomicAdd(counters[C_TRIANGLES_BEHIND], 1u);
+        if (!listed) dropped_everywhere += 1u;
     }
+    if (overflows != 0u) {
+        overflow_list[atomicAdd(counters[C_OVERFLOW], 1u)] = id | (overflows << ID_BITS);
+    } else if (!placed) {
+        atomicAdd(counters[C_CULLED], 1u);
+    }
+    if (binned != 0u) atomicAdd(counters[C_BINNED], binned);
+    if (dropped != 0u) atomicAdd(counters[C_ENTRIES_BEHIND], dropped);
+    if (dropped_everywhere != 0u) atomicAdd(counters[C_TRIANGLES_BEHIND], dropped_everywhere);
 #endif
 
 #ifdef STEP_PREFIX_SUM
     // One workgroup: thread k owns a contiguous chunk of cells, sums it,
     // the workgroup scans the 256 sums, then each chunk is written out.
-    uint cells = light.cells_x * light.cells_y;
+    uint cells = light.total_cells;
     uint k = gl_LocalInvocationID.x;
     uint chunk = (cells + WORKGROUP_LINEAR - 1u) / WORKGROUP_LINEAR;
     uint begin = min(k * chunk, cells), end = min(begin + chunk, cells);
@@ -197,16 +262,23 @@ void main() {
 #ifdef STEP_SCATTER
     uint id = gl_GlobalInvocationID.x;
     if (id >= frame.triangle_count) return;
-    // The rectangle again, from the values STEP_COUNT stored and placed:
-    // the same arithmetic on the same floats, so the same cells.
+    // The rectangles again, from the values STEP_COUNT stored: the same
+    // arithmetic on the same floats, so the same cells.
     Triangle t = vertex_cache[id];
-    uvec2 p = place(t);
-    if (p.x >= PLACEMENT_CULLED) return;
-    for (uint y = p.x >> 16; y <= p.y >> 16; ++y) {
-        for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu); ++x) {
-            if (behind_receivers(t, x, y)) continue;
-            uint slot = atomicAdd(cell_cursor[y * light.cells_x + x], 1u);
-            if (slot < frame.cell_capacity) cell_triangles[slot] = id;
+    for (uint k = 0u; k < light.cascade_count; ++k) {
+        uvec2 p = placement_in(t, k);
+        if (p.x >= PLACEMENT_CULLED) continue;
+        uint x0 = p.x & 0xFFFFu, y0 = p.x >> 16;
+        for (uint y = y0; y <= p.y >> 16; ++y) {
+            for (uint x = x0; x <= (p.y & 0xFFFFu); ++x) {
+                if (behind_receivers(t, k, x, y)) continue;
+                uint c = cell_index(k, x, y);
+                uint slot = atomicAdd(cell_cursor[c], 1u);
+                uint entry = id | (x == x0 ? ENTRY_FIRST_COLUMN : 0u) | (y == y0 ? ENTRY_FIRST_ROW : 0u);
+                if (slot < frame.cell_capacity) cell_triangles[slot] = entry;
+                uint f = cover_floor(t, k, x, y);
+                if (f != 0u && f == cell_cover[c].x) atomicMax(cell_cover[c].y, ~id);
+            }
         }
     }
 #endif

@@ -30,7 +30,7 @@
 #define B_LIGHT 8
 #define B_COUNTERS 9
 #define B_VERTEX_CACHE 10
-#define B_PLACEMENT 11
+#define B_CELL_COVER 11
 #define B_CELL_CURSOR 12
 #define B_CELL_START 13
 #define B_CELL_TRIANGLES 14
@@ -81,6 +81,7 @@ vec3 receiver_normal(vec3 triangle_normal, uint word) {
 #define SKIP_FULL_MASK 4u
 #define SKIP_SATURATED_EDGES 8u
 #define SKIP_BEHIND_RECEIVERS 16u
+#define SKIP_SHADOW_MAP 32u
 
 // izb::is_receiver: shadow-tested pixels, and with the facing-away skip
 // off every hit.
@@ -95,11 +96,24 @@ bool is_receiver(uint flags, uint skips) {
 #define MODE_EXACT32 2u
 #define FULL_MASK 0xFFFFFFFFu
 
-// ---- placement of a triangle (src/izb/bin.rs: `Placement`) ----
-// A cell rectangle is packed as .x = x0 | y0 << 16, .y = x1 | y1 << 16;
-// the placement buffer keeps .x only (the first cell, or one of these).
+// ---- placement of a triangle in one cascade (src/izb/bin.rs: `Placement`) ----
+// A cell rectangle is packed as .x = x0 | y0 << 16, .y = x1 | y1 << 16.
 #define PLACEMENT_CULLED 0xFFFFFFFEu
 #define PLACEMENT_OVERFLOW 0xFFFFFFFFu
+
+// ---- list entries (src/izb/bin.rs: `CellEntry`, `OverflowEntry`) ----
+// The triangle id in the low ID_BITS; above it a cell entry keeps whether
+// the cell is in the first column / first row of the triangle's rectangle
+// (all a pixel needs to test it once), an overflow entry the cascades
+// (bit k = cascade k) whose pixels test it.
+#define ENTRY_FIRST_COLUMN (1u << ID_BITS)
+#define ENTRY_FIRST_ROW (2u << ID_BITS)
+
+// ---- cascades (src/izb/cascades.rs) ----
+#define MAX_CASCADES 4
+#define AUTO_MAX_DEPTH_RATIO 16.0
+// bin::NO_COVER
+#define NO_COVER 0xFFFFFFFFu
 
 // ---- counters (src/gpu/shared.rs: `counter`) ----
 #define C_HITS 0
@@ -118,8 +132,9 @@ bool is_receiver(uint flags, uint skips) {
 #define C_LOOP_BUDGET_EXCEEDED 16
 #define C_SATURATED_MASKS 17 // 64-bit
 #define C_ENTRIES_BEHIND 19  // cell entries the behind-receivers skip dropped
-#define C_TRIANGLES_BEHIND 20 // binned triangles dropped from every cell
-#define COUNTER_WORDS 21
+#define C_TRIANGLES_BEHIND 20 // binned placements dropped from every cell
+#define C_SHADOW_MAP_EARLY_OUTS 21 // pixels the cover triangle alone filled
+#define COUNTER_WORDS 22
 
 // Per-frame constants, written by the host once per frame.
 struct FrameParams {
@@ -139,20 +154,41 @@ struct FrameParams {
     uint triangle_count;
     uint mode;
     uint cells_hint;      // 0: from the receiver count
-    uint max_span;
+    uint overflow_cells;  // cells per triangle before it overflows; 0: per cascade (cascades::cascade_overflow_cells)
     uint cell_capacity;   // entries the cell list can hold
     float lut_angle_scale;
     float lut_distance_scale;
     uint lut_angles;
     uint lut_distances;
-    uint max_cells;       // cell_cursor / cell_start capacity
+    uint max_cells;       // cell_cursor / cell_start capacity (all cascades)
     uint loop_budget;     // evaluate's loop iterations per pixel (lavapipe's cap), else ~0u
     uint skips;           // SKIP_* bits (src/izb/skips.rs)
     float pattern_radius; // frustum::pattern_radius: largest sample distance from the µQuad centre
+    vec3 cam_forward;     // unit view direction: view depth = position · cam_forward
+    uint cascades;        // 1..4, or 0 for auto (cascades::CascadeCount::code)
+    float split_lambda;   // 1 logarithmic splits, 0 uniform
+    uint pad0;
+    uint pad1;
+    uint pad2;
     vec2 pattern[32];
 };
 
-// Light view and grid, computed on the GPU by light_setup (no readback).
+// One cascade's grid (light_setup::CascadeGrid).
+struct CascadeGrid {
+    vec2 ndc_min;
+    vec2 ndc_max;
+    uint cells_x;         // 0 for a cascade without receivers
+    uint cells_y;
+    uint cell_offset;     // first cell in the cell arrays (grids lie back to back)
+    uint overflow_cells;
+    uint receivers;
+    // Reduction scratch (ordered bits): light-NDC bounds of its µQuads.
+    uint ndc_lo[2];
+    uint ndc_hi[2];
+};
+
+// Light view, cascades and grids, computed on the GPU by light_setup (no
+// readback).
 struct LightState {
     vec3 rot_x;
     uint projection;      // 0 orthographic (directional), 1 perspective (point)
@@ -161,19 +197,20 @@ struct LightState {
     vec3 rot_z;
     uint receivers;
     vec3 origin;
-    uint cells_x;
-    vec2 ndc_min;
-    vec2 ndc_max;
+    uint cascade_count;
     vec2 receiver_z;
-    uint cells_y;
     uint behind_light;
+    uint total_cells;     // cells of all cascades
+    float split[MAX_CASCADES]; // upper view depth per cascade (cascades::split_depths)
+    vec2 view_depth;      // near, far of the shadow-tested pixels
     // Reduction scratch, floats in order-preserving uint encoding.
     uint pos_lo[3];
     uint pos_hi[3];
-    uint ndc_lo[2];
-    uint ndc_hi[2];
+    uint depth_lo;
+    uint depth_hi;
     uint z_lo;
     uint z_hi;
+    CascadeGrid cascade[MAX_CASCADES];
 };
 
 struct Triangle {

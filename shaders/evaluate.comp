@@ -2,13 +2,16 @@
 // Pass 3, `evaluate` — GPU twin of `izb::izb::evaluate::evaluate`.
 //
 // One thread per pixel, 8×8 tiles (seed 000). A shadow-tested pixel's
-// µQuad maps to a rectangle of grid cells; every triangle binned in those
-// cells, plus the overflow list, is a candidate, and each candidate is
-// tested once (in the first cell of the overlap of its rectangle and the
-// pixel's, as on the CPU). Triangles reach the tile through shared memory
-// in batches of 64: the overflow list (the same for every pixel), then the
-// tile's elected cell (the lowest first cell among its pixels); cells a
-// pixel covers beyond the elected one are read from global memory.
+// µQuad maps to a rectangle of cells in its cascade's grid; every triangle
+// binned in those cells, plus the overflow entries of its cascade, is a
+// candidate, and each candidate is tested once (in the first cell of the
+// overlap of its rectangle and the pixel's, as on the CPU). With the
+// shadow-map skip the cover triangle of the centre's cell is tested first,
+// and a pixel it alone fills skips the rest. Triangles reach the tile
+// through shared memory in batches of 64: the overflow list (the same for
+// every pixel), then the tile's elected cell (the lowest first cell among
+// its pixels); cells a pixel covers beyond the elected one are read from
+// global memory.
 // Barriers are reached by every thread: finished or inactive pixels still
 // help load batches (seed 000's `live` flag).
 //
@@ -32,12 +35,13 @@ layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 tr
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(scalar, binding = B_VERTEX_CACHE) readonly buffer CacheBuf { Triangle vertex_cache[]; };
-layout(scalar, binding = B_PLACEMENT) readonly buffer PlaceBuf { uint placement[]; };
+layout(scalar, binding = B_CELL_COVER) readonly buffer CellCoverBuf { uvec2 cell_cover[]; };
 layout(scalar, binding = B_CELL_START) readonly buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) readonly buffer CellTriBuf { uint cell_triangles[]; };
 layout(scalar, binding = B_OVERFLOW) readonly buffer OverflowBuf { uint overflow_list[]; };
 layout(scalar, binding = B_EDGE_LUT) readonly buffer LutBuf { uint edge_lut[]; };
-layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
+// Read first: a hit pixel's word holds its cascade (light_setup.comp).
+layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 
 #include "light_view.glsl"
 
@@ -50,7 +54,6 @@ layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
 
 shared Triangle sm_tri[WORKGROUP_PIXELS];
 shared uint sm_id[WORKGROUP_PIXELS];
-shared uint sm_first_cell[WORKGROUP_PIXELS];
 shared uint sm_cell;
 
 // The pixel in light view, relative quantities as the CPU twin's
@@ -58,8 +61,10 @@ shared uint sm_cell;
 vec3 px_p, px_normal, px_ex, px_ey;
 float px_size;
 uint px_receiver;
+uint px_cascade;
 uvec4 px_cells;   // x0, y0, x1, y1
 bool px_has_cells;
+uint px_cover;    // the centre cell's cover triangle, or NO_COVER
 
 // frustum::may_shadow: the per-pixel depth test at P (t = vertices − P).
 bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
@@ -140,10 +145,11 @@ uint edge_mask(vec3 e, out bool cheap) {
 
 uint tests_spawned = 0u, depth_passed = 0u, cells_visited = 0u, saturated_masks = 0u;
 bool stop_when_full;   // the full-mask skip
+bool covered = false;  // the cover triangle alone filled the mask
 
 // Whether the pixel is done testing.
 bool done(uint mask) {
-    return stop_when_full && mask == FULL_MASK;
+    return covered || (stop_when_full && mask == FULL_MASK);
 }
 // Loop trips so far; past frame.loop_budget the pixel stops testing and
 // raises C_LOOP_BUDGET_EXCEEDED (lavapipe would cut its loops silently).
@@ -198,20 +204,31 @@ uint triangle_mask(Triangle tri) {
     return mask;
 }
 
-// Whether this pixel tests triangle `id` found in cell (x, y): not its own
-// receiver, and (binned triangles) (x, y) is the first cell of the overlap.
-bool tests_in_cell(uint id, uint first_cell, uint x, uint y) {
-    if (id == px_receiver) return false;
-    if (first_cell >= PLACEMENT_CULLED) return true;   // overflow list
-    return x == max(first_cell & 0xFFFFu, px_cells.x) && y == max(first_cell >> 16, px_cells.y);
+// Whether this pixel tests cell entry `entry` found in cell (x, y)
+// (CellEntry::tested_in): not its own receiver nor the cover triangle
+// (tested first), and (x, y) is the first cell of the overlap of the
+// triangle's rectangle and the pixel's.
+bool tests_in_cell(uint entry, uint x, uint y) {
+    uint id = entry & ID_MASK;
+    if (id == px_receiver || id == px_cover) return false;
+    return ((entry & ENTRY_FIRST_COLUMN) != 0u || x == px_cells.x)
+        && ((entry & ENTRY_FIRST_ROW) != 0u || y == px_cells.y);
 }
 
-// evaluate::pixel_frustum: light-view µQuad and its cell rectangle.
+// Whether this pixel tests overflow entry `entry`: one for its cascade.
+bool tests_overflow(uint entry) {
+    uint id = entry & ID_MASK;
+    return id != px_receiver && id != px_cover && ((entry >> ID_BITS) & (1u << px_cascade)) != 0u;
+}
+
+// evaluate::pixel_frustum: light-view µQuad, its cascade, its cell
+// rectangle and the cover triangle of the centre's cell.
 void pixel_frustum(uint i) {
     vec3 p = g_position[i], ex = g_axis_x[i], ey = g_axis_y[i];
     px_p = to_light_view(p);
     uint word = g_id_flags[i];
     px_receiver = gbuffer_triangle(word);
+    px_cascade = masks[i];
     // The host's f64 normal, not one rebuilt from the light-view vertices:
     // the tangent-plane test compares heights against 2^-8 of a µQuad, and
     // a normal rebuilt from f32 light-view vertices (error ~ε·|v|/|edge|)
@@ -222,10 +239,18 @@ void pixel_frustum(uint i) {
     precise float size = max(length(px_ex), length(px_ey));
     px_size = size;
     px_has_cells = false;
+    px_cover = NO_COVER;
     if (light.grid_disabled != 0u) return;
     vec2 lo, hi;
-    microquad_grid_box(p, ex, ey, lo, hi);
-    px_has_cells = cell_range(lo, hi, px_cells);
+    microquad_grid_box(px_cascade, p, ex, ey, lo, hi);
+    px_has_cells = cell_range(px_cascade, lo, hi, px_cells);
+    bool in_front = light.projection == 0u || px_p.z > 0.0;
+    if (px_has_cells && in_front && (frame.skips & SKIP_SHADOW_MAP) != 0u) {
+        vec2 c = grid_coords(px_cascade, ndc_of(px_p));
+        uint x = clamp(uint(max(c.x, 0.0)), px_cells.x, px_cells.z);
+        uint y = clamp(uint(max(c.y, 0.0)), px_cells.y, px_cells.w);
+        px_cover = ~cell_cover[cell_index(px_cascade, x, y)].y;
+    }
 }
 
 // Adds a 64-bit counter held as (lo, hi) words.
@@ -246,10 +271,22 @@ void main() {
     uint mask = 0u;
     sm_subgroup_trips[lid] = 0u;
     barrier();
-    if (live) pixel_frustum(i);
     // A grid overrun (C_CAPACITY_EXCEEDED) leaves cell lists incomplete:
     // skip them (uniformly); the host reruns the frame with room.
     bool grid_usable = counters[C_CAPACITY_EXCEEDED] == 0u;
+    if (live) {
+        pixel_frustum(i);
+        if (!grid_usable) px_cover = NO_COVER;
+        // 0. The conservative shadow map: its mask is 0 unless the cover
+        // triangle is one of the pixel's candidates (the grid offers every
+        // triangle able to shadow a sample), so ORing it in first and not
+        // testing it again leaves the mask as it was.
+        if (px_cover != NO_COVER && px_cover != px_receiver) {
+            tests_spawned += 1u;
+            mask = triangle_mask(vertex_cache[px_cover]);
+            covered = mask == FULL_MASK;
+        }
+    }
 
     // 1. The overflow list, through shared memory.
     uint overflow_count = counters[C_OVERFLOW];
@@ -257,14 +294,14 @@ void main() {
         spend_trip();
         uint count = min(uint(WORKGROUP_PIXELS), overflow_count - base);
         if (lid < count) {
-            uint id = overflow_list[base + lid];
-            sm_id[lid] = id;
-            sm_tri[lid] = vertex_cache[id];
+            uint entry = overflow_list[base + lid];
+            sm_id[lid] = entry;
+            sm_tri[lid] = vertex_cache[entry & ID_MASK];
         }
         barrier();
         if (live && !done(mask)) {
             for (uint k = 0u; k < count && !done(mask) && spend_trip(); ++k) {
-                if (sm_id[k] == px_receiver) continue;
+                if (!tests_overflow(sm_id[k])) continue;
                 tests_spawned += 1u;
                 mask |= triangle_mask(sm_tri[k]);
             }
@@ -276,15 +313,19 @@ void main() {
     bool wants_cells = live && px_has_cells && grid_usable && !done(mask);
     if (lid == 0u) sm_cell = NO_CELL;
     barrier();
-    if (wants_cells) atomicMin(sm_cell, px_cells.y * light.cells_x + px_cells.x);
+    if (wants_cells) atomicMin(sm_cell, cell_index(px_cascade, px_cells.x, px_cells.y));
     barrier();
     uint cell = sm_cell;
     uint cx = 0u, cy = 0u;
     bool in_elected = false;
     if (cell != NO_CELL) {
-        cx = cell % light.cells_x;
-        cy = cell / light.cells_x;
-        in_elected = wants_cells && cx >= px_cells.x && cx <= px_cells.z
+        // The elected cell's cascade: the one whose cells hold its index.
+        uint ck = 0u;
+        while (ck + 1u < light.cascade_count && cell >= light.cascade[ck + 1u].cell_offset) ++ck;
+        uint local = cell - light.cascade[ck].cell_offset;
+        cx = local % light.cascade[ck].cells_x;
+        cy = local / light.cascade[ck].cells_x;
+        in_elected = wants_cells && ck == px_cascade && cx >= px_cells.x && cx <= px_cells.z
             && cy >= px_cells.y && cy <= px_cells.w;
         if (in_elected) cells_visited += 1u;
         uint start = cell_start[cell], end = cell_start[cell + 1u];
@@ -292,15 +333,14 @@ void main() {
             spend_trip();
             uint count = min(uint(WORKGROUP_PIXELS), end - base);
             if (lid < count) {
-                uint id = cell_triangles[base + lid];
-                sm_id[lid] = id;
-                sm_first_cell[lid] = placement[id];
-                sm_tri[lid] = vertex_cache[id];
+                uint entry = cell_triangles[base + lid];
+                sm_id[lid] = entry;
+                sm_tri[lid] = vertex_cache[entry & ID_MASK];
             }
             barrier();
             if (in_elected && !done(mask)) {
                 for (uint k = 0u; k < count && !done(mask) && spend_trip(); ++k) {
-                    if (!tests_in_cell(sm_id[k], sm_first_cell[k], cx, cy)) continue;
+                    if (!tests_in_cell(sm_id[k], cx, cy)) continue;
                     tests_spawned += 1u;
                     mask |= triangle_mask(sm_tri[k]);
                 }
@@ -315,13 +355,13 @@ void main() {
             for (uint x = px_cells.x; x <= px_cells.z && !done(mask) && spend_trip(); ++x) {
                 if (in_elected && x == cx && y == cy) continue;
                 cells_visited += 1u;
-                uint c = y * light.cells_x + x;
+                uint c = cell_index(px_cascade, x, y);
                 uint end = cell_start[c + 1u];
                 for (uint k = cell_start[c]; k < end && !done(mask) && spend_trip(); ++k) {
-                    uint id = cell_triangles[k];
-                    if (!tests_in_cell(id, placement[id], x, y)) continue;
+                    uint entry = cell_triangles[k];
+                    if (!tests_in_cell(entry, x, y)) continue;
                     tests_spawned += 1u;
-                    mask |= triangle_mask(vertex_cache[id]);
+                    mask |= triangle_mask(vertex_cache[entry & ID_MASK]);
                 }
             }
         }
@@ -333,7 +373,11 @@ void main() {
     if (!live) return;
     if (over_budget) atomicMax(counters[C_LOOP_BUDGET_EXCEEDED], trips);
     atomicAdd(counters[C_PIXELS_TESTED], 1u);
-    if (done(mask)) atomicAdd(counters[C_EARLY_OUTS], 1u);
+    if (covered) {
+        atomicAdd(counters[C_SHADOW_MAP_EARLY_OUTS], 1u);
+    } else if (done(mask)) {
+        atomicAdd(counters[C_EARLY_OUTS], 1u);
+    }
     add_counter64(C_SATURATED_MASKS, saturated_masks);
     add_counter64(C_TESTS_SPAWNED, tests_spawned);
     add_counter64(C_DEPTH_PASSED, depth_passed);

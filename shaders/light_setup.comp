@@ -1,11 +1,18 @@
 #version 460
 // Pass 1, `light_setup` — GPU twin of `izb::izb::light_setup`, in four
 // dispatches so nothing is read back inside the frame:
-//   STEP_RECEIVERS (per pixel)  bounds of the shadow-tested hit points;
-//   STEP_FRAME     (1 thread)   light-view rotation and origin;
-//   STEP_EXTENT    (per pixel)  light-NDC bounds and depth range of every
-//                               shadow-tested µQuad's corners;
-//   STEP_GRID      (1 thread)   padded bounds and grid size.
+//   STEP_RECEIVERS (per pixel)  bounds and view-depth range of the
+//                               shadow-tested hit points;
+//   STEP_FRAME     (1 thread)   light-view rotation and origin; cascade
+//                               count and splits (cascades.rs);
+//   STEP_EXTENT    (per pixel)  each hit pixel's cascade, stored in its
+//                               `masks` word until evaluate overwrites it
+//                               with the mask (so every later pass reads
+//                               the one value, never recomputes it); per
+//                               cascade the light-NDC bounds of its µQuads'
+//                               corners; the light-view depth range;
+//   STEP_GRID      (1 thread)   per cascade padded bounds, grid size, cell
+//                               offset and overflow threshold.
 // Light view is a rotation plus a translation (seed 000): only the grid
 // lookup uses NDC.
 #extension GL_GOOGLE_include_directive : require
@@ -23,36 +30,39 @@ layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_LIGHT) buffer LightBuf { LightState light; };
+layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
+
+#include "light_view.glsl"
 
 // Closest a receiver may come to the point light's image plane, relative to
 // the depth range, before the perspective grid is given up
 // (light_setup::MIN_PERSPECTIVE_DEPTH_RATIO).
 #define MIN_PERSPECTIVE_DEPTH_RATIO 1e-3
 
-// The CPU twin's rotation · (p − origin), same operation order; `precise`
-// keeps the compiler from fusing multiply-adds the CPU does not fuse.
-vec3 to_light_view(vec3 p) {
-    precise vec3 q = p - light.origin;
-    precise vec3 r = vec3(dot(light.rot_x, q), dot(light.rot_y, q), dot(light.rot_z, q));
-    return r;
-}
-
 #if defined(STEP_RECEIVERS) || defined(STEP_EXTENT)
 // Workgroup partial reductions: the tile reduces in shared memory, then
 // one thread per tile touches the global LightState, so the global atomics
 // fall from one per pixel (or corner) to one per 8×8 tile.
-shared uint wg_count;
-shared uint wg_lo[3];
-shared uint wg_hi[3];
+// STEP_RECEIVERS: wg_lo/wg_hi[0..3] position, [3] view depth.
+// STEP_EXTENT: wg_lo/wg_hi[0] light-view z, wg_ndc_* per cascade.
+shared uint wg_count[MAX_CASCADES];
+shared uint wg_lo[4];
+shared uint wg_hi[4];
+shared uint wg_ndc_lo[MAX_CASCADES][2];
+shared uint wg_ndc_hi[MAX_CASCADES][2];
 shared uint wg_behind;
 
 void wg_reset() {
     if (gl_LocalInvocationIndex == 0u) {
-        wg_count = 0u;
         wg_behind = 0u;
-        for (int k = 0; k < 3; ++k) {
+        for (int k = 0; k < 4; ++k) {
             wg_lo[k] = 0xFFFFFFFFu;
             wg_hi[k] = 0u;
+        }
+        for (int k = 0; k < MAX_CASCADES; ++k) {
+            wg_count[k] = 0u;
+            wg_ndc_lo[k] = uint[2](0xFFFFFFFFu, 0xFFFFFFFFu);
+            wg_ndc_hi[k] = uint[2](0u, 0u);
         }
     }
     barrier();
@@ -68,36 +78,68 @@ bool receiver_pixel(out uint i) {
 }
 #endif
 
+// light_setup::default_grid_side.
+uint default_grid_side(uint receivers) {
+    return clamp(uint(ceil(sqrt(max(float(receivers) / 4.0, float(frame.triangle_count) / 16.0)))), 8u, 1024u);
+}
+
 void main() {
 #ifdef STEP_RECEIVERS
     wg_reset();
     uint i;
     if (receiver_pixel(i)) {
         vec3 p = g_position[i];
-        atomicAdd(wg_count, 1u);
+        precise float depth = dot(p, frame.cam_forward);
+        atomicAdd(wg_count[0], 1u);
         for (int k = 0; k < 3; ++k) {
             atomicMin(wg_lo[k], ordered_bits(p[k]));
             atomicMax(wg_hi[k], ordered_bits(p[k]));
         }
+        atomicMin(wg_lo[3], ordered_bits(depth));
+        atomicMax(wg_hi[3], ordered_bits(depth));
     }
     barrier();
-    if (gl_LocalInvocationIndex == 0u && wg_count > 0u) {
-        atomicAdd(light.receivers, wg_count);
+    if (gl_LocalInvocationIndex == 0u && wg_count[0] > 0u) {
+        atomicAdd(light.receivers, wg_count[0]);
         for (int k = 0; k < 3; ++k) {
             atomicMin(light.pos_lo[k], wg_lo[k]);
             atomicMax(light.pos_hi[k], wg_hi[k]);
         }
+        atomicMin(light.depth_lo, wg_lo[3]);
+        atomicMax(light.depth_hi, wg_hi[3]);
     }
 #endif
 
 #ifdef STEP_FRAME
     vec3 centre = vec3(0.0);
+    light.cascade_count = 1u;
+    for (int k = 0; k < MAX_CASCADES; ++k) light.split[k] = 1.0 / 0.0;
     if (light.receivers > 0u) {
         vec3 lo = vec3(from_ordered_bits(light.pos_lo[0]), from_ordered_bits(light.pos_lo[1]),
                        from_ordered_bits(light.pos_lo[2]));
         vec3 hi = vec3(from_ordered_bits(light.pos_hi[0]), from_ordered_bits(light.pos_hi[1]),
                        from_ordered_bits(light.pos_hi[2]));
         centre = (lo + hi) * 0.5;
+        // cascades::cascade_count and split_depths.
+        float near = from_ordered_bits(light.depth_lo), far = from_ordered_bits(light.depth_hi);
+        light.view_depth = vec2(near, far);
+        uint count = 1u;
+        if (frame.cascades != 0u) {
+            count = clamp(frame.cascades, 1u, uint(MAX_CASCADES));
+        } else {
+            float reach = near * AUTO_MAX_DEPTH_RATIO;
+            while (count < uint(MAX_CASCADES) && far > reach) {
+                count += 1u;
+                reach *= AUTO_MAX_DEPTH_RATIO;
+            }
+        }
+        light.cascade_count = count;
+        for (uint k = 0u; k + 1u < count; ++k) {
+            float s = float(k + 1u) / float(count);
+            float log_split = near * pow(far / near, s);
+            float uniform_split = near + (far - near) * s;
+            light.split[k] = frame.split_lambda * log_split + (1.0 - frame.split_lambda) * uniform_split;
+        }
     }
     if (frame.light_is_point == 0u) {
         light.projection = 0u;
@@ -123,19 +165,27 @@ void main() {
 #endif
 
 #ifdef STEP_EXTENT
-    // wg_lo/wg_hi hold (ndc.x, ndc.y, z) here.
     wg_reset();
-    uint i;
-    if (receiver_pixel(i)) {
-        atomicAdd(wg_count, 1u);
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    uint i = pixel.y * frame.width + pixel.x;
+    uint word = pixel.x < frame.width && pixel.y < frame.height ? g_id_flags[i] : 0u;
+    // Every hit gets its cascade (evaluate tests facing-away hits too when
+    // that skip is off); the fit covers the shadow-tested ones.
+    uint k = 0u;
+    if ((gbuffer_flags(word) & FLAG_HIT) != 0u) {
+        k = cascade_of(g_position[i]);
+        masks[i] = k;
+    }
+    if ((gbuffer_flags(word) & FLAG_SHADOW_TESTED) != 0u) {
+        atomicAdd(wg_count[k], 1u);
         vec3 p = g_position[i];
         vec3 hx = g_axis_x[i] * 0.5;
         vec3 hy = g_axis_y[i] * 0.5;
         vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
-        for (int k = 0; k < 4; ++k) {
-            vec3 q = to_light_view(corners[k]);
-            atomicMin(wg_lo[2], ordered_bits(q.z));
-            atomicMax(wg_hi[2], ordered_bits(q.z));
+        for (int c = 0; c < 4; ++c) {
+            vec3 q = to_light_view(corners[c]);
+            atomicMin(wg_lo[0], ordered_bits(q.z));
+            atomicMax(wg_hi[0], ordered_bits(q.z));
             vec2 ndc;
             if (light.projection == 0u) {
                 ndc = q.xy;
@@ -145,58 +195,97 @@ void main() {
                 wg_behind = 1u;
                 continue;
             }
-            atomicMin(wg_lo[0], ordered_bits(ndc.x));
-            atomicMin(wg_lo[1], ordered_bits(ndc.y));
-            atomicMax(wg_hi[0], ordered_bits(ndc.x));
-            atomicMax(wg_hi[1], ordered_bits(ndc.y));
+            atomicMin(wg_ndc_lo[k][0], ordered_bits(ndc.x));
+            atomicMin(wg_ndc_lo[k][1], ordered_bits(ndc.y));
+            atomicMax(wg_ndc_hi[k][0], ordered_bits(ndc.x));
+            atomicMax(wg_ndc_hi[k][1], ordered_bits(ndc.y));
         }
     }
     barrier();
-    if (gl_LocalInvocationIndex == 0u && wg_count > 0u) {
-        atomicMin(light.ndc_lo[0], wg_lo[0]);
-        atomicMin(light.ndc_lo[1], wg_lo[1]);
-        atomicMax(light.ndc_hi[0], wg_hi[0]);
-        atomicMax(light.ndc_hi[1], wg_hi[1]);
-        atomicMin(light.z_lo, wg_lo[2]);
-        atomicMax(light.z_hi, wg_hi[2]);
+    if (gl_LocalInvocationIndex == 0u) {
+        bool any = false;
+        for (uint c = 0u; c < uint(MAX_CASCADES); ++c) {
+            if (wg_count[c] == 0u) continue;
+            any = true;
+            atomicAdd(light.cascade[c].receivers, wg_count[c]);
+            atomicMin(light.cascade[c].ndc_lo[0], wg_ndc_lo[c][0]);
+            atomicMin(light.cascade[c].ndc_lo[1], wg_ndc_lo[c][1]);
+            atomicMax(light.cascade[c].ndc_hi[0], wg_ndc_hi[c][0]);
+            atomicMax(light.cascade[c].ndc_hi[1], wg_ndc_hi[c][1]);
+        }
+        if (any) {
+            atomicMin(light.z_lo, wg_lo[0]);
+            atomicMax(light.z_hi, wg_hi[0]);
+        }
         if (wg_behind != 0u) light.behind_light = 1u;
     }
 #endif
 
 #ifdef STEP_GRID
-    light.cells_x = 1u;
-    light.cells_y = 1u;
-    light.ndc_min = vec2(0.0);
-    light.ndc_max = vec2(1.0);
+    // The state of a frame without a grid: one 1×1 cascade, everything in
+    // the overflow list (light_setup's early returns).
+    light.total_cells = 1u;
     light.receiver_z = vec2(0.0);
     light.grid_disabled = light.behind_light;
+    light.cascade[0].ndc_min = vec2(0.0);
+    light.cascade[0].ndc_max = vec2(1.0);
+    light.cascade[0].cells_x = 1u;
+    light.cascade[0].cells_y = 1u;
+    light.cascade[0].cell_offset = 0u;
+    light.cascade[0].overflow_cells = frame.overflow_cells != 0u ? frame.overflow_cells : 64u;
     uint n = light.receivers;
-    if (n == 0u) return;
+    if (n == 0u) {
+        light.cascade_count = 1u;
+        return;
+    }
     float zmin = from_ordered_bits(light.z_lo);
     float zmax = from_ordered_bits(light.z_hi);
     if (light.projection == 1u && zmin <= MIN_PERSPECTIVE_DEPTH_RATIO * zmax) {
         light.grid_disabled = 1u;
     }
     light.receiver_z = vec2(zmin, zmax);
-    if (light.grid_disabled != 0u) return;
-    vec2 nmin = vec2(from_ordered_bits(light.ndc_lo[0]), from_ordered_bits(light.ndc_lo[1]));
-    vec2 nmax = vec2(from_ordered_bits(light.ndc_hi[0]), from_ordered_bits(light.ndc_hi[1]));
-    vec2 size = nmax - nmin;
-    // f32::MIN_POSITIVE = 2^-126.
-    float pad = max(max(size.x, size.y), uintBitsToFloat(0x00800000u)) * 1e-4;
-    light.ndc_min = nmin - pad;
-    light.ndc_max = nmax + pad;
-    // light_setup::default_grid_side.
-    uint longest = frame.cells_hint != 0u
-        ? frame.cells_hint
-        : clamp(uint(ceil(sqrt(max(float(n) / 4.0, float(frame.triangle_count) / 16.0)))), 8u, 1024u);
-    vec2 extent = light.ndc_max - light.ndc_min;
-    if (extent.x >= extent.y) {
-        light.cells_x = longest;
-        light.cells_y = max(uint(ceil(float(longest) * extent.y / extent.x)), 1u);
-    } else {
-        light.cells_x = max(uint(ceil(float(longest) * extent.x / extent.y)), 1u);
-        light.cells_y = longest;
+    if (light.grid_disabled != 0u) {
+        light.cascade_count = 1u;
+        for (int k = 0; k < MAX_CASCADES; ++k) light.split[k] = 1.0 / 0.0;
+        return;
     }
+    uint side = frame.cells_hint != 0u ? frame.cells_hint : default_grid_side(n);
+    uint offset = 0u;
+    for (uint k = 0u; k < light.cascade_count; ++k) {
+        uint nk = light.cascade[k].receivers;
+        light.cascade[k].cell_offset = offset;
+        light.cascade[k].cells_x = 0u;
+        light.cascade[k].cells_y = 0u;
+        light.cascade[k].ndc_min = vec2(0.0);
+        light.cascade[k].ndc_max = vec2(0.0);
+        light.cascade[k].overflow_cells = 0u;
+        if (nk == 0u) continue;   // an empty cascade: no cells, nothing binned
+        vec2 nmin = vec2(from_ordered_bits(light.cascade[k].ndc_lo[0]), from_ordered_bits(light.cascade[k].ndc_lo[1]));
+        vec2 nmax = vec2(from_ordered_bits(light.cascade[k].ndc_hi[0]), from_ordered_bits(light.cascade[k].ndc_hi[1]));
+        vec2 size = nmax - nmin;
+        // f32::MIN_POSITIVE = 2^-126.
+        float pad = max(max(size.x, size.y), uintBitsToFloat(0x00800000u)) * 1e-4;
+        light.cascade[k].ndc_min = nmin - pad;
+        light.cascade[k].ndc_max = nmax + pad;
+        // cascades::cascade_grid_side.
+        uint longest = light.cascade_count <= 1u
+            ? side
+            : max(uint(float(side) * sqrt(float(nk) / float(n))), min(side, 8u));
+        vec2 extent = light.cascade[k].ndc_max - light.cascade[k].ndc_min;
+        if (extent.x >= extent.y) {
+            light.cascade[k].cells_x = longest;
+            light.cascade[k].cells_y = max(uint(ceil(float(longest) * extent.y / extent.x)), 1u);
+        } else {
+            light.cascade[k].cells_x = max(uint(ceil(float(longest) * extent.x / extent.y)), 1u);
+            light.cascade[k].cells_y = longest;
+        }
+        // cascades::cascade_overflow_cells.
+        light.cascade[k].overflow_cells = frame.overflow_cells != 0u ? frame.overflow_cells : clamp(nk / 16u, 64u, 4096u);
+        offset += light.cascade[k].cells_x * light.cascade[k].cells_y;
+    }
+    light.total_cells = offset;
+    // The host sized the cell arrays for cascades::max_total_cells; should
+    // rounding ever exceed it, fall back to the overflow list (exact).
+    if (offset > frame.max_cells) light.grid_disabled = 1u;
 #endif
 }

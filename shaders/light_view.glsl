@@ -1,8 +1,10 @@
-// light_view.glsl — light-view and grid arithmetic shared by the passes
-// that run after light_setup (bin, evaluate): the CPU twin's
-// `LightSetup::{to_light_view, rotate, grid_coords, ndc_of_grid,
-// microquad_grid_box}` and `bin::cell_range`, same operation order.
-// Include after declaring `LightState light` (binding B_LIGHT).
+// light_view.glsl — light-view, cascade and grid arithmetic shared by the
+// passes that run after light_setup's frame step: the CPU twin's
+// `LightSetup::{to_light_view, rotate, microquad_grid_box}`,
+// `CascadeGrid::{grid_coords, ndc_of_grid, cell_index}`, `cascades::
+// cascade_of_depth` and `bin::{cell_range, place}`, same operation order.
+// Include after declaring `FrameParams frame` and `LightState light`.
+// Grid functions take the cascade `k` whose grid they work in.
 
 // bin::CELL_PADDING: cell rectangles grow by 1/64 cell on every side, far
 // above the f32 rounding of a grid coordinate.
@@ -21,16 +23,32 @@ vec3 rotate(vec3 v) {
     return r;
 }
 
-vec2 grid_size() {
-    return vec2(float(light.cells_x), float(light.cells_y));
+// The cascade of an eye-relative receiver position (LightSetup::cascade_of).
+// Computed once per pixel by light_setup's extent step, which stores it for
+// the later passes (see light_setup.comp): every pass then agrees on it.
+uint cascade_of(vec3 p) {
+    precise float depth = dot(p, frame.cam_forward);
+    for (uint k = 0u; k + 1u < light.cascade_count; ++k) {
+        if (depth <= light.split[k]) return k;
+    }
+    return max(light.cascade_count, 1u) - 1u;
 }
 
-vec2 grid_coords(vec2 ndc) {
-    return (ndc - light.ndc_min) / (light.ndc_max - light.ndc_min) * grid_size();
+vec2 grid_size(uint k) {
+    return vec2(float(light.cascade[k].cells_x), float(light.cascade[k].cells_y));
 }
 
-vec2 ndc_of_grid(vec2 g) {
-    return light.ndc_min + g / grid_size() * (light.ndc_max - light.ndc_min);
+vec2 grid_coords(uint k, vec2 ndc) {
+    return (ndc - light.cascade[k].ndc_min) / (light.cascade[k].ndc_max - light.cascade[k].ndc_min)
+        * grid_size(k);
+}
+
+vec2 ndc_of_grid(uint k, vec2 g) {
+    return light.cascade[k].ndc_min + g / grid_size(k) * (light.cascade[k].ndc_max - light.cascade[k].ndc_min);
+}
+
+uint cell_index(uint k, uint x, uint y) {
+    return light.cascade[k].cell_offset + y * light.cascade[k].cells_x + x;
 }
 
 vec2 ndc_of(vec3 q) {
@@ -38,24 +56,24 @@ vec2 ndc_of(vec3 q) {
 }
 
 // Grid-space box of the µQuad's projected corners (eye-relative p, ex, ey).
-void microquad_grid_box(vec3 p, vec3 ex, vec3 ey, out vec2 lo, out vec2 hi) {
+void microquad_grid_box(uint k, vec3 p, vec3 ex, vec3 ey, out vec2 lo, out vec2 hi) {
     vec3 hx = ex * 0.5, hy = ey * 0.5;
     vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
     lo = vec2(1.0 / 0.0);
     hi = vec2(-1.0 / 0.0);
-    [[unroll]] for (int k = 0; k < 4; ++k) {
-        vec2 g = grid_coords(ndc_of(to_light_view(corners[k])));
+    [[unroll]] for (int c = 0; c < 4; ++c) {
+        vec2 g = grid_coords(k, ndc_of(to_light_view(corners[c])));
         lo = min(lo, g);
         hi = max(hi, g);
     }
 }
 
 // bin::cell_range: inclusive cells (x0, y0, x1, y1) of the padded box, or
-// false when it misses the grid (or is NaN).
-bool cell_range(vec2 lo, vec2 hi, out uvec4 cells) {
+// false when it misses the grid (or is NaN, or the grid has no cells).
+bool cell_range(uint k, vec2 lo, vec2 hi, out uvec4 cells) {
     lo -= CELL_PADDING;
     hi += CELL_PADDING;
-    float w = float(light.cells_x), h = float(light.cells_y);
+    float w = float(light.cascade[k].cells_x), h = float(light.cascade[k].cells_y);
     cells = uvec4(0u);
     if (hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || isnan(lo.x) || isnan(hi.x)) return false;
     uint x0 = uint(max(lo.x, 0.0)), y0 = uint(max(lo.y, 0.0));

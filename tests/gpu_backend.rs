@@ -16,7 +16,7 @@
 
 use izb::gbuffer::{flags, GBuffer};
 use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
-use izb::izb::{render_cpu, IzbSettings, SampleMode};
+use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode};
 use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 use std::sync::{Mutex, OnceLock};
@@ -95,11 +95,23 @@ fn mask_mismatch(a: &[u32], b: &[u32], g: &GBuffer) -> (u64, u64) {
     (diff, total)
 }
 
+/// The settings of a comparison: 32-sample modes with two cascades (so
+/// the per-cascade grids, splits and overflow tags are compared too), 1 spp
+/// with `auto`.
 fn settings(mode: SampleMode) -> IzbSettings {
     IzbSettings {
         mode,
+        cascades: match mode {
+            SampleMode::One => CascadeCount::Auto,
+            _ => CascadeCount::Fixed(2),
+        },
         ..Default::default()
     }
+}
+
+/// Cells of each cascade's grid.
+fn grids_of<T>(grids: &[T], cells: impl Fn(&T) -> [u32; 2]) -> Vec<[u32; 2]> {
+    grids.iter().map(cells).collect()
 }
 
 /// Whether triangles `a` and `b` are the same surface: equal, or exact
@@ -140,8 +152,8 @@ fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
         println!(
             "{name} {mode:?} (uploaded G-buffer): {diff} of {total} samples differ ({rate:.2e}); \
              grid GPU {:?} CPU {:?}; tests GPU {} CPU {}",
-            gpu.report.light.cells,
-            cpu.report.light.cells,
+            grids_of(&gpu.report.light.cascades, |g| g.cells),
+            grids_of(&cpu.report.light.cascades, |g| g.cells),
             gpu.report.counters.tests_spawned,
             cpu.report.evaluate.tests_spawned
         );
@@ -282,7 +294,7 @@ fn grid_capacity_overrun_reruns_with_room() {
     let s = IzbSettings {
         mode: SampleMode::Exact32,
         cells: Some(200),
-        max_span: 200,
+        overflow_cells: Some(200 * 200),
         ..Default::default()
     };
     let cpu = render_cpu(&scene, &bvh, s);

@@ -1,12 +1,15 @@
 //! The light-space grid against brute force: the scatter holds exactly the
 //! triangles whose cell rectangle covers each cell, and no triangle able to
 //! shadow any of a pixel's 32 samples is missing from the candidates the
-//! pixel visits (zero light leaks by construction, design §5).
+//! pixel visits (zero light leaks by construction, design §5), with one
+//! grid and with several cascades.
 
 use izb::gbuffer::{flags, gbuffer};
-use izb::izb::bin::{bin, cell_receivers, Placement};
+use izb::izb::bin::{bin, cell_receivers, CellEntry, Placement};
 use izb::izb::evaluate::{for_each_candidate, triangle_mask_for_pixel};
-use izb::izb::{eye_relative_f32, light_setup, MaskRule, SampleMode, Skips};
+use izb::izb::{
+    eye_relative_f32, light_setup, CascadeCount, GridRequest, MaskRule, SampleMode, Skips,
+};
 use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 use std::collections::HashSet;
@@ -16,13 +19,21 @@ use std::collections::HashSet;
 fn check_grid(
     scene: &Scene,
     cells: Option<u32>,
-    max_span: u32,
+    overflow_cells: u32,
+    cascades: u32,
     pixel_stride: usize,
     cull: bool,
 ) -> (usize, usize) {
     let bvh = SceneBvh::build(scene);
     let g = gbuffer(scene, &bvh);
-    let setup = light_setup(scene, &g, cells);
+    let request = GridRequest {
+        cells,
+        overflow_cells: Some(overflow_cells),
+        cascades: CascadeCount::Fixed(cascades),
+        split_lambda: 1.0,
+    };
+    let setup = light_setup(scene, &g, request);
+    assert_eq!(setup.cascades.len(), cascades as usize);
     let receivers = if cull {
         cell_receivers(&setup, &g, Skips::ALL)
     } else {
@@ -31,31 +42,38 @@ fn check_grid(
     let bins = bin(
         &setup,
         &eye_relative_f32(scene),
-        max_span,
         Skips::ALL,
         receivers.as_ref(),
     );
 
-    // Scatter against the placements, cell by cell (with the cull, a
-    // subset of them).
-    for y in 0..setup.cells[1] {
-        for x in 0..setup.cells[0] {
-            let got: Vec<u32> = bins.cell(&setup, x, y).to_vec();
-            let expected: Vec<u32> = (0..scene.triangles.len() as u32)
-                .filter(|&id| match bins.placement[id as usize] {
-                    Placement::Cells { x0, y0, x1, y1 } => {
-                        (x0..=x1).contains(&x) && (y0..=y1).contains(&y)
-                    }
-                    _ => false,
-                })
-                .collect();
-            if cull {
-                assert!(
-                    got.iter().all(|id| expected.contains(id)),
-                    "cell ({x}, {y}) lists a triangle not placed there"
-                );
-            } else {
-                assert_eq!(got, expected, "cell ({x}, {y})");
+    // Scatter against the placements, cell by cell and cascade by cascade
+    // (with the cull, a subset of them), first-column/row bits included.
+    for (k, grid) in setup.cascades.iter().enumerate() {
+        for y in 0..grid.cells[1] {
+            for x in 0..grid.cells[0] {
+                let got: Vec<CellEntry> = bins.cell(grid, x, y).to_vec();
+                let expected: Vec<CellEntry> = (0..scene.triangles.len() as u32)
+                    .filter_map(|id| match bins.placement[k][id as usize] {
+                        Placement::Cells { x0, y0, x1, y1 }
+                            if (x0..=x1).contains(&x) && (y0..=y1).contains(&y) =>
+                        {
+                            Some(CellEntry {
+                                id,
+                                first_column: x == x0,
+                                first_row: y == y0,
+                            })
+                        }
+                        _ => None,
+                    })
+                    .collect();
+                if cull {
+                    assert!(
+                        got.iter().all(|e| expected.contains(e)),
+                        "cascade {k} cell ({x}, {y}) lists a triangle not placed there"
+                    );
+                } else {
+                    assert_eq!(got, expected, "cascade {k} cell ({x}, {y})");
+                }
             }
         }
     }
@@ -85,7 +103,7 @@ fn check_grid(
                 assert!(
                     candidates.contains(&id),
                     "pixel {i}: triangle {id} shadows samples {mask:#010x} but is not a candidate ({:?})",
-                    bins.placement[id as usize]
+                    bins.placement.iter().map(|p| p[id as usize]).collect::<Vec<_>>()
                 );
             }
         }
@@ -112,11 +130,12 @@ fn grid_offers_every_occluder_on_thin_and_grazing_scenes() {
             let p = scene::procedural::hairball(3000);
             scene = Scene::new("hairball", p.triangles, p.camera, p.light, [96, 54]).unwrap();
         }
-        for cull in [false, true] {
-            let (pixels, pairs) = check_grid(&scene, cells, 8, 3, cull);
+        for (cull, cascades) in [(false, 1), (true, 1), (true, 3)] {
+            // Triangles over 48 cells overflow (about the old 7-cell side).
+            let (pixels, pairs) = check_grid(&scene, cells, 48, cascades, 3, cull);
             println!(
-                "{name} (cells {cells:?}, behind-receivers cull {cull}): {pixels} pixels, \
-                 {pairs} occluder/pixel pairs, all offered"
+                "{name} (cells {cells:?}, {cascades} cascade(s), behind-receivers cull {cull}): \
+                 {pixels} pixels, {pairs} occluder/pixel pairs, all offered"
             );
             assert!(pixels > 300 && pairs > 100, "{name}: too little exercised");
         }
@@ -136,7 +155,11 @@ fn point_light_grid_offers_every_occluder() {
         .unwrap()
         .with_resolution([64, 36])
         .unwrap();
-    let (pixels, pairs) = check_grid(&scene, Some(32), 4, 5, false);
-    println!("engine: {pixels} pixels, {pairs} occluder/pixel pairs, all offered");
-    assert!(pixels > 50 && pairs > 50);
+    for cascades in [1, 2] {
+        let (pixels, pairs) = check_grid(&scene, Some(32), 9, cascades, 5, false);
+        println!(
+            "engine ({cascades} cascade(s)): {pixels} pixels, {pairs} occluder/pixel pairs, all offered"
+        );
+        assert!(pixels > 50 && pairs > 50);
+    }
 }

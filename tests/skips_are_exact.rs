@@ -1,13 +1,17 @@
 //! Every skip is exact (issue 5): with all skips on and all off, the masks
 //! are bit-identical on every procedural and shared scene, in every sample
 //! mode, on the CPU twin and on the Vulkan backend, while the counters show
-//! that the skips removed work.
+//! that the skips removed work. The conservative shadow-map early-out is
+//! also checked on its own (all skips with and without it, and it must fire
+//! somewhere), and so is the cascade split: 1 and 4 cascades give the same
+//! exact masks (one light-view frame for all cascades, so only the grids
+//! differ) and LUT masks within [`MAX_LUT_CASCADE_MISMATCH`].
 //!
 //! GPU part: skips with a message without a Vulkan device, fails instead
 //! with `IZB_REQUIRE_GPU=1`; any validation message fails it.
 
 use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
-use izb::izb::{render_cpu, IzbSettings, SampleMode, Skips};
+use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
 use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 
@@ -60,6 +64,20 @@ fn settings(mode: SampleMode, skips: Skips) -> IzbSettings {
     }
 }
 
+/// Every skip but the shadow-map early-out.
+const ALL_BUT_SHADOW_MAP: Skips = Skips {
+    shadow_map: false,
+    ..Skips::ALL
+};
+
+fn with_cascades(mode: SampleMode, cascades: u32) -> IzbSettings {
+    IzbSettings {
+        mode,
+        cascades: CascadeCount::Fixed(cascades),
+        ..Default::default()
+    }
+}
+
 /// Index and values of the first differing mask, if any.
 fn first_difference(a: &[u32], b: &[u32]) -> Option<(usize, u32, u32)> {
     a.iter()
@@ -72,14 +90,29 @@ fn first_difference(a: &[u32], b: &[u32]) -> Option<(usize, u32, u32)> {
 #[test]
 fn cpu_masks_are_identical_with_and_without_skips() {
     let (mut tests_on, mut tests_off) = (0u64, 0u64);
+    let mut shadow_map_early_outs = 0;
     for (name, scene) in scenes(Some(RESOLUTION)) {
         let bvh = SceneBvh::build(&scene);
         for mode in MODES {
             let on = render_cpu(&scene, &bvh, settings(mode, Skips::ALL));
             let off = render_cpu(&scene, &bvh, settings(mode, Skips::NONE));
+            let no_map = render_cpu(&scene, &bvh, settings(mode, ALL_BUT_SHADOW_MAP));
             if let Some((i, a, b)) = first_difference(&on.masks, &off.masks) {
                 panic!("{name} {mode:?}: pixel {i}: skips on {a:#010x}, off {b:#010x}");
             }
+            if let Some((i, a, b)) = first_difference(&on.masks, &no_map.masks) {
+                panic!("{name} {mode:?}: pixel {i}: shadow map on {a:#010x}, off {b:#010x}");
+            }
+            shadow_map_early_outs += on.report.evaluate.shadow_map_early_outs;
+            println!(
+                "{name} {mode:?}: shadow-map early-outs {} of {} pixels ({} covered cells), \
+                 tests {} with / {} without it",
+                on.report.evaluate.shadow_map_early_outs,
+                on.report.evaluate.pixels_tested,
+                on.report.bin.covered_cells,
+                on.report.evaluate.tests_spawned,
+                no_map.report.evaluate.tests_spawned
+            );
             let (e_on, e_off) = (&on.report.evaluate, &off.report.evaluate);
             println!(
                 "{name} {mode:?}: tests {} on / {} off, pixels {} / {}, early outs {}, \
@@ -98,6 +131,8 @@ fn cpu_masks_are_identical_with_and_without_skips() {
             // Skips off never stop early, never take the cheap path, never
             // cull, and test at least every pixel the skips test.
             assert_eq!(e_off.early_outs, 0, "{name}");
+            assert_eq!(e_off.shadow_map_early_outs, 0, "{name}");
+            assert_eq!(no_map.report.evaluate.shadow_map_early_outs, 0, "{name}");
             assert_eq!(e_off.saturated_masks, 0, "{name}");
             assert_eq!(off.report.bin.culled, 0, "{name}");
             assert_eq!(off.report.bin.entries_behind_receivers, 0, "{name}");
@@ -110,6 +145,62 @@ fn cpu_masks_are_identical_with_and_without_skips() {
         tests_on < tests_off,
         "the skips removed no test ({tests_on} vs {tests_off})"
     );
+    assert!(
+        shadow_map_early_outs > 0,
+        "the shadow-map early-out never fired: the exactness check above proved nothing"
+    );
+}
+
+/// Largest share of samples on which the LUT mode may differ between
+/// cascade counts. The exact modes may not differ at all: the cascades
+/// change which triangles a pixel is offered, never how one is tested, and
+/// every triangle able to shadow a sample is offered either way. The LUT
+/// can mark a sample shadowed by a triangle whose shadow misses it (its
+/// quantisation, near a µQuad corner); whether such a near miss is offered
+/// depends on the grid, so only there may the LUT masks differ.
+const MAX_LUT_CASCADE_MISMATCH: f64 = 1e-4;
+
+/// Samples in which `a` and `b` differ.
+fn differing_samples(a: &[u32], b: &[u32]) -> u64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| u64::from((x ^ y).count_ones()))
+        .sum()
+}
+
+#[test]
+fn cpu_masks_agree_for_any_cascade_count() {
+    for (name, scene) in scenes(Some(RESOLUTION)) {
+        let bvh = SceneBvh::build(&scene);
+        for mode in MODES {
+            let one = render_cpu(&scene, &bvh, with_cascades(mode, 1));
+            let four = render_cpu(&scene, &bvh, with_cascades(mode, 4));
+            assert_eq!(four.report.light.cascades.len(), 4, "{name}");
+            let differing = differing_samples(&one.masks, &four.masks);
+            let rate = differing as f64 / (32 * one.masks.len()) as f64;
+            let pixels = one.report.evaluate.pixels_tested.max(1) as f64;
+            println!(
+                "{name} {mode:?}: 1 vs 4 cascades: {differing} samples differ ({rate:.1e}); \
+                 candidates per pixel {:.1} vs {:.1}; grids {:?}",
+                one.report.evaluate.tests_spawned as f64 / pixels,
+                four.report.evaluate.tests_spawned as f64 / pixels,
+                four.report
+                    .light
+                    .cascades
+                    .iter()
+                    .map(|g| g.cells)
+                    .collect::<Vec<_>>()
+            );
+            if mode == SampleMode::Lut32 {
+                assert!(
+                    rate <= MAX_LUT_CASCADE_MISMATCH,
+                    "{name}: {differing} LUT samples differ ({rate:.1e})"
+                );
+            } else if let Some((i, a, b)) = first_difference(&one.masks, &four.masks) {
+                panic!("{name} {mode:?}: pixel {i}: 1 cascade {a:#010x}, 4 cascades {b:#010x}");
+            }
+        }
+    }
 }
 
 fn renderer() -> Option<GpuRenderer> {
@@ -152,13 +243,15 @@ fn gpu_masks_are_identical_with_and_without_skips() {
             }
             let (c_on, c_off) = (&on.report.counters, &off.report.counters);
             println!(
-                "{name} {mode:?} (GPU): tests {} on / {} off, pixels {} / {}, early outs {}, \
-                 saturated {}, culled {} / {}, behind receivers {} entries {} triangles",
+                "{name} {mode:?} (GPU): tests {} on / {} off, pixels {} / {}, early outs {} \
+                 (shadow map {}), saturated {}, culled {} / {}, behind receivers {} entries {} \
+                 triangles",
                 c_on.tests_spawned,
                 c_off.tests_spawned,
                 c_on.pixels_tested,
                 c_off.pixels_tested,
                 c_on.early_outs,
+                c_on.shadow_map_early_outs,
                 c_on.saturated_masks,
                 c_on.culled,
                 c_off.culled,
@@ -166,6 +259,7 @@ fn gpu_masks_are_identical_with_and_without_skips() {
                 c_on.triangles_behind_receivers
             );
             assert_eq!(c_off.early_outs, 0, "{name}");
+            assert_eq!(c_off.shadow_map_early_outs, 0, "{name}");
             assert_eq!(c_off.saturated_masks, 0, "{name}");
             assert_eq!(c_off.culled, 0, "{name}");
             assert_eq!(c_off.entries_behind_receivers, 0, "{name}");
@@ -177,4 +271,46 @@ fn gpu_masks_are_identical_with_and_without_skips() {
         tests_on < tests_off,
         "the skips removed no test ({tests_on} vs {tests_off})"
     );
+}
+
+#[test]
+fn gpu_masks_are_identical_for_any_cascade_count() {
+    // Exact mode: bit-identical (the LUT's allowance is for the CPU test).
+    let Some(r) = renderer() else { return };
+    let (resolution, _) = gpu_resolution_and_modes();
+    for (name, scene) in scenes(resolution) {
+        let render = |cascades| {
+            let out = r.render(
+                &scene,
+                with_cascades(SampleMode::Exact32, cascades),
+                GBufferSource::Gpu,
+            );
+            let messages = r.take_validation_messages();
+            assert!(messages.is_empty(), "{name}: {}", messages.join("\n"));
+            out
+        };
+        let (one, four) = match (render(1), render(4)) {
+            (Ok(a), Ok(b)) => (a, b),
+            (Err(e @ GpuError::LoopCap { .. }), _) | (_, Err(e @ GpuError::LoopCap { .. })) => {
+                println!("{name}: skipped on this device: {e}");
+                continue;
+            }
+            (Err(e), _) | (_, Err(e)) => panic!("{name}: {e}"),
+        };
+        assert_eq!(four.report.light.cascades.len(), 4, "{name}");
+        if let Some((i, a, b)) = first_difference(&one.masks, &four.masks) {
+            panic!("{name}: pixel {i}: 1 cascade {a:#010x}, 4 cascades {b:#010x}");
+        }
+        println!(
+            "{name} (GPU): 1 vs 4 cascades identical; tests {} vs {}; grids {:?}",
+            one.report.counters.tests_spawned,
+            four.report.counters.tests_spawned,
+            four.report
+                .light
+                .cascades
+                .iter()
+                .map(|g| g.cells)
+                .collect::<Vec<_>>()
+        );
+    }
 }

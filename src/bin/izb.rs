@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use izb::gbuffer::gbuffer;
 use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
-use izb::izb::{render_cpu, IzbSettings, SampleMode, Skips};
+use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
 use izb::metrics::{error_heat_map, metrics, sample_mismatches};
 use izb::output::{
     write_exr, write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
@@ -108,6 +108,49 @@ enum BenchBackend {
     Both,
 }
 
+/// Grid, overflow and cascade choices of a render.
+#[derive(Args, Clone)]
+struct GridArgs {
+    /// Cells along the longer side of a single grid, shared between the
+    /// cascades in proportion to their pixels (default: from the pixel and
+    /// triangle counts).
+    #[arg(long)]
+    cells: Option<u32>,
+    /// Triangles whose cell rectangle holds more cells than this go to the
+    /// overflow list (default: per cascade, its pixels / 16 within
+    /// 64..=4096).
+    #[arg(long)]
+    overflow_cells: Option<u32>,
+    /// Sample-distribution cascades: auto (as few as the view-depth range
+    /// needs) or 1..4.
+    #[arg(long, default_value = "auto", value_parser = CascadeCount::parse)]
+    cascades: CascadeCount,
+    /// Cascade split blend: 1 logarithmic, 0 uniform.
+    #[arg(long, default_value_t = 1.0)]
+    split_lambda: f32,
+}
+
+impl GridArgs {
+    fn apply(&self, settings: IzbSettings) -> Result<IzbSettings> {
+        anyhow::ensure!(
+            (0.0..=1.0).contains(&self.split_lambda),
+            "--split-lambda must be in 0..=1, not {}",
+            self.split_lambda
+        );
+        anyhow::ensure!(
+            self.overflow_cells != Some(0) && self.cells != Some(0),
+            "--overflow-cells and --cells must be at least 1"
+        );
+        Ok(IzbSettings {
+            cells: self.cells,
+            overflow_cells: self.overflow_cells,
+            cascades: self.cascades,
+            split_lambda: self.split_lambda,
+            ..settings
+        })
+    }
+}
+
 #[derive(Args)]
 struct RenderArgs {
     #[command(flatten)]
@@ -123,12 +166,11 @@ struct RenderArgs {
     /// Vulkan device index (see `izb devices`; default: the best one).
     #[arg(long)]
     device: Option<usize>,
-    /// Grid cells along the longer side (default: from the pixel count).
-    #[arg(long)]
-    cells: Option<u32>,
+    #[command(flatten)]
+    grid: GridArgs,
     /// Exact shortcuts to take: all, none, or a comma-separated list of
     /// facing-away, outside-bounds, full-mask, saturated-edges,
-    /// behind-receivers.
+    /// behind-receivers, shadow-map.
     #[arg(long, default_value = "all")]
     skip: Skips,
     /// Output folder.
@@ -202,6 +244,10 @@ struct BenchArgs {
     /// flag to time several (e.g. `--skip all --skip none`).
     #[arg(long, default_value = "all")]
     skip: Vec<Skips>,
+    /// Cascade counts to time, each as `render --cascades` takes it; repeat
+    /// the flag to time several (e.g. `--cascades auto --cascades 1`).
+    #[arg(long, default_value = "auto", value_parser = CascadeCount::parse)]
+    cascades: Vec<CascadeCount>,
     /// Output JSON file.
     #[arg(long, default_value = "out/bench.json")]
     out: PathBuf,
@@ -382,19 +428,24 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     };
     let settings = ReferenceSettings::from_spp(args.spp, 1).map_err(anyhow::Error::msg)?;
     let mut izb_methods: Vec<(String, IzbSettings)> = Vec::new();
-    for &skips in &args.skip {
-        for m in args.methods.iter().filter(|m| m.as_str() != "reference") {
-            let name = if args.skip.len() > 1 {
-                format!("{m} skip={skips}")
-            } else {
-                m.clone()
-            };
-            let settings = IzbSettings {
-                mode: parse_method(m)?,
-                skips,
-                ..Default::default()
-            };
-            izb_methods.push((name, settings));
+    for &cascades in &args.cascades {
+        for &skips in &args.skip {
+            for m in args.methods.iter().filter(|m| m.as_str() != "reference") {
+                let mut name = m.clone();
+                if args.skip.len() > 1 {
+                    name += &format!(" skip={skips}");
+                }
+                if args.cascades.len() > 1 {
+                    name += &format!(" cascades={cascades}");
+                }
+                let settings = IzbSettings {
+                    mode: parse_method(m)?,
+                    skips,
+                    cascades,
+                    ..Default::default()
+                };
+                izb_methods.push((name, settings));
+            }
         }
     }
     let with_reference = args.methods.iter().any(|m| m == "reference");
@@ -519,7 +570,8 @@ fn bench_izb(
                 "evaluate_over_1spp": one.as_ref().map(|o| s.evaluate / o.evaluate),
                 "bin": last.bin,
                 "evaluate": last.evaluate,
-                "grid": last.light.cells,
+                "cascades": last.light.cascade_choice,
+                "grids": last.light.cascades,
             })
         })
         .collect()
@@ -589,7 +641,7 @@ fn bench_izb_gpu(
             "counters": last.counters,
             "memory_total_bytes": last.memory_total_bytes,
             "memory": last.memory,
-            "grid": last.light.cells,
+            "light": last.light,
         }));
     }
     Ok(rows)
@@ -609,12 +661,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
         !(args.exact && args.spp == 1),
         "--exact applies to 32 spp; 1 spp is always an exact point test"
     );
-    let settings = IzbSettings {
+    let settings = args.grid.apply(IzbSettings {
         mode: mode_for(args.spp, args.exact),
-        cells: args.cells,
         skips: args.skip,
         ..Default::default()
-    };
+    })?;
     let renderer = match args.backend {
         Backend::Cpu => None,
         Backend::Vulkan | Backend::Auto => {
@@ -668,26 +719,33 @@ fn write_mask_outputs(out: &Path, scene: &Scene, visibility: &[f32], masks: &[u3
     write_visibility_png(&out.join("visibility.png"), w, h, visibility)
 }
 
-/// The one-line summary of a render: grid, binning, tests, timing.
+/// The one-line summary of a render: cascades and grids, binning, tests,
+/// timing.
 #[allow(clippy::too_many_arguments)]
 fn print_render_summary(
     scene: &Scene,
     mode: SampleMode,
     backend: &str,
     [binned, overflow, culled]: [u64; 3],
-    cells: [u32; 2],
+    grids: &[([u32; 2], u32)],
+    cascade_reason: &str,
     tests: u64,
     timing: &str,
     out: &Path,
 ) {
     let [w, h] = scene.resolution;
+    let grids: Vec<String> = grids
+        .iter()
+        .map(|([x, y], cap)| format!("{x}x{y} (overflow above {cap} cells)"))
+        .collect();
     println!(
-        "render {} ({mode:?}, {backend}): {w}x{h}, {} triangles ({binned} binned, {overflow} overflow, \
-         {culled} culled), grid {}x{}, {tests} tests, {timing} -> {}",
+        "render {} ({mode:?}, {backend}): {w}x{h}, {} triangles ({binned} placements binned, \
+         {overflow} overflow, {culled} culled), {} cascade(s) ({cascade_reason}): {}, {tests} tests, \
+         {timing} -> {}",
         scene.name,
         scene.triangles.len(),
-        cells[0],
-        cells[1],
+        grids.len(),
+        grids.join(" + "),
         out.display()
     );
 }
@@ -734,7 +792,12 @@ fn render_on_gpu(
         settings.mode,
         "vulkan",
         [c.triangles_binned, c.overflow, c.culled].map(u64::from),
-        r.light.cells,
+        &r.light
+            .cascades
+            .iter()
+            .map(|g| (g.cells, g.overflow_cells))
+            .collect::<Vec<_>>(),
+        &r.light.cascade_choice.reason,
         c.tests_spawned,
         &format!(
             "{ms}, {:.1} MiB",
@@ -776,7 +839,12 @@ fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) -> Res
         settings.mode,
         "cpu",
         [r.bin.binned, r.bin.overflow, r.bin.culled].map(|n| n as u64),
-        r.light.cells,
+        &r.light
+            .cascades
+            .iter()
+            .map(|g| (g.cells, g.overflow_cells))
+            .collect::<Vec<_>>(),
+        &r.light.cascade_choice.reason,
         r.evaluate.tests_spawned,
         &format!(
             "{:.3} s (evaluate {:.3} s)",

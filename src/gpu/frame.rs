@@ -9,6 +9,7 @@ use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{self, binding, counter, FrameParams, GpuTriangle, LightState};
 use super::{GpuError, Kernels, Recorder};
 use crate::gbuffer::{flags, GBuffer, GBufferStats, MAX_MICROQUAD_STRETCH};
+use crate::izb::cascades::CascadeChoice;
 use crate::izb::light_setup::directional_rotation;
 use crate::izb::{IzbSettings, SampleMode};
 use crate::scene::{Light, Scene};
@@ -39,15 +40,32 @@ pub struct PassMemory {
     pub buffers: Vec<(&'static str, u64)>,
 }
 
-/// The light view and grid as the GPU fitted them.
+/// One cascade's grid as the GPU fitted it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GpuCascadeSummary {
+    pub receivers: u32,
+    pub cells: [u32; 2],
+    pub cell_offset: u32,
+    pub overflow_cells: u32,
+    pub ndc_min: [f32; 2],
+    pub ndc_max: [f32; 2],
+}
+
+/// The light view, cascades and grids as the GPU fitted them.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct GpuLightSummary {
     pub perspective: bool,
     pub grid_disabled: bool,
     pub receivers: u32,
-    pub cells: [u32; 2],
-    pub ndc_min: [f32; 2],
-    pub ndc_max: [f32; 2],
+    /// How many cascades and why (the host's words for the GPU's choice,
+    /// from the view-depth range it reduced).
+    pub cascade_choice: CascadeChoice,
+    /// View depth range of the shadow-tested pixels.
+    pub view_depth: [f32; 2],
+    /// Upper view depth of each cascade.
+    pub split_depths: Vec<f32>,
+    pub cascades: Vec<GpuCascadeSummary>,
+    pub total_cells: u32,
     pub receiver_z: [f32; 2],
 }
 
@@ -65,6 +83,7 @@ pub struct GpuCounters {
     /// Pixels never shadow-tested (sky, facing away from the light).
     pub pixels_skipped: u32,
     pub early_outs: u32,
+    pub shadow_map_early_outs: u32,
     pub saturated_masks: u64,
     pub entries_behind_receivers: u32,
     pub triangles_behind_receivers: u32,
@@ -319,7 +338,7 @@ impl GpuRenderer {
                 "--cells {longest}: the GPU grid holds at most 65535 cells per side"
             )));
         }
-        let max_cells = u64::from(longest) * u64::from(longest);
+        let max_cells = crate::izb::cascades::max_total_cells(longest);
         let mut capacity = initial_cell_capacity(triangles.len());
         let mut frames_run = 0;
         loop {
@@ -485,6 +504,14 @@ impl GpuRenderer {
                     vk::WHOLE_SIZE,
                     0,
                 );
+                // No cover triangle anywhere yet (floor bits 0, !id 0).
+                device.cmd_fill_buffer(
+                    cmd,
+                    fb.get(binding::CELL_COVER).buffer,
+                    0,
+                    vk::WHOLE_SIZE,
+                    0,
+                );
                 // Empty cells: no receiver (z = ~0), reach 0 (stored as !0).
                 device.cmd_fill_buffer(
                     cmd,
@@ -594,6 +621,7 @@ impl GpuRenderer {
             pixels_tested: c[counter::PIXELS_TESTED],
             pixels_skipped: (scene.pixel_count() as u32).saturating_sub(c[counter::PIXELS_TESTED]),
             early_outs: c[counter::EARLY_OUTS],
+            shadow_map_early_outs: c[counter::SHADOW_MAP_EARLY_OUTS],
             saturated_masks: wide(counter::SATURATED_MASKS),
             entries_behind_receivers: c[counter::ENTRIES_BEHIND],
             triangles_behind_receivers: c[counter::TRIANGLES_BEHIND],
@@ -670,9 +698,34 @@ impl GpuRenderer {
                 perspective: l.projection == 1,
                 grid_disabled: l.grid_disabled != 0,
                 receivers: l.receivers,
-                cells: [l.cells_x, l.cells_y],
-                ndc_min: l.ndc_min,
-                ndc_max: l.ndc_max,
+                cascade_choice: if l.receivers == 0 || l.grid_disabled != 0 {
+                    CascadeChoice {
+                        count: l.cascade_count,
+                        reason: "no grid: no receivers, or every triangle overflows".into(),
+                        ..Default::default()
+                    }
+                } else {
+                    CascadeChoice::new(
+                        settings.cascades,
+                        l.view_depth[0],
+                        l.view_depth[1],
+                        settings.split_lambda,
+                    )
+                },
+                view_depth: l.view_depth,
+                split_depths: l.split[..l.cascade_count as usize].to_vec(),
+                cascades: l.cascade[..l.cascade_count as usize]
+                    .iter()
+                    .map(|c| GpuCascadeSummary {
+                        receivers: c.receivers,
+                        cells: [c.cells_x, c.cells_y],
+                        cell_offset: c.cell_offset,
+                        overflow_cells: c.overflow_cells,
+                        ndc_min: c.ndc_min,
+                        ndc_max: c.ndc_max,
+                    })
+                    .collect(),
+                total_cells: l.total_cells,
                 receiver_z: l.receiver_z,
             },
             frames_run,
@@ -752,7 +805,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
         // Aliases `triangles_then_vertex_cache` (see `FrameBuffers`).
         BufferDesc::device("bin", VERTEX_CACHE_ALIAS, 0),
-        BufferDesc::device("bin", "placement_first_cell", t * 4),
+        BufferDesc::device("bin", "cell_cover", z.max_cells * 8),
         BufferDesc::device("bin", "cell_cursor", z.max_cells * 4),
         BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
         BufferDesc::device("bin", "cell_triangles", z.cell_capacity * 4),
@@ -777,7 +830,7 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         triangles: triangles.len() as u64,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
-        max_cells: u64::from(longest) * u64::from(longest),
+        max_cells: crate::izb::cascades::max_total_cells(longest),
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
     });
@@ -855,7 +908,7 @@ fn frame_params(
         triangle_count: triangles as u32,
         mode: mode_code(settings.mode),
         cells_hint: settings.cells.unwrap_or(0),
-        max_span: settings.max_span,
+        overflow_cells: settings.overflow_cells.unwrap_or(0),
         cell_capacity: cell_capacity.min(u64::from(u32::MAX)) as u32,
         lut_angle_scale: lut.angle_scale_f32(),
         lut_distance_scale: lut.distance_scale_f32(),
@@ -865,6 +918,10 @@ fn frame_params(
         loop_budget,
         skips: settings.skips.bits(),
         pattern_radius: crate::izb::frustum::pattern_radius(crate::lut::sample_pattern()),
+        cam_forward: frame.forward.as_vec3().to_array(),
+        cascades: settings.cascades.code(),
+        split_lambda: settings.split_lambda,
+        pad: [0; 3],
         pattern: *crate::lut::sample_pattern(),
     }
 }

@@ -4,6 +4,7 @@
 //! asserts, and the binding, counter and flag constants (kajiya's shared
 //! crate does the same). Change one side, change the other.
 
+use crate::izb::cascades::MAX_CASCADES;
 use bytemuck::{Pod, Zeroable};
 use std::mem::{offset_of, size_of};
 
@@ -21,7 +22,9 @@ pub mod binding {
     pub const LIGHT: u32 = 8;
     pub const COUNTERS: u32 = 9;
     pub const VERTEX_CACHE: u32 = 10;
-    pub const PLACEMENT: u32 = 11;
+    /// Per cell: the conservative shadow map's cover floor (ordered bits)
+    /// and !id of its cover triangle ([`crate::izb::bin::Bins::cover`]).
+    pub const CELL_COVER: u32 = 11;
     pub const CELL_CURSOR: u32 = 12;
     pub const CELL_START: u32 = 13;
     pub const CELL_TRIANGLES: u32 = 14;
@@ -62,8 +65,9 @@ pub mod counter {
     pub const SATURATED_MASKS: usize = 17;
     pub const ENTRIES_BEHIND: usize = 19;
     pub const TRIANGLES_BEHIND: usize = 20;
+    pub const SHADOW_MAP_EARLY_OUTS: usize = 21;
     /// Words in the counters buffer.
-    pub const WORDS: usize = 21;
+    pub const WORDS: usize = 22;
 }
 
 /// Local sizes of the pixel passes (8×8 tiles) and the linear passes.
@@ -97,7 +101,7 @@ pub struct FrameParams {
     pub triangle_count: u32,
     pub mode: u32,
     pub cells_hint: u32,
-    pub max_span: u32,
+    pub overflow_cells: u32,
     pub cell_capacity: u32,
     pub lut_angle_scale: f32,
     pub lut_distance_scale: f32,
@@ -112,13 +116,37 @@ pub struct FrameParams {
     /// [`crate::izb::Skips::bits`].
     pub skips: u32,
     pub pattern_radius: f32,
+    /// Unit view direction (view depth = position · it).
+    pub cam_forward: [f32; 3],
+    /// [`crate::izb::CascadeCount::code`]: 1..=4, 0 for auto.
+    pub cascades: u32,
+    pub split_lambda: f32,
+    pub pad: [u32; 3],
     pub pattern: [[f32; 2]; 32],
 }
-const _: () = assert!(size_of::<FrameParams>() == 160 + 256);
+const _: () = assert!(size_of::<FrameParams>() == 192 + 256);
 const _: () = assert!(offset_of!(FrameParams, mode) == 112);
-const _: () = assert!(offset_of!(FrameParams, pattern) == 160);
+const _: () = assert!(offset_of!(FrameParams, cam_forward) == 160);
+const _: () = assert!(offset_of!(FrameParams, pattern) == 192);
 
-/// `LightState`: light view and grid, written on the GPU by `light_setup`.
+/// `CascadeGrid`: one cascade's grid ([`crate::izb::light_setup::CascadeGrid`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct CascadeGrid {
+    pub ndc_min: [f32; 2],
+    pub ndc_max: [f32; 2],
+    pub cells_x: u32,
+    pub cells_y: u32,
+    pub cell_offset: u32,
+    pub overflow_cells: u32,
+    pub receivers: u32,
+    pub ndc_lo: [u32; 2],
+    pub ndc_hi: [u32; 2],
+}
+const _: () = assert!(size_of::<CascadeGrid>() == 52);
+
+/// `LightState`: light view, cascades and grids, written on the GPU by
+/// `light_setup`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct LightState {
@@ -129,34 +157,42 @@ pub struct LightState {
     pub rot_z: [f32; 3],
     pub receivers: u32,
     pub origin: [f32; 3],
-    pub cells_x: u32,
-    pub ndc_min: [f32; 2],
-    pub ndc_max: [f32; 2],
+    pub cascade_count: u32,
     pub receiver_z: [f32; 2],
-    pub cells_y: u32,
     pub behind_light: u32,
+    pub total_cells: u32,
+    pub split: [f32; MAX_CASCADES],
+    pub view_depth: [f32; 2],
     pub pos_lo: [u32; 3],
     pub pos_hi: [u32; 3],
-    pub ndc_lo: [u32; 2],
-    pub ndc_hi: [u32; 2],
+    pub depth_lo: u32,
+    pub depth_hi: u32,
     pub z_lo: u32,
     pub z_hi: u32,
+    pub cascade: [CascadeGrid; MAX_CASCADES],
 }
-const _: () = assert!(size_of::<LightState>() == 144);
-const _: () = assert!(offset_of!(LightState, ndc_min) == 64);
-const _: () = assert!(offset_of!(LightState, pos_lo) == 96);
+const _: () = assert!(size_of::<LightState>() == 144 + 4 * 52);
+const _: () = assert!(offset_of!(LightState, receiver_z) == 64);
+const _: () = assert!(offset_of!(LightState, pos_lo) == 104);
+const _: () = assert!(offset_of!(LightState, cascade) == 144);
 
 impl LightState {
     /// The state before the reductions: every minimum at the largest
     /// ordered value, every maximum at the smallest.
     pub fn reset() -> Self {
+        let grid = CascadeGrid {
+            ndc_lo: [u32::MAX; 2],
+            ndc_hi: [0; 2],
+            ..Zeroable::zeroed()
+        };
         LightState {
             pos_lo: [u32::MAX; 3],
             pos_hi: [0; 3],
-            ndc_lo: [u32::MAX; 2],
-            ndc_hi: [0; 2],
+            depth_lo: u32::MAX,
+            depth_hi: 0,
             z_lo: u32::MAX,
             z_hi: 0,
+            cascade: [grid; MAX_CASCADES],
             ..Zeroable::zeroed()
         }
     }

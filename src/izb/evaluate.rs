@@ -10,7 +10,7 @@
 //! So visiting every cell of that box, padded like the triangles' boxes,
 //! visits every triangle able to shadow any of the 32 samples.
 
-use super::bin::{cell_range, Bins, Placement};
+use super::bin::{cell_range, Bins, NO_COVER};
 use super::frustum::{edge_function, exact_edge_mask, may_shadow, saturated_edge, LightRel};
 use super::light_setup::LightSetup;
 use super::{is_receiver, Skips};
@@ -51,6 +51,9 @@ pub struct EvaluateStats {
     pub saturated_masks: u64,
     /// Grid cells visited over all pixels.
     pub cells_visited: u64,
+    /// Pixels whose cover triangle (the conservative shadow map) alone
+    /// filled the mask: their triangle loop was skipped.
+    pub shadow_map_early_outs: usize,
 }
 
 /// What evaluate needs of one pixel, in light view.
@@ -60,26 +63,40 @@ struct PixelFrustum {
     ex: Vec3,
     ey: Vec3,
     receiver: u32,
+    /// The pixel's cascade.
+    cascade: usize,
     cells: Option<[u32; 4]>,
+    /// Cell-array index of the cell under the µQuad centre (the
+    /// conservative shadow map's texel).
+    centre_cell: Option<usize>,
 }
 
 fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
     let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
-    let cells = if setup.grid_disabled {
-        None
-    } else {
+    let cascade = setup.cascade_of(p);
+    let grid = &setup.cascades[cascade];
+    let (mut cells, mut centre_cell) = (None, None);
+    if !setup.grid_disabled {
         // Every receiver corner is in front of the light (else the grid is
         // disabled), so the box is not NaN.
-        let (lo, hi) = setup.microquad_grid_box(p, ex, ey);
-        cell_range(setup, lo, hi)
-    };
+        let (lo, hi) = setup.microquad_grid_box(grid, p, ex, ey);
+        cells = cell_range(grid, lo, hi);
+        if let (Some([x0, y0, x1, y1]), Some(n)) = (cells, setup.ndc(setup.to_light_view(p))) {
+            let c = grid.grid_coords(n);
+            let x = (c.x.max(0.0) as u32).clamp(x0, x1);
+            let y = (c.y.max(0.0) as u32).clamp(y0, y1);
+            centre_cell = Some(grid.cell_index(x, y));
+        }
+    }
     PixelFrustum {
         p: setup.to_light_view(p),
         normal: setup.rotate(g.normal[i]),
         ex: setup.rotate(ex),
         ey: setup.rotate(ey),
         receiver: g.triangle_id[i],
+        cascade,
         cells,
+        centre_cell,
     }
 }
 
@@ -178,40 +195,42 @@ fn triangle_mask(
 }
 
 /// Calls `visit(id)` once for every candidate triangle of shadow-tested
-/// pixel `i` — the overflow list, then each triangle of the cells under the
-/// µQuad — until `visit` returns `true` (the mask is full). Returns the
-/// number of cells visited.
+/// pixel `i` — the overflow list of its cascade, then each triangle of the
+/// cells under the µQuad in its cascade's grid — until `visit` returns
+/// `true` (the mask is full). Returns the number of cells visited.
 pub fn for_each_candidate(
     setup: &LightSetup,
     bins: &Bins,
     g: &GBuffer,
     i: usize,
+    visit: impl FnMut(u32) -> bool,
+) -> u64 {
+    candidates_of(setup, bins, &pixel_frustum(setup, g, i), visit)
+}
+
+fn candidates_of(
+    setup: &LightSetup,
+    bins: &Bins,
+    px: &PixelFrustum,
     mut visit: impl FnMut(u32) -> bool,
 ) -> u64 {
-    let px = pixel_frustum(setup, g, i);
-    for &id in &bins.overflow {
-        if visit(id) {
+    let bit = 1u8 << px.cascade;
+    for e in &bins.overflow {
+        if e.cascades & bit != 0 && visit(e.id) {
             return 0;
         }
     }
     let mut cells = 0;
+    let grid = &setup.cascades[px.cascade];
     if let Some([x0, y0, x1, y1]) = px.cells {
         for y in y0..=y1 {
             for x in x0..=x1 {
                 cells += 1;
-                for &id in bins.cell(setup, x, y) {
+                for e in bins.cell(grid, x, y) {
                     // A triangle in several of the visited cells is tested
-                    // once: in the first cell (lowest y, then x) of the
-                    // overlap of its rectangle and the pixel's.
-                    if let Placement::Cells {
-                        x0: tx0, y0: ty0, ..
-                    } = bins.placement[id as usize]
-                    {
-                        if x != tx0.max(x0) || y != ty0.max(y0) {
-                            continue;
-                        }
-                    }
-                    if visit(id) {
+                    // once: in the first cell of the overlap of its
+                    // rectangle and the pixel's (see `CellEntry`).
+                    if e.tested_in(x, y, x0, y0) && visit(e.id) {
                         return cells;
                     }
                 }
@@ -234,25 +253,50 @@ fn evaluate_pixel(
     let mut mask = 0u32;
     let mut tests = 0u64;
     let mut counters = TestCounters::default();
-    let stop_when_full = rule.skips.full_mask;
-    let cells = for_each_candidate(setup, bins, g, i, |id| {
-        if id != px.receiver {
-            tests += 1;
-            mask |= triangle_mask(
-                &px,
-                &bins.vertex_cache[id as usize],
-                setup,
-                rule,
-                &mut counters,
-            );
-        }
-        stop_when_full && mask == FULL
-    });
+    // The conservative shadow map: the cover triangle of the centre's cell
+    // first. Its mask is 0 unless it is one of the pixel's candidates (the
+    // grid offers every triangle that can shadow a sample), so ORing it in
+    // and skipping it in the loop leaves the mask as it was; when it fills
+    // the mask alone, the loop is skipped.
+    let cover = match px.centre_cell {
+        Some(c) if rule.skips.shadow_map => bins.cover.get(c).copied().unwrap_or(NO_COVER),
+        _ => NO_COVER,
+    };
+    if cover != NO_COVER && cover != px.receiver {
+        tests += 1;
+        mask = triangle_mask(
+            &px,
+            &bins.vertex_cache[cover as usize],
+            setup,
+            rule,
+            &mut counters,
+        );
+    }
+    let cells = if mask == FULL {
+        stats.shadow_map_early_outs += 1;
+        0
+    } else {
+        let stop_when_full = rule.skips.full_mask;
+        let cells = candidates_of(setup, bins, &px, |id| {
+            if id != px.receiver && id != cover {
+                tests += 1;
+                mask |= triangle_mask(
+                    &px,
+                    &bins.vertex_cache[id as usize],
+                    setup,
+                    rule,
+                    &mut counters,
+                );
+            }
+            stop_when_full && mask == FULL
+        });
+        stats.early_outs += (stop_when_full && mask == FULL) as usize;
+        cells
+    };
     stats.tests_spawned += tests;
     stats.depth_passed += counters.depth_passed;
     stats.saturated_masks += counters.saturated_masks;
     stats.cells_visited += cells;
-    stats.early_outs += (stop_when_full && mask == FULL) as usize;
     mask
 }
 
@@ -321,6 +365,7 @@ pub fn evaluate(
         stats.saturated_masks += s.saturated_masks;
         stats.early_outs += s.early_outs;
         stats.cells_visited += s.cells_visited;
+        stats.shadow_map_early_outs += s.shadow_map_early_outs;
     }
     (masks, stats)
 }

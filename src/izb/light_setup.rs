@@ -7,6 +7,7 @@
 //! (orthographic), `(x/z, y/z)` for a point light (perspective, z along the
 //! light's view axis).
 
+use super::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::{Light, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
@@ -22,6 +23,50 @@ pub enum Projection {
     Perspective,
 }
 
+/// One cascade's light-space grid. Every cascade shares the frame's
+/// light view; only the NDC bounds and the cells differ.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct CascadeGrid {
+    /// Grid bounds in light NDC: lower and upper corner.
+    pub ndc_min: Vec2,
+    pub ndc_max: Vec2,
+    /// Cells along x and y; `[0, 0]` for a cascade without receivers.
+    pub cells: [u32; 2],
+    /// Index of this grid's first cell in the frame's cell arrays: the
+    /// cascades' grids lie back to back.
+    pub cell_offset: u32,
+    /// Triangles whose cell rectangle holds more cells than this overflow.
+    pub overflow_cells: u32,
+    /// Shadow-tested pixels in this cascade.
+    pub receivers: usize,
+}
+
+impl CascadeGrid {
+    /// Continuous grid coordinates (cells) of a light NDC point.
+    #[inline]
+    pub fn grid_coords(&self, ndc: Vec2) -> Vec2 {
+        let size = Vec2::new(self.cells[0] as f32, self.cells[1] as f32);
+        (ndc - self.ndc_min) / (self.ndc_max - self.ndc_min) * size
+    }
+
+    /// Light NDC of grid coordinates (the inverse of [`Self::grid_coords`]).
+    #[inline]
+    pub fn ndc_of_grid(&self, g: Vec2) -> Vec2 {
+        let size = Vec2::new(self.cells[0] as f32, self.cells[1] as f32);
+        self.ndc_min + g / size * (self.ndc_max - self.ndc_min)
+    }
+
+    /// Index of cell (x, y) in the frame's cell arrays.
+    #[inline]
+    pub fn cell_index(&self, x: u32, y: u32) -> usize {
+        (self.cell_offset + y * self.cells[0] + x) as usize
+    }
+
+    pub fn cell_count(&self) -> u32 {
+        self.cells[0] * self.cells[1]
+    }
+}
+
 /// Everything later passes need to map points into light space.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct LightSetup {
@@ -31,11 +76,15 @@ pub struct LightSetup {
     pub rotation: Mat3,
     /// Light-view origin, eye-relative (f32: the renderer's own frame).
     pub origin: Vec3,
-    /// Grid bounds in light NDC: lower and upper corner.
-    pub ndc_min: Vec2,
-    pub ndc_max: Vec2,
-    /// Grid cells along x and y.
-    pub cells: [u32; 2],
+    /// The camera's unit view direction (f32): view depth = position · it.
+    #[serde(skip)]
+    pub view_forward: Vec3,
+    /// How many cascades and why.
+    pub cascade_choice: CascadeChoice,
+    /// Upper view depth of each cascade ([`cascades::split_depths`]).
+    pub split_depths: [f32; MAX_CASCADES],
+    /// One grid per cascade, `cascade_choice.count` of them.
+    pub cascades: Vec<CascadeGrid>,
     /// Light-view depth range of the receivers' µQuads (z, toward the light
     /// for a directional light; distance along the axis for a point light).
     pub receiver_z: [f32; 2],
@@ -74,29 +123,39 @@ impl LightSetup {
         }
     }
 
-    /// Continuous grid coordinates (cells) of a light NDC point.
+    /// View depth of an eye-relative point.
     #[inline]
-    pub fn grid_coords(&self, ndc: Vec2) -> Vec2 {
-        let size = Vec2::new(self.cells[0] as f32, self.cells[1] as f32);
-        (ndc - self.ndc_min) / (self.ndc_max - self.ndc_min) * size
+    pub fn view_depth(&self, eye_relative: Vec3) -> f32 {
+        eye_relative.dot(self.view_forward)
     }
 
-    /// Light NDC of grid coordinates (the inverse of [`Self::grid_coords`]).
+    /// The cascade of a receiver at eye-relative `position`.
     #[inline]
-    pub fn ndc_of_grid(&self, g: Vec2) -> Vec2 {
-        let size = Vec2::new(self.cells[0] as f32, self.cells[1] as f32);
-        self.ndc_min + g / size * (self.ndc_max - self.ndc_min)
+    pub fn cascade_of(&self, position: Vec3) -> usize {
+        cascades::cascade_of_depth(&self.split_depths, self.view_depth(position))
+            .min(self.cascades.len() - 1)
     }
 
-    /// Grid-space bounding box of the µQuad (centre `p`, axes `ex`, `ey`,
-    /// eye-relative): the box of its projected corners, which holds the
-    /// projection of every point of the µQuad, its centre included. NaN
-    /// when a corner is not in front of a point light.
-    pub fn microquad_grid_box(&self, p: Vec3, ex: Vec3, ey: Vec3) -> (Vec2, Vec2) {
+    /// Cells of all cascades together.
+    pub fn total_cells(&self) -> usize {
+        self.cascades.iter().map(|c| c.cell_count() as usize).sum()
+    }
+
+    /// Grid-space bounding box, in `grid`, of the µQuad (centre `p`, axes
+    /// `ex`, `ey`, eye-relative): the box of its projected corners, which
+    /// holds the projection of every point of the µQuad, its centre
+    /// included. NaN when a corner is not in front of a point light.
+    pub fn microquad_grid_box(
+        &self,
+        grid: &CascadeGrid,
+        p: Vec3,
+        ex: Vec3,
+        ey: Vec3,
+    ) -> (Vec2, Vec2) {
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for c in microquad_corners(p, ex, ey) {
             let n = self.ndc(self.to_light_view(c)).unwrap_or(Vec2::NAN);
-            let gc = self.grid_coords(n);
+            let gc = grid.grid_coords(n);
             lo = lo.min(gc);
             hi = hi.max(gc);
         }
@@ -142,20 +201,40 @@ pub fn default_grid_side(receivers: usize, triangles: usize) -> u32 {
     (per_cell.sqrt().ceil() as u32).clamp(8, 1024)
 }
 
-/// Fits the light view and grid to the shadow-tested pixels of `gbuffer`.
-/// `cells_hint` overrides the automatic grid size (cells along the longer
-/// side).
-pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, cells_hint: Option<u32>) -> LightSetup {
+/// What [`light_setup`] is asked for besides the scene and G-buffer.
+#[derive(Clone, Copy, Debug)]
+pub struct GridRequest {
+    /// Cells along the longer side of a single grid (`None`: from the
+    /// receiver and triangle counts), shared between cascades.
+    pub cells: Option<u32>,
+    /// Overflow threshold in cells per triangle (`None`: per cascade,
+    /// [`cascades::cascade_overflow_cells`]).
+    pub overflow_cells: Option<u32>,
+    pub cascades: CascadeCount,
+    /// Blend of logarithmic (1) and uniform (0) splits.
+    pub split_lambda: f32,
+}
+
+/// Fits the light view, the cascades and their grids to the shadow-tested
+/// pixels of `gbuffer`.
+pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> LightSetup {
     let light = scene.light.relative_to(scene.camera.eye);
+    let view_forward = scene.camera.frame(scene.resolution).forward.as_vec3();
     let tested: Vec<usize> = (0..gbuffer.flags.len())
         .filter(|&i| gbuffer.flags[i] & flags::SHADOW_TESTED != 0)
         .collect();
     // Receivers' eye-relative bounds centre: the light-view origin of a
-    // directional light, the aim of a point light.
+    // directional light, the aim of a point light. View depth range: the
+    // cascade splits.
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    let (mut near, mut far) = (f32::INFINITY, f32::NEG_INFINITY);
     for &i in &tested {
-        lo = lo.min(gbuffer.position[i]);
-        hi = hi.max(gbuffer.position[i]);
+        let p = gbuffer.position[i];
+        lo = lo.min(p);
+        hi = hi.max(p);
+        let d = p.dot(view_forward);
+        near = near.min(d);
+        far = far.max(d);
     }
     let centre = if tested.is_empty() {
         Vec3::ZERO
@@ -179,58 +258,115 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, cells_hint: Option<u32>) ->
         projection,
         rotation: rotation.as_mat3(),
         origin,
-        ndc_min: Vec2::ZERO,
-        ndc_max: Vec2::ONE,
-        cells: [1, 1],
+        view_forward,
+        cascade_choice: CascadeChoice {
+            requested: request.cascades,
+            count: 1,
+            split_lambda: request.split_lambda,
+            reason: "no shadow-tested pixels".into(),
+            ..Default::default()
+        },
+        split_depths: [f32::INFINITY; MAX_CASCADES],
+        cascades: vec![CascadeGrid {
+            ndc_max: Vec2::ONE,
+            cells: [1, 1],
+            overflow_cells: request
+                .overflow_cells
+                .unwrap_or(cascades::cascade_overflow_cells(0)),
+            ..Default::default()
+        }],
         receiver_z: [0.0, 0.0],
         receivers: tested.len(),
         grid_disabled: false,
     };
-    let (mut nmin, mut nmax) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    if tested.is_empty() {
+        return setup;
+    }
+    // The pixels' cascades.
+    let choice = CascadeChoice::new(request.cascades, near, far, request.split_lambda);
+    setup.split_depths = cascades::split_depths(near, far, choice.count, request.split_lambda);
+    let count = choice.count as usize;
+    setup.cascade_choice = choice;
+    let cascade_of = |i: usize| {
+        cascades::cascade_of_depth(&setup.split_depths, gbuffer.position[i].dot(view_forward))
+            .min(count - 1)
+    };
+    // Per cascade: light-NDC bounds of its µQuads' corners.
+    let mut nmin = [Vec2::splat(f32::INFINITY); MAX_CASCADES];
+    let mut nmax = [Vec2::splat(f32::NEG_INFINITY); MAX_CASCADES];
+    let mut receivers = [0usize; MAX_CASCADES];
     let (mut zmin, mut zmax) = (f32::INFINITY, f32::NEG_INFINITY);
     for &i in &tested {
+        let k = cascade_of(i);
+        receivers[k] += 1;
         for corner in microquad_corners(gbuffer.position[i], gbuffer.axis_x[i], gbuffer.axis_y[i]) {
             let p = setup.to_light_view(corner);
             zmin = zmin.min(p.z);
             zmax = zmax.max(p.z);
             match setup.ndc(p) {
                 Some(n) => {
-                    nmin = nmin.min(n);
-                    nmax = nmax.max(n);
+                    nmin[k] = nmin[k].min(n);
+                    nmax[k] = nmax[k].max(n);
                 }
                 None => setup.grid_disabled = true,
             }
         }
-    }
-    if tested.is_empty() {
-        return setup;
     }
     if projection == Projection::Perspective && zmin <= MIN_PERSPECTIVE_DEPTH_RATIO * zmax {
         setup.grid_disabled = true;
     }
     setup.receiver_z = [zmin, zmax];
     if setup.grid_disabled {
+        setup.split_depths = [f32::INFINITY; MAX_CASCADES];
+        setup.cascade_choice.count = 1;
+        setup.cascade_choice.reason =
+            "no grid: the receivers surround the point light, every triangle overflows".into();
         return setup;
     }
-    // Pad the bounds by a relative 1e-4 so µQuad corners on the boundary
-    // stay inside after rounding.
-    let pad = (nmax - nmin).max_element().max(f32::MIN_POSITIVE) * 1e-4;
-    setup.ndc_min = nmin - pad;
-    setup.ndc_max = nmax + pad;
-    let longest =
-        cells_hint.unwrap_or_else(|| default_grid_side(tested.len(), scene.triangles.len()));
-    let extent = setup.ndc_max - setup.ndc_min;
-    let (cx, cy) = if extent.x >= extent.y {
-        (
+    let side = request
+        .cells
+        .unwrap_or_else(|| default_grid_side(tested.len(), scene.triangles.len()));
+    let mut offset = 0;
+    setup.cascades = (0..count)
+        .map(|k| {
+            let mut grid = CascadeGrid {
+                cell_offset: offset,
+                receivers: receivers[k],
+                ..Default::default()
+            };
+            if receivers[k] == 0 {
+                return grid; // an empty cascade: no cells, nothing binned
+            }
+            // Pad the bounds by a relative 1e-4 so µQuad corners on the
+            // boundary stay inside after rounding.
+            let pad = (nmax[k] - nmin[k]).max_element().max(f32::MIN_POSITIVE) * 1e-4;
+            grid.ndc_min = nmin[k] - pad;
+            grid.ndc_max = nmax[k] + pad;
+            let longest =
+                cascades::cascade_grid_side(side, receivers[k], tested.len(), count as u32);
+            grid.cells = grid_cells(longest, grid.ndc_max - grid.ndc_min);
+            grid.overflow_cells = request
+                .overflow_cells
+                .unwrap_or_else(|| cascades::cascade_overflow_cells(receivers[k]));
+            offset += grid.cell_count();
+            grid
+        })
+        .collect();
+    setup
+}
+
+/// Cells along x and y of a grid `longest` cells along the longer side of
+/// an NDC extent, square in NDC.
+fn grid_cells(longest: u32, extent: Vec2) -> [u32; 2] {
+    if extent.x >= extent.y {
+        [
             longest,
             ((longest as f32 * extent.y / extent.x).ceil() as u32).max(1),
-        )
+        ]
     } else {
-        (
+        [
             ((longest as f32 * extent.x / extent.y).ceil() as u32).max(1),
             longest,
-        )
-    };
-    setup.cells = [cx, cy];
-    setup
+        ]
+    }
 }

@@ -1,8 +1,10 @@
 //! The compute irregular z-buffer on the CPU (rayon): the CPU twin of the
 //! GPU passes, one function per pass with the pass's name.
 //!
-//! 1. [`light_setup`]: light-view frame, grid bounds fitted to the µQuads;
-//! 2. [`bin`](bin::bin): count, prefix sum, scatter; vertex cache; overflow;
+//! 1. [`light_setup`]: light-view frame, cascades ([`cascades`]), one grid
+//!    per cascade fitted to its pixels' µQuads;
+//! 2. [`bin`](bin::bin): count, prefix sum, scatter into every cascade's
+//!    grid; vertex cache; overflow; the conservative shadow map;
 //! 3. [`evaluate`](evaluate::evaluate): frustum-triangle tests per pixel,
 //!    OR of per-triangle masks, early exit when full;
 //! 4. [`resolve`]: lit fraction from the mask.
@@ -10,13 +12,15 @@
 //! The G-buffer (pass 0) comes from [`crate::gbuffer`].
 
 pub mod bin;
+pub mod cascades;
 pub mod evaluate;
 pub mod frustum;
 pub mod light_setup;
 pub mod skips;
 
+pub use cascades::CascadeCount;
 pub use evaluate::{MaskRule, SampleMode, FULL};
-pub use light_setup::{light_setup, LightSetup};
+pub use light_setup::{light_setup, GridRequest, LightSetup};
 pub use skips::Skips;
 
 use crate::gbuffer::{flags, gbuffer, GBuffer, GBufferStats};
@@ -28,10 +32,16 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct IzbSettings {
     pub mode: SampleMode,
-    /// Grid cells along the longer side (None: chosen from the pixel count).
+    /// Grid cells along the longer side of a single grid, shared between
+    /// the cascades (None: chosen from the receiver and triangle counts).
     pub cells: Option<u32>,
-    /// Triangles spanning more cells than this on an axis overflow.
-    pub max_span: u32,
+    /// Triangles whose cell rectangle holds more cells than this overflow
+    /// (None: chosen per cascade from its pixel count).
+    pub overflow_cells: Option<u32>,
+    /// Sample-distribution cascades (seed 002 §6.4).
+    pub cascades: CascadeCount,
+    /// Split blend: 1 logarithmic, 0 uniform.
+    pub split_lambda: f32,
     /// Exact shortcuts to take (all by default).
     pub skips: Skips,
 }
@@ -45,12 +55,26 @@ pub fn is_receiver(pixel_flags: u32, skips: Skips) -> bool {
     pixel_flags & flags::SHADOW_TESTED != 0 || (!skips.facing_away && pixel_flags & flags::HIT != 0)
 }
 
+impl IzbSettings {
+    /// What the light setup is asked for.
+    pub fn grid_request(&self) -> GridRequest {
+        GridRequest {
+            cells: self.cells,
+            overflow_cells: self.overflow_cells,
+            cascades: self.cascades,
+            split_lambda: self.split_lambda,
+        }
+    }
+}
+
 impl Default for IzbSettings {
     fn default() -> Self {
         IzbSettings {
             mode: SampleMode::Lut32,
             cells: None,
-            max_span: bin::DEFAULT_MAX_SPAN,
+            overflow_cells: None,
+            cascades: CascadeCount::Auto,
+            split_lambda: 1.0,
             skips: Skips::ALL,
         }
     }
@@ -156,7 +180,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     };
     let g = gbuffer(scene, bvh);
     seconds.gbuffer = lap();
-    let setup = light_setup(scene, &g, settings.cells);
+    let setup = light_setup(scene, &g, settings.grid_request());
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
     let receivers = settings
@@ -164,13 +188,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
         .behind_receivers
         .then(|| bin::cell_receivers(&setup, &g, settings.skips))
         .flatten();
-    let bins = bin::bin(
-        &setup,
-        &triangles,
-        settings.max_span,
-        settings.skips,
-        receivers.as_ref(),
-    );
+    let bins = bin::bin(&setup, &triangles, settings.skips, receivers.as_ref());
     seconds.bin = lap();
     let rule = MaskRule::new(settings.mode, settings.skips);
     let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &g, &rule);

@@ -31,6 +31,13 @@ pub struct Skips {
     /// all when no receiver touches it (seed 002 §5.4): see
     /// [`super::bin::behind_receivers`]. Directional lights only.
     pub behind_receivers: bool,
+    /// The conservative shadow-map early-out (Tokuyoshi 2018, seed 000),
+    /// exact by construction: the bin pass records per cell the triangle
+    /// whose shadow covers the whole cell with the highest floor
+    /// ([`super::bin::cover_floor`]); a pixel tests that one first, with
+    /// the ordinary test, and skips the rest of its loop when it alone
+    /// fills the mask. Directional lights only.
+    pub shadow_map: bool,
 }
 
 impl Default for Skips {
@@ -42,12 +49,13 @@ impl Default for Skips {
 /// One skip's name (as `--skip` spells it) and its field.
 type SkipField = (&'static str, fn(&mut Skips) -> &mut bool);
 
-const FIELDS: [SkipField; 5] = [
+const FIELDS: [SkipField; 6] = [
     ("facing-away", |s| &mut s.facing_away),
     ("outside-bounds", |s| &mut s.outside_bounds),
     ("full-mask", |s| &mut s.full_mask),
     ("saturated-edges", |s| &mut s.saturated_edges),
     ("behind-receivers", |s| &mut s.behind_receivers),
+    ("shadow-map", |s| &mut s.shadow_map),
 ];
 
 impl Skips {
@@ -57,6 +65,7 @@ impl Skips {
         full_mask: true,
         saturated_edges: true,
         behind_receivers: true,
+        shadow_map: true,
     };
     pub const NONE: Skips = Skips {
         facing_away: false,
@@ -64,6 +73,7 @@ impl Skips {
         full_mask: false,
         saturated_edges: false,
         behind_receivers: false,
+        shadow_map: false,
     };
 
     /// Every skip's `--skip` name.
@@ -136,7 +146,7 @@ mod tests {
         for text in ["all", "none", "full-mask", "facing-away,saturated-edges"] {
             assert_eq!(Skips::parse(text).unwrap().to_string(), text);
         }
-        assert_eq!(Skips::ALL.bits(), 0b11111);
+        assert_eq!(Skips::ALL.bits(), 0b111111);
         assert_eq!(Skips::NONE.bits(), 0);
         assert_eq!(Skips::parse("outside-bounds").unwrap().bits(), 0b10);
         let e = Skips::parse("full-mask,bogus").unwrap_err();

@@ -1,0 +1,273 @@
+//! Sample-distribution cascades (Lauritzen et al. 2011, seed 002 §6.4):
+//! the shadow-tested pixels are split by view depth into 1–4 cascades, and
+//! each cascade gets its own light-space grid fitted to its own pixels'
+//! µQuads (see [`super::light_setup`]).
+//!
+//! Why an IZB wants them: a pixel's µQuad grows with its view depth, so one
+//! grid sized for the average pixel puts hundreds of far pixels in one cell
+//! and spreads a near pixel's µQuad over many cells (each one more list to
+//! walk). A cascade whose pixels span a view-depth ratio of at most
+//! [`AUTO_MAX_DEPTH_RATIO`] keeps the µQuad size within that ratio inside
+//! its grid. (Measured, they do not pay below that on our scenes: see the
+//! constant.)
+//!
+//! Exactness does not depend on the split: every cascade shares one
+//! light-view frame (rotation and origin), so a pixel's light-view
+//! coordinates, and with them every triangle test, are bit-for-bit the same
+//! whichever cascade it lands in; only the grid it looks its candidates up
+//! in differs, and every grid offers every triangle that can shadow it.
+//! The GPU twin computes the same expressions in `f32` (`light_setup.comp`,
+//! `STEP_FRAME` and `STEP_GRID`); a driver's `pow` may round differently,
+//! which can move a pixel at a split into the next cascade and change the
+//! counters, never a mask.
+
+use std::fmt;
+
+/// Most cascades a frame may have.
+pub const MAX_CASCADES: usize = 4;
+
+/// `auto` uses the fewest cascades (up to [`MAX_CASCADES`]) whose
+/// logarithmic splits keep each cascade's far/near view-depth ratio at or
+/// below this. Measured (CPU twin, 480×270, tests spawned at the same total
+/// cell budget): 2 cascades cost 0.89–1.47× the tests of one on every scene
+/// we have (view-depth ratios 1.9–9.5; courtyard 1.47×, grazing 1.12×,
+/// city 0.89×), because the far cascade's grid is coarse over a wide
+/// light-space area and triangles near a split are listed in both grids.
+/// So `auto` keeps one grid up to a ratio of 16 and splits only deeper
+/// views, where one grid's cells must serve µQuads more than 16× apart in
+/// size.
+pub const AUTO_MAX_DEPTH_RATIO: f32 = 16.0;
+
+/// How many cascades to use (`--cascades auto|1..4`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum CascadeCount {
+    /// As few as the view-depth range needs ([`cascade_count`]).
+    #[default]
+    Auto,
+    /// Exactly this many (1..=4).
+    Fixed(u32),
+}
+
+impl CascadeCount {
+    /// Parses `auto` or a count in 1..=4.
+    pub fn parse(text: &str) -> Result<CascadeCount, String> {
+        match text.trim() {
+            "auto" => Ok(CascadeCount::Auto),
+            t => match t.parse::<u32>() {
+                Ok(n) if (1..=MAX_CASCADES as u32).contains(&n) => Ok(CascadeCount::Fixed(n)),
+                _ => Err(format!(
+                    "cascades must be `auto` or 1..={MAX_CASCADES}, not `{t}`"
+                )),
+            },
+        }
+    }
+
+    /// `FrameParams::cascades`: 0 for auto.
+    pub fn code(self) -> u32 {
+        match self {
+            CascadeCount::Auto => 0,
+            CascadeCount::Fixed(n) => n,
+        }
+    }
+}
+
+impl fmt::Display for CascadeCount {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CascadeCount::Auto => f.write_str("auto"),
+            CascadeCount::Fixed(n) => write!(f, "{n}"),
+        }
+    }
+}
+
+impl serde::Serialize for CascadeCount {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+/// Cascades for view depths `[near, far]` of the shadow-tested pixels:
+/// `Fixed(n)` gives n; `Auto` the smallest K ≤ [`MAX_CASCADES`] with
+/// far ≤ near · 4^K (compared exactly: multiplying by 4 is exact in `f32`,
+/// so both backends agree).
+pub fn cascade_count(requested: CascadeCount, near: f32, far: f32) -> u32 {
+    match requested {
+        CascadeCount::Fixed(n) => n.clamp(1, MAX_CASCADES as u32),
+        CascadeCount::Auto => {
+            let mut k = 1;
+            let mut reach = near * AUTO_MAX_DEPTH_RATIO;
+            while k < MAX_CASCADES as u32 && far > reach {
+                k += 1;
+                reach *= AUTO_MAX_DEPTH_RATIO;
+            }
+            k
+        }
+    }
+}
+
+/// Upper view depth of each of `count` cascades over `[near, far]`: the
+/// practical split scheme, `λ` times the logarithmic split plus `1 − λ`
+/// times the uniform one (`λ` = 1: purely logarithmic, which gives every
+/// cascade the same far/near ratio). The last used cascade and the unused
+/// slots are +∞, so every pixel lands in a cascade.
+pub fn split_depths(near: f32, far: f32, count: u32, lambda: f32) -> [f32; MAX_CASCADES] {
+    let mut upper = [f32::INFINITY; MAX_CASCADES];
+    for (k, u) in upper.iter_mut().enumerate().take(count as usize - 1) {
+        let s = (k + 1) as f32 / count as f32;
+        let log = near * (far / near).powf(s);
+        let uniform = near + (far - near) * s;
+        *u = lambda * log + (1.0 - lambda) * uniform;
+    }
+    upper
+}
+
+/// The cascade of a pixel at view depth `depth`: the first whose upper
+/// split is at or beyond it.
+#[inline]
+pub fn cascade_of_depth(upper: &[f32; MAX_CASCADES], depth: f32) -> usize {
+    upper
+        .iter()
+        .position(|&u| depth <= u)
+        .unwrap_or(MAX_CASCADES - 1)
+}
+
+/// Cells along the longer side of a cascade's grid: the whole frame's side
+/// (from all receivers and triangles, [`super::light_setup::default_grid_side`]
+/// or `--cells`) shared in proportion to the cascade's receivers, so every
+/// cascade keeps about the same receivers per cell and all grids together
+/// hold at most `side² + 64 · cascades` cells (the GPU sizes its cell
+/// arrays by that). At least 8 cells (or `side`, if smaller); one cascade
+/// gets `side` itself.
+pub fn cascade_grid_side(side: u32, receivers: usize, all_receivers: usize, count: u32) -> u32 {
+    if count <= 1 || all_receivers == 0 {
+        return side;
+    }
+    let share = (receivers as f32 / all_receivers as f32).sqrt();
+    ((side as f32 * share) as u32).max(side.min(8))
+}
+
+/// The most cells all cascades' grids may need for a frame whose single-cascade side is
+/// `side`: what the cell arrays are sized for.
+pub fn max_total_cells(side: u32) -> u64 {
+    u64::from(side) * u64::from(side) + 64 * MAX_CASCADES as u64
+}
+
+/// Overflow threshold of a cascade with `receivers` shadow-tested pixels
+/// (seed 002 §6.3): a triangle whose cell rectangle holds more cells than
+/// this goes to the overflow list. In the overflow list a triangle is
+/// tested by every pixel of the cascade; binned, it costs one entry per
+/// cell and is tested only by the pixels under it. So binning is cheaper
+/// until its entries approach the cascade's pixel count: the threshold is
+/// 1/16 of the receivers, at least 64 cells and at most 4096 (64², what
+/// one bin thread may loop over). An area, not a side: a wire 200 cells
+/// long and 1 wide costs 200 entries, far less than every pixel's test.
+/// Seed 000 found its fixed 32-cell side worth doubling from 16 for the
+/// same reason; a fixed value is wrong for a small far cascade, where a
+/// ground triangle spans much of the grid (measured on `default` at
+/// 320×180 with a side-based `side / 8`: 4.1 M tests with 2 cascades
+/// against 1.3 M with one, from 106 overflow triangles).
+pub fn cascade_overflow_cells(receivers: usize) -> u32 {
+    (receivers / 16).clamp(64, 4096) as u32
+}
+
+/// What the frame chose, for the report.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct CascadeChoice {
+    pub requested: CascadeCount,
+    pub count: u32,
+    /// View depth range of the shadow-tested pixels.
+    pub view_depth: [f32; 2],
+    /// `far / near` of that range.
+    pub depth_ratio: f32,
+    /// Largest far/near ratio of one cascade (logarithmic splits).
+    pub ratio_per_cascade: f32,
+    pub split_lambda: f32,
+    /// Why this many, in words.
+    pub reason: String,
+}
+
+impl CascadeChoice {
+    pub fn new(requested: CascadeCount, near: f32, far: f32, lambda: f32) -> CascadeChoice {
+        let count = cascade_count(requested, near, far);
+        let depth_ratio = far / near;
+        let ratio_per_cascade = depth_ratio.powf(1.0 / count as f32);
+        let reason = match requested {
+            CascadeCount::Fixed(n) => format!("{n} requested"),
+            CascadeCount::Auto if count == 1 => format!(
+                "view depth ratio {depth_ratio:.2} ≤ {AUTO_MAX_DEPTH_RATIO}: one grid suffices"
+            ),
+            CascadeCount::Auto if depth_ratio > AUTO_MAX_DEPTH_RATIO.powi(count as i32) => {
+                format!(
+                    "view depth ratio {depth_ratio:.1} needs more than {MAX_CASCADES} cascades of \
+                     ratio ≤ {AUTO_MAX_DEPTH_RATIO}: capped at {MAX_CASCADES} (ratio \
+                     {ratio_per_cascade:.1} each)"
+                )
+            }
+            CascadeCount::Auto => format!(
+                "view depth ratio {depth_ratio:.1}: {count} cascades keep each one's ratio at \
+                 {ratio_per_cascade:.2} ≤ {AUTO_MAX_DEPTH_RATIO}"
+            ),
+        };
+        CascadeChoice {
+            requested,
+            count,
+            view_depth: [near, far],
+            depth_ratio,
+            ratio_per_cascade,
+            split_lambda: lambda,
+            reason,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_count_follows_the_depth_ratio() {
+        let auto = CascadeCount::Auto;
+        assert_eq!(cascade_count(auto, 1.0, 16.0), 1);
+        assert_eq!(cascade_count(auto, 1.0, 16.001), 2);
+        assert_eq!(cascade_count(auto, 2.0, 32.0), 1);
+        assert_eq!(cascade_count(auto, 1.0, 300.0), 3);
+        assert_eq!(cascade_count(auto, 1.0, 1e6), 4);
+        assert_eq!(cascade_count(CascadeCount::Fixed(3), 1.0, 1.0), 3);
+    }
+
+    #[test]
+    fn log_splits_give_equal_ratios_and_cover_every_depth() {
+        let upper = split_depths(1.0, 64.0, 3, 1.0);
+        approx::assert_relative_eq!(upper[0], 4.0, max_relative = 1e-6);
+        approx::assert_relative_eq!(upper[1], 16.0, max_relative = 1e-6);
+        assert_eq!(upper[2], f32::INFINITY);
+        assert_eq!(cascade_of_depth(&upper, 1.0), 0);
+        assert_eq!(cascade_of_depth(&upper, 4.5), 1);
+        assert_eq!(cascade_of_depth(&upper, 64.0), 2);
+        assert_eq!(cascade_of_depth(&upper, f32::MAX), 2);
+        let uniform = split_depths(1.0, 64.0, 3, 0.0);
+        approx::assert_relative_eq!(uniform[0], 22.0, max_relative = 1e-6);
+    }
+
+    #[test]
+    fn cascade_grids_fit_the_cell_arrays() {
+        for side in [8, 100, 720, 1024] {
+            for shares in [[1, 0, 0, 0], [1, 1, 1, 1], [100, 10, 1, 0], [5, 3, 2, 1]] {
+                let all: usize = shares.iter().sum::<usize>() * 1000;
+                let cells: u64 = shares
+                    .iter()
+                    .map(|&s| u64::from(cascade_grid_side(side, s * 1000, all, 4)).pow(2))
+                    .sum();
+                assert!(cells <= max_total_cells(side), "side {side}: {cells} cells");
+            }
+        }
+    }
+
+    #[test]
+    fn count_parses_and_rejects() {
+        assert_eq!(CascadeCount::parse("auto"), Ok(CascadeCount::Auto));
+        assert_eq!(CascadeCount::parse("2"), Ok(CascadeCount::Fixed(2)));
+        assert!(CascadeCount::parse("0").is_err());
+        assert!(CascadeCount::parse("5").is_err());
+    }
+}
