@@ -45,6 +45,8 @@ layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[
 layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint pixel_cascade[]; };
 
 #include "light_view.glsl"
+#define LOOP_BUDGET_SLOTS WORKGROUP_LINEAR
+#include "loop_budget.glsl"
 
 // Per cell (binding B_CELL_RECEIVERS, filled with ~0 before the frame):
 // .x = ordered bits of the lowest light-view z of the µQuad centres of the
@@ -83,9 +85,9 @@ bool behind_receivers(Triangle t, uint k, uint x, uint y) {
     float reach = float(~r.y) + CELL_PADDING;
     vec2 lo = ndc_of_grid(k, vec2(float(x) - reach, float(y) - reach));
     vec2 hi = ndc_of_grid(k, vec2(float(x) + 1.0 + reach, float(y) + 1.0 + reach));
-    vec2 q[4] = vec2[4](lo, vec2(hi.x, lo.y), hi, vec2(lo.x, hi.y));
-    float plane_max = -1.0 / 0.0;
-    [[unroll]] for (int c = 0; c < 4; ++c) plane_max = max(plane_max, plane_height(t, n, q[c]));
+    // No loop (see strictly_inside).
+    float plane_max = max(max(plane_height(t, n, lo), plane_height(t, n, vec2(hi.x, lo.y))),
+                          max(plane_height(t, n, hi), plane_height(t, n, vec2(lo.x, hi.y))));
     vec2 box_lo = min(min(lo, t.a.xy), min(t.b.xy, t.c.xy));
     vec2 box_hi = max(max(hi, t.a.xy), max(t.b.xy, t.c.xy));
     float z_lo = min(min(z_min, t.a.z), min(t.b.z, t.c.z));
@@ -93,6 +95,17 @@ bool behind_receivers(Triangle t, uint k, uint x, uint y) {
     float size = length(box_hi - box_lo) + (z_hi - z_lo);
     float margin = BEHIND_MARGIN * size * (length(n) / n.z);
     return plane_max < z_min - margin;
+}
+
+// Whether light-view xy q is strictly inside the triangle with vertices
+// a, b, c of winding w (glam's perp_dot a.x·b.y − a.y·b.x). No loops: a
+// loop here, even one marked [[unroll]], counted toward lavapipe's loop cap
+// once per cell and silently cut the count loop of large triangles.
+bool strictly_inside(vec2 a, vec2 b, vec2 c, float w, vec2 q) {
+    precise float s0 = w * ((b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x));
+    precise float s1 = w * ((c.x - b.x) * (q.y - b.y) - (c.y - b.y) * (q.x - b.x));
+    precise float s2 = w * ((a.x - c.x) * (q.y - c.y) - (a.y - c.y) * (q.x - c.x));
+    return s0 > 0.0 && s1 > 0.0 && s2 > 0.0;
 }
 
 // bin::cover_floor: when t's light-space projection contains cell (x, y)
@@ -103,22 +116,16 @@ uint cover_floor(Triangle t, uint k, uint x, uint y) {
     if ((frame.skips & SKIP_SHADOW_MAP) == 0u || light.projection != 0u) return 0u;
     vec3 n;
     if (!upward_normal(t, n)) return 0u;
-    vec2 q[4] = vec2[4](ndc_of_grid(k, vec2(float(x), float(y))), ndc_of_grid(k, vec2(float(x) + 1.0, float(y))),
-                        ndc_of_grid(k, vec2(float(x) + 1.0, float(y) + 1.0)), ndc_of_grid(k, vec2(float(x), float(y) + 1.0)));
-    vec2 v[3] = vec2[3](t.a.xy, t.b.xy, t.c.xy);
-    // Inside: on the same side of every edge as the third vertex (glam's
-    // perp_dot a.x·b.y − a.y·b.x).
-    vec2 d1 = v[1] - v[0], d2 = v[2] - v[0];
-    precise float winding = d1.x * d2.y - d1.y * d2.x;
-    float floor_z = 1.0 / 0.0;
-    [[unroll]] for (int c = 0; c < 4; ++c) {
-        [[unroll]] for (int e = 0; e < 3; ++e) {
-            vec2 d = v[(e + 1) % 3] - v[e], r = q[c] - v[e];
-            precise float side = winding * (d.x * r.y - d.y * r.x);
-            if (!(side > 0.0)) return 0u;
-        }
-        floor_z = min(floor_z, plane_height(t, n, q[c]));
-    }
+    vec2 q0 = ndc_of_grid(k, vec2(float(x), float(y)));
+    vec2 q1 = ndc_of_grid(k, vec2(float(x) + 1.0, float(y)));
+    vec2 q2 = ndc_of_grid(k, vec2(float(x) + 1.0, float(y) + 1.0));
+    vec2 q3 = ndc_of_grid(k, vec2(float(x), float(y) + 1.0));
+    vec2 a = t.a.xy, b = t.b.xy, c = t.c.xy;
+    precise float w = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    if (!(strictly_inside(a, b, c, w, q0) && strictly_inside(a, b, c, w, q1)
+          && strictly_inside(a, b, c, w, q2) && strictly_inside(a, b, c, w, q3))) return 0u;
+    float floor_z = min(min(plane_height(t, n, q0), plane_height(t, n, q1)),
+                        min(plane_height(t, n, q2), plane_height(t, n, q3)));
     return max(ordered_bits(floor_z), 1u);
 }
 
@@ -157,6 +164,7 @@ shared uint partial[WORKGROUP_LINEAR];
 #endif
 
 void main() {
+    loop_budget_reset();
 #ifdef STEP_RECEIVERS
     // One thread per pixel: bin::cell_receivers, in the pixel's cascade.
     // Directional lights only, as behind_receivers (the CPU twin returns
@@ -173,13 +181,14 @@ void main() {
     uint z = ordered_bits(to_light_view(p).z);
     vec2 extent = hi - lo;
     uint reach = uint(ceil(max(extent.x, extent.y))) + 1u;
-    for (uint y = cells.y; y <= cells.w; ++y) {
-        for (uint x = cells.x; x <= cells.z; ++x) {
+    for (uint y = cells.y; y <= cells.w && spend_trip(); ++y) {
+        for (uint x = cells.x; x <= cells.z && spend_trip(); ++x) {
             uint c = cell_index(k, x, y);
             atomicMin(cell_receivers[c].x, z);
             atomicMin(cell_receivers[c].y, ~reach);
         }
     }
+    loop_budget_report();
 #endif
 
 #ifdef STEP_COUNT
@@ -191,7 +200,7 @@ void main() {
     uint overflows = 0u;
     bool placed = false;
     uint binned = 0u, dropped = 0u, dropped_everywhere = 0u;
-    for (uint k = 0u; k < light.cascade_count; ++k) {
+    for (uint k = 0u; k < light.cascade_count && spend_trip(); ++k) {
         uvec2 p = placement_in(t, k);
         if (p.x == PLACEMENT_CULLED) continue;
         if (p.x == PLACEMENT_OVERFLOW) {
@@ -201,8 +210,8 @@ void main() {
         placed = true;
         binned += 1u;
         bool listed = false;
-        for (uint y = p.x >> 16; y <= p.y >> 16; ++y) {
-            for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu); ++x) {
+        for (uint y = p.x >> 16; y <= p.y >> 16 && spend_trip(); ++y) {
+            for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu) && spend_trip(); ++x) {
                 if (behind_receivers(t, k, x, y)) {
                     dropped += 1u;
                     continue;
@@ -224,6 +233,7 @@ void main() {
     if (binned != 0u) atomicAdd(counters[C_BINNED], binned);
     if (dropped != 0u) atomicAdd(counters[C_ENTRIES_BEHIND], dropped);
     if (dropped_everywhere != 0u) atomicAdd(counters[C_TRIANGLES_BEHIND], dropped_everywhere);
+    loop_budget_report();
 #endif
 
 #ifdef STEP_PREFIX_SUM
@@ -234,7 +244,7 @@ void main() {
     uint chunk = (cells + WORKGROUP_LINEAR - 1u) / WORKGROUP_LINEAR;
     uint begin = min(k * chunk, cells), end = min(begin + chunk, cells);
     uint sum = 0u;
-    for (uint c = begin; c < end; ++c) sum += cell_cursor[c];
+    for (uint c = begin; c < end && spend_trip(); ++c) sum += cell_cursor[c];
     partial[k] = sum;
     barrier();
     // Hillis–Steele inclusive scan of the chunk sums.
@@ -245,7 +255,7 @@ void main() {
         barrier();
     }
     uint running = partial[k] - sum;
-    for (uint c = begin; c < end; ++c) {
+    for (uint c = begin; c < end && spend_trip(); ++c) {
         uint count = cell_cursor[c];
         cell_start[c] = running;
         cell_cursor[c] = running;
@@ -257,6 +267,7 @@ void main() {
         counters[C_CELL_ENTRIES] = total;
         if (total > frame.cell_capacity) counters[C_CAPACITY_EXCEEDED] = 1u;
     }
+    loop_budget_report();
 #endif
 
 #ifdef STEP_SCATTER
@@ -265,12 +276,12 @@ void main() {
     // The rectangles again, from the values STEP_COUNT stored: the same
     // arithmetic on the same floats, so the same cells.
     Triangle t = vertex_cache[id];
-    for (uint k = 0u; k < light.cascade_count; ++k) {
+    for (uint k = 0u; k < light.cascade_count && spend_trip(); ++k) {
         uvec2 p = placement_in(t, k);
         if (p.x >= PLACEMENT_CULLED) continue;
         uint x0 = p.x & 0xFFFFu, y0 = p.x >> 16;
-        for (uint y = y0; y <= p.y >> 16; ++y) {
-            for (uint x = x0; x <= (p.y & 0xFFFFu); ++x) {
+        for (uint y = y0; y <= p.y >> 16 && spend_trip(); ++y) {
+            for (uint x = x0; x <= (p.y & 0xFFFFu) && spend_trip(); ++x) {
                 if (behind_receivers(t, k, x, y)) continue;
                 uint c = cell_index(k, x, y);
                 uint slot = atomicAdd(cell_cursor[c], 1u);
@@ -281,5 +292,6 @@ void main() {
             }
         }
     }
+    loop_budget_report();
 #endif
 }

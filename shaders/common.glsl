@@ -112,6 +112,7 @@ bool is_receiver(uint flags, uint skips) {
 // ---- cascades (src/izb/cascades.rs) ----
 #define MAX_CASCADES 4
 #define AUTO_MAX_DEPTH_RATIO 16.0
+#define MAX_GRID_SIDE 16384
 // bin::NO_COVER
 #define NO_COVER 0xFFFFFFFFu
 

@@ -22,7 +22,6 @@
 // triangle, ORed per pixel, stopping when the mask is full (seed 002 §6.6).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
-#extension GL_KHR_shader_subgroup_basic : require
 
 layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 
@@ -151,29 +150,8 @@ bool covered = false;  // the cover triangle alone filled the mask
 bool done(uint mask) {
     return covered || (stop_when_full && mask == FULL_MASK);
 }
-// Loop trips so far; past frame.loop_budget the pixel stops testing and
-// raises C_LOOP_BUDGET_EXCEEDED (lavapipe would cut its loops silently).
-uint trips = 0u;
-bool over_budget = false;
-
-// lavapipe vectorises a subgroup's invocations into one SIMD loop and
-// counts the loop's iterations for the whole subgroup: one pass of a loop
-// counts once however many lanes run it, and lanes that loop in different
-// places add up. A per-lane count missed the second part and let the cap
-// cut a courtyard pixel's candidates silently (160×90, skips off, one
-// sample lost). So on a capped device each pass of a loop is counted once
-// per subgroup, by the one lane `subgroupElect` picks among those running
-// it, in shared memory, and the budget applies to that count.
-shared uint sm_subgroup_trips[WORKGROUP_PIXELS];
-
-bool spend_trip() {
-    trips += 1u;
-    if (frame.loop_budget != 0xFFFFFFFFu) {
-        if (subgroupElect()) atomicAdd(sm_subgroup_trips[gl_SubgroupID], 1u);
-        if (atomicAdd(sm_subgroup_trips[gl_SubgroupID], 0u) >= frame.loop_budget) over_budget = true;
-    }
-    return !over_budget;
-}
+#define LOOP_BUDGET_SLOTS WORKGROUP_PIXELS
+#include "loop_budget.glsl"
 
 // Occluded samples of one light-view triangle for this pixel.
 uint triangle_mask(Triangle tri) {
@@ -269,8 +247,7 @@ void main() {
     bool live = inside && is_receiver(pixel_flags, frame.skips);
     stop_when_full = (frame.skips & SKIP_FULL_MASK) != 0u;
     uint mask = 0u;
-    sm_subgroup_trips[lid] = 0u;
-    barrier();
+    loop_budget_reset();
     // A grid overrun (C_CAPACITY_EXCEEDED) leaves cell lists incomplete:
     // skip them (uniformly); the host reruns the frame with room.
     bool grid_usable = counters[C_CAPACITY_EXCEEDED] == 0u;
@@ -371,7 +348,7 @@ void main() {
     // Facing-away pixels tested with that skip off keep mask 0, as skipped.
     masks[i] = (pixel_flags & FLAG_SHADOW_TESTED) != 0u ? mask : 0u;
     if (!live) return;
-    if (over_budget) atomicMax(counters[C_LOOP_BUDGET_EXCEEDED], trips);
+    loop_budget_report();
     atomicAdd(counters[C_PIXELS_TESTED], 1u);
     if (covered) {
         atomicAdd(counters[C_SHADOW_MAP_EARLY_OUTS], 1u);

@@ -267,18 +267,18 @@ void main() {
         float pad = max(max(size.x, size.y), uintBitsToFloat(0x00800000u)) * 1e-4;
         light.cascade[k].ndc_min = nmin - pad;
         light.cascade[k].ndc_max = nmax + pad;
-        // cascades::cascade_grid_side.
-        uint longest = light.cascade_count <= 1u
-            ? side
-            : max(uint(float(side) * sqrt(float(nk) / float(n))), min(side, 8u));
+        // cascades::cascade_cells: the budget side² shared by receivers,
+        // square cells, sides rounded down.
+        float budget = float(side) * float(side);
+        float target = light.cascade_count <= 1u ? budget : max(budget * (float(nk) / float(n)), 64.0);
         vec2 extent = light.cascade[k].ndc_max - light.cascade[k].ndc_min;
-        if (extent.x >= extent.y) {
-            light.cascade[k].cells_x = longest;
-            light.cascade[k].cells_y = max(uint(ceil(float(longest) * extent.y / extent.x)), 1u);
-        } else {
-            light.cascade[k].cells_x = max(uint(ceil(float(longest) * extent.x / extent.y)), 1u);
-            light.cascade[k].cells_y = longest;
+        float cell = sqrt(extent.x * extent.y / target);
+        uvec2 cells = uvec2(1u);
+        if (cell > 0.0) {
+            cells = max(uvec2(min(floor(extent / cell), vec2(float(MAX_GRID_SIDE)))), uvec2(1u));
         }
+        light.cascade[k].cells_x = cells.x;
+        light.cascade[k].cells_y = cells.y;
         // cascades::cascade_overflow_cells.
         light.cascade[k].overflow_cells = frame.overflow_cells != 0u ? frame.overflow_cells : clamp(nk / 16u, 64u, 4096u);
         offset += light.cascade[k].cells_x * light.cascade[k].cells_y;

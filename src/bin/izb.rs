@@ -111,9 +111,10 @@ enum BenchBackend {
 /// Grid, overflow and cascade choices of a render.
 #[derive(Args, Clone)]
 struct GridArgs {
-    /// Cells along the longer side of a single grid, shared between the
-    /// cascades in proportion to their pixels (default: from the pixel and
-    /// triangle counts).
+    /// Cell budget of the light-space grids as the side of a square (200:
+    /// 40 000 cells, square in light space whatever the footprint's shape),
+    /// shared between the cascades in proportion to their pixels (default:
+    /// from the pixel and triangle counts).
     #[arg(long)]
     cells: Option<u32>,
     /// Triangles whose cell rectangle holds more cells than this go to the

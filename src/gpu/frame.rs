@@ -251,9 +251,9 @@ fn loop_budget(device_name: &str) -> u32 {
     }
 }
 
-/// Longest side of the grid the light setup may choose (its upper bound:
-/// every receiver is a pixel).
-fn longest_grid_side(pixels: usize, triangles: usize, hint: Option<u32>) -> u32 {
+/// The largest cell budget (as a square's side) the light setup may choose:
+/// its upper bound, every receiver being a pixel.
+fn grid_budget_side(pixels: usize, triangles: usize, hint: Option<u32>) -> u32 {
     hint.unwrap_or_else(|| crate::izb::light_setup::default_grid_side(pixels, triangles))
 }
 
@@ -332,13 +332,13 @@ impl GpuRenderer {
         };
         let bvh_build_seconds = bvh_start.elapsed().as_secs_f64();
 
-        let longest = longest_grid_side(pixels, triangles.len(), settings.cells);
-        if longest > 0xFFFF {
+        let side = grid_budget_side(pixels, triangles.len(), settings.cells);
+        if side > 0xFFFF {
             return Err(GpuError::Unsupported(format!(
-                "--cells {longest}: the GPU grid holds at most 65535 cells per side"
+                "--cells {side}: the GPU's cell budget is at most 65535² cells"
             )));
         }
-        let max_cells = crate::izb::cascades::max_total_cells(longest);
+        let max_cells = crate::izb::cascades::max_total_cells(side);
         let mut capacity = initial_cell_capacity(triangles.len());
         let mut frames_run = 0;
         loop {
@@ -824,13 +824,13 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
 pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMemory>, GpuError> {
     let triangles = SceneUpload::new(scene).triangles;
     let bvh = super::gbuffer::build_bvh(&triangles)?;
-    let longest = longest_grid_side(scene.pixel_count(), triangles.len(), settings.cells);
+    let side = grid_budget_side(scene.pixel_count(), triangles.len(), settings.cells);
     let descs = frame_buffer_descs(&FrameSizes {
         pixels: scene.pixel_count() as u64,
         triangles: triangles.len() as u64,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
-        max_cells: crate::izb::cascades::max_total_cells(longest),
+        max_cells: crate::izb::cascades::max_total_cells(side),
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
     });

@@ -60,11 +60,12 @@ pub enum GpuError {
     #[error("buffer `{0}` is not host-visible")]
     NotMapped(&'static str),
     /// The device stops shader loops after a fixed count (lavapipe), and a
-    /// subgroup of pixels needs more candidate tests than that.
+    /// subgroup of invocations (pixels testing candidates, triangles
+    /// walking their cells) needs more than that.
     #[error(
         "{device} ends a shader's loops after {cap} iterations per subgroup, and a subgroup \
-         of pixels in this frame needs more ({trips} candidate tests in one of its pixels when \
-         it stopped): use a GPU or --backend cpu"
+         in this frame needs more ({trips} loop trips in one invocation when it stopped): use a \
+         GPU or --backend cpu"
     )]
     LoopCap {
         device: String,

@@ -131,19 +131,38 @@ pub fn cascade_of_depth(upper: &[f32; MAX_CASCADES], depth: f32) -> usize {
         .unwrap_or(MAX_CASCADES - 1)
 }
 
-/// Cells along the longer side of a cascade's grid: the whole frame's side
-/// (from all receivers and triangles, [`super::light_setup::default_grid_side`]
-/// or `--cells`) shared in proportion to the cascade's receivers, so every
-/// cascade keeps about the same receivers per cell and all grids together
-/// hold at most `side² + 64 · cascades` cells (the GPU sizes its cell
-/// arrays by that). At least 8 cells (or `side`, if smaller); one cascade
-/// gets `side` itself.
-pub fn cascade_grid_side(side: u32, receivers: usize, all_receivers: usize, count: u32) -> u32 {
-    if count <= 1 || all_receivers == 0 {
-        return side;
+/// Longest side a grid may have (cells), far below the GPU's 2^16 limit.
+pub const MAX_GRID_SIDE: u32 = 16384;
+
+/// Cells along x and y of a cascade's grid over a light-NDC `extent`: the
+/// frame's cell budget `side²` (`side` from all receivers and triangles,
+/// [`super::light_setup::default_grid_side`], or `--cells`) shared between
+/// the cascades in proportion to their receivers (at least 64 cells each),
+/// with square cells in NDC. Sides are rounded down, so a grid never holds
+/// more than its share and all grids together at most `side² + 64 ·
+/// cascades` cells — what the GPU sizes its cell arrays for
+/// ([`max_total_cells`]). Filling the budget whatever the aspect ratio
+/// matters: a grid sized by its longer side alone gave `grazing` (a long,
+/// thin light-space footprint) 49 receivers per cell instead of ~4.
+pub fn cascade_cells(
+    side: u32,
+    receivers: usize,
+    all_receivers: usize,
+    count: u32,
+    extent: glam::Vec2,
+) -> [u32; 2] {
+    let budget = side as f32 * side as f32;
+    let target = if count <= 1 || all_receivers == 0 {
+        budget
+    } else {
+        (budget * (receivers as f32 / all_receivers as f32)).max(64.0)
+    };
+    let cell = (extent.x * extent.y / target).sqrt();
+    if cell.is_nan() || cell <= 0.0 {
+        return [1, 1];
     }
-    let share = (receivers as f32 / all_receivers as f32).sqrt();
-    ((side as f32 * share) as u32).max(side.min(8))
+    let cells = |e: f32| ((e / cell).floor().min(MAX_GRID_SIDE as f32) as u32).max(1);
+    [cells(extent.x), cells(extent.y)]
 }
 
 /// The most cells all cascades' grids may need for a frame whose single-cascade side is
@@ -251,15 +270,31 @@ mod tests {
 
     #[test]
     fn cascade_grids_fit_the_cell_arrays() {
+        let extents = [
+            glam::Vec2::new(1.0, 1.0),
+            glam::Vec2::new(100.0, 0.3),
+            glam::Vec2::new(1e-3, 7.0),
+        ];
         for side in [8, 100, 720, 1024] {
             for shares in [[1, 0, 0, 0], [1, 1, 1, 1], [100, 10, 1, 0], [5, 3, 2, 1]] {
-                let all: usize = shares.iter().sum::<usize>() * 1000;
-                let cells: u64 = shares
-                    .iter()
-                    .map(|&s| u64::from(cascade_grid_side(side, s * 1000, all, 4)).pow(2))
-                    .sum();
-                assert!(cells <= max_total_cells(side), "side {side}: {cells} cells");
+                for extent in extents {
+                    let all: usize = shares.iter().sum::<usize>() * 1000;
+                    let cells: u64 = shares
+                        .iter()
+                        .map(|&s| {
+                            let [x, y] = cascade_cells(side, s * 1000, all, 4, extent);
+                            u64::from(x) * u64::from(y)
+                        })
+                        .sum();
+                    assert!(cells <= max_total_cells(side), "side {side}: {cells} cells");
+                }
             }
+            // One cascade fills its budget to within the rounding of its sides.
+            let [x, y] = cascade_cells(side, 1, 1, 1, glam::Vec2::new(3.0, 1.0));
+            assert!(
+                u64::from(x * y) * 2 >= u64::from(side * side),
+                "side {side}: {x}x{y}"
+            );
         }
     }
 

@@ -190,12 +190,13 @@ pub fn microquad_corners(p: Vec3, ex: Vec3, ey: Vec3) -> [Vec3; 4] {
     [p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy]
 }
 
-/// Cells along the grid's longer side when none is asked for: a square grid
-/// with about 4 receivers per cell, or about 16 triangles per cell where
-/// the scene has more than 4 triangles per receiver (a dense scene at a low
-/// resolution would otherwise put thousands of triangles in every cell),
-/// clamped to 8..=1024. The shorter side keeps cells square in NDC. The GPU
-/// `light_setup` computes the same expression in `f32`.
+/// The frame's cell budget, as the side of a square of cells, when none is
+/// asked for: about 4 receivers per cell, or about 16 triangles per cell
+/// where the scene has more than 4 triangles per receiver (a dense scene at
+/// a low resolution would otherwise put thousands of triangles in every
+/// cell), clamped to 8..=1024. [`cascades::cascade_cells`] spends the
+/// budget on the cascades' grids with square cells whatever their aspect.
+/// The GPU `light_setup` computes the same expression in `f32`.
 pub fn default_grid_side(receivers: usize, triangles: usize) -> u32 {
     let per_cell = (receivers as f32 / 4.0).max(triangles as f32 / 16.0);
     (per_cell.sqrt().ceil() as u32).clamp(8, 1024)
@@ -204,8 +205,8 @@ pub fn default_grid_side(receivers: usize, triangles: usize) -> u32 {
 /// What [`light_setup`] is asked for besides the scene and G-buffer.
 #[derive(Clone, Copy, Debug)]
 pub struct GridRequest {
-    /// Cells along the longer side of a single grid (`None`: from the
-    /// receiver and triangle counts), shared between cascades.
+    /// The cell budget as the side of a square (`None`: from the receiver
+    /// and triangle counts, [`default_grid_side`]), shared between cascades.
     pub cells: Option<u32>,
     /// Overflow threshold in cells per triangle (`None`: per cascade,
     /// [`cascades::cascade_overflow_cells`]).
@@ -342,9 +343,13 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
             let pad = (nmax[k] - nmin[k]).max_element().max(f32::MIN_POSITIVE) * 1e-4;
             grid.ndc_min = nmin[k] - pad;
             grid.ndc_max = nmax[k] + pad;
-            let longest =
-                cascades::cascade_grid_side(side, receivers[k], tested.len(), count as u32);
-            grid.cells = grid_cells(longest, grid.ndc_max - grid.ndc_min);
+            grid.cells = cascades::cascade_cells(
+                side,
+                receivers[k],
+                tested.len(),
+                count as u32,
+                grid.ndc_max - grid.ndc_min,
+            );
             grid.overflow_cells = request
                 .overflow_cells
                 .unwrap_or_else(|| cascades::cascade_overflow_cells(receivers[k]));
@@ -353,20 +358,4 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
         })
         .collect();
     setup
-}
-
-/// Cells along x and y of a grid `longest` cells along the longer side of
-/// an NDC extent, square in NDC.
-fn grid_cells(longest: u32, extent: Vec2) -> [u32; 2] {
-    if extent.x >= extent.y {
-        [
-            longest,
-            ((longest as f32 * extent.y / extent.x).ceil() as u32).max(1),
-        ]
-    } else {
-        [
-            ((longest as f32 * extent.x / extent.y).ceil() as u32).max(1),
-            longest,
-        ]
-    }
 }

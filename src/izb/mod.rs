@@ -32,8 +32,9 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct IzbSettings {
     pub mode: SampleMode,
-    /// Grid cells along the longer side of a single grid, shared between
-    /// the cascades (None: chosen from the receiver and triangle counts).
+    /// The grids' cell budget as the side of a square (`--cells 200`: 40 000
+    /// cells), shared between the cascades (None: chosen from the receiver
+    /// and triangle counts).
     pub cells: Option<u32>,
     /// Triangles whose cell rectangle holds more cells than this overflow
     /// (None: chosen per cascade from its pixel count).
