@@ -28,14 +28,14 @@ pub const MAX_CASCADES: usize = 4;
 
 /// `auto` uses the fewest cascades (up to [`MAX_CASCADES`]) whose
 /// logarithmic splits keep each cascade's far/near view-depth ratio at or
-/// below this. Measured (CPU twin, 480×270, tests spawned at the same total
-/// cell budget): 2 cascades cost 0.89–1.47× the tests of one on every scene
-/// we have (view-depth ratios 1.9–9.5; courtyard 1.47×, grazing 1.12×,
-/// city 0.89×), because the far cascade's grid is coarse over a wide
-/// light-space area and triangles near a split are listed in both grids.
-/// So `auto` keeps one grid up to a ratio of 16 and splits only deeper
-/// views, where one grid's cells must serve µQuads more than 16× apart in
-/// size.
+/// below this. Measured (CPU twin, 240×135, candidates per pixel, 1 vs 4
+/// cascades at the same cell budget): 0.85–2.1× on every scene we have
+/// (view-depth ratios 1.9–9.5; city 0.85×, grazing 1.21×, courtyard
+/// 2.07×), because the far cascade's grid is coarse over a wide
+/// light-space area and triangles near a split are listed in both grids
+/// (`paper-notes/skipping-work.md`). So `auto` keeps one grid up to a
+/// ratio of 16 and splits only deeper views, where one grid's cells must
+/// serve µQuads more than 16× apart in size.
 pub const AUTO_MAX_DEPTH_RATIO: f32 = 16.0;
 
 /// How many cascades to use (`--cascades auto|1..4`).
