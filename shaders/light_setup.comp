@@ -275,7 +275,13 @@ void main() {
         float cell = sqrt(extent.x * extent.y / target);
         uvec2 cells = uvec2(1u);
         if (cell > 0.0) {
-            cells = max(uvec2(min(floor(extent / cell), vec2(float(MAX_GRID_SIDE)))), uvec2(1u));
+            // The shorter side first (cascades::cascade_cells).
+            bool x_short = extent.x <= extent.y;
+            float short_e = x_short ? extent.x : extent.y, long_e = x_short ? extent.y : extent.x;
+            uint n_short = max(uint(min(floor(short_e / cell), float(MAX_GRID_SIDE))), 1u);
+            uint n_long = max(uint(min(min(floor(long_e / cell), floor(target / float(n_short))),
+                                       float(MAX_GRID_SIDE))), 1u);
+            cells = x_short ? uvec2(n_short, n_long) : uvec2(n_long, n_short);
         }
         light.cascade[k].cells_x = cells.x;
         light.cascade[k].cells_y = cells.y;

@@ -161,8 +161,25 @@ pub fn cascade_cells(
     if cell.is_nan() || cell <= 0.0 {
         return [1, 1];
     }
-    let cells = |e: f32| ((e / cell).floor().min(MAX_GRID_SIDE as f32) as u32).max(1);
-    [cells(extent.x), cells(extent.y)]
+    // The shorter side first: rounding it up to one cell must not let the
+    // longer side overspend the target.
+    let max = MAX_GRID_SIDE as f32;
+    let (short, long) = if extent.x <= extent.y {
+        (extent.x, extent.y)
+    } else {
+        (extent.y, extent.x)
+    };
+    let n_short = ((short / cell).floor().min(max) as u32).max(1);
+    let n_long = ((long / cell)
+        .floor()
+        .min((target / n_short as f32).floor())
+        .min(max) as u32)
+        .max(1);
+    if extent.x <= extent.y {
+        [n_short, n_long]
+    } else {
+        [n_long, n_short]
+    }
 }
 
 /// The most cells all cascades' grids may need for a frame whose single-cascade side is
