@@ -7,8 +7,10 @@
 //! scenes; [`gbuffer`] computes primary visibility with µQuad footprints;
 //! [`reference`] traces supersampled ground truth; [`izb`] is the CPU
 //! irregular z-buffer and [`gpu`] its Vulkan twin; [`output`] writes images
-//! and reports atomically.
+//! and reports atomically; [`baseline`] holds the shadow maps the IZB is
+//! measured against.
 
+pub mod baseline;
 pub mod gbuffer;
 pub mod gpu;
 pub mod izb;

@@ -1,0 +1,197 @@
+//! Shadow-map baselines (seeds 001, 003, 004): what a user would pick
+//! instead of the IZB, rendered into the same G-buffer and judged by the
+//! same metrics.
+//!
+//! - `sm-R`: one tap, slope-scaled bias (seed 003);
+//! - `pcf3-R`, `pcf5-R`: 3×3 / 5×5 bilinear PCF with receiver-plane depth
+//!   bias, one comparison depth per texel (seed 001's Gather variant);
+//! - `csmN-pcf3-R`: N cascaded maps on the IZB cascades' logarithmic splits,
+//!   each fitted to its own receivers (seed 004, Lauritzen's sample
+//!   distribution), 3×3 PCF.
+//!
+//! `R` is the side of each map in texels. The passes are
+//! [`shadow_map::shadow_map`] and [`shadow_map::shadow_lookup`], CPU only
+//! (see `paper-notes/baselines.md` for why there is no Vulkan twin yet).
+
+pub mod shadow_map;
+
+use crate::gbuffer::{flags, GBuffer};
+use crate::izb::cascades::CascadeCount;
+use crate::izb::{eye_relative_f32, light_setup, GridRequest};
+use crate::scene::Scene;
+pub use shadow_map::Filter;
+use std::fmt;
+use std::time::Instant;
+
+/// Largest map side accepted (8192² · 4 B = 256 MiB per cascade).
+pub const MAX_MAP_SIDE: u32 = 8192;
+
+/// One shadow-map configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct ShadowMapSettings {
+    pub filter: Filter,
+    /// Texels per side of each cascade's map.
+    pub side: u32,
+    /// 1 for a single map.
+    pub cascades: u32,
+}
+
+impl ShadowMapSettings {
+    /// Parses a method name: `sm-R`, `pcf3-R`, `pcf5-R`, `csmN-pcfK-R`.
+    pub fn parse(name: &str) -> Result<ShadowMapSettings, String> {
+        let bad = || {
+            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R; R a side 16..={MAX_MAP_SIDE})")
+        };
+        let mut parts: Vec<&str> = name.split('-').collect();
+        let side: u32 = parts.pop().and_then(|s| s.parse().ok()).ok_or_else(bad)?;
+        if !(16..=MAX_MAP_SIDE).contains(&side) {
+            return Err(bad());
+        }
+        let mut cascades = 1;
+        if let Some(c) = parts.first().and_then(|p| p.strip_prefix("csm")) {
+            cascades = c.parse().map_err(|_| bad())?;
+            if !(1..=crate::izb::cascades::MAX_CASCADES as u32).contains(&cascades) {
+                return Err(bad());
+            }
+            parts.remove(0);
+        }
+        let filter = match parts.as_slice() {
+            ["sm"] => Filter::OneTap,
+            [p] => match p.strip_prefix("pcf").and_then(|k| k.parse::<u32>().ok()) {
+                Some(k) if k % 2 == 1 && (3..=9).contains(&k) => Filter::Pcf(k),
+                _ => return Err(bad()),
+            },
+            _ => return Err(bad()),
+        };
+        Ok(ShadowMapSettings {
+            filter,
+            side,
+            cascades,
+        })
+    }
+}
+
+impl fmt::Display for ShadowMapSettings {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.cascades > 1 {
+            write!(f, "csm{}-", self.cascades)?;
+        }
+        match self.filter {
+            Filter::OneTap => write!(f, "sm-{}", self.side),
+            Filter::Pcf(k) => write!(f, "pcf{k}-{}", self.side),
+        }
+    }
+}
+
+/// CPU seconds of the baseline's passes (the G-buffer is shared with the
+/// IZB and not counted).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct BaselineSeconds {
+    pub light_setup: f64,
+    pub shadow_map: f64,
+    pub shadow_lookup: f64,
+    /// The three together: comparable with the IZB's shadow passes.
+    pub shadow: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BaselineReport {
+    pub settings: ShadowMapSettings,
+    pub seconds: BaselineSeconds,
+    pub map_bytes: u64,
+    pub triangles_drawn: usize,
+    pub texels_written: u64,
+    /// Cascades actually used (a point light whose receivers surround it
+    /// cannot be one frustum: the method is refused then).
+    pub cascades: usize,
+}
+
+pub struct BaselineRender {
+    /// Lit fraction per pixel, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    pub report: BaselineReport,
+}
+
+/// Renders `settings` on the CPU into the G-buffer `g` of `scene`.
+pub fn render_shadow_map(
+    scene: &Scene,
+    g: &GBuffer,
+    settings: ShadowMapSettings,
+) -> Result<BaselineRender, String> {
+    let start = Instant::now();
+    let setup = light_setup(
+        scene,
+        g,
+        GridRequest {
+            cells: Some(8),
+            overflow_cells: None,
+            cascades: CascadeCount::Fixed(settings.cascades),
+            split_lambda: 1.0,
+        },
+    );
+    if setup.grid_disabled {
+        return Err(format!(
+            "{settings} on {}: the receivers surround the point light, which one shadow-map frustum cannot hold (a cube map would)",
+            scene.name
+        ));
+    }
+    let light_setup_s = start.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let triangles = eye_relative_f32(scene);
+    let maps = shadow_map::shadow_map(&setup, &triangles, settings.side, settings.filter);
+    let shadow_map_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let visibility = if g.flags.iter().any(|f| f & flags::SHADOW_TESTED != 0) {
+        shadow_map::shadow_lookup(&setup, &maps, g, settings.filter)
+    } else {
+        vec![f32::NAN; g.flags.len()]
+    };
+    let lookup_s = t.elapsed().as_secs_f64();
+    Ok(BaselineRender {
+        visibility,
+        report: BaselineReport {
+            settings,
+            seconds: BaselineSeconds {
+                light_setup: light_setup_s,
+                shadow_map: shadow_map_s,
+                shadow_lookup: lookup_s,
+                shadow: start.elapsed().as_secs_f64(),
+            },
+            map_bytes: maps.bytes(),
+            triangles_drawn: maps.triangles_drawn,
+            texels_written: maps.texels_written,
+            cascades: setup.cascades.len(),
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_names_round_trip() {
+        for name in [
+            "sm-512",
+            "pcf3-2048",
+            "pcf5-8192",
+            "csm4-pcf3-1024",
+            "csm2-pcf5-64",
+            "csm3-sm-256",
+        ] {
+            let s = ShadowMapSettings::parse(name).unwrap();
+            assert_eq!(s.to_string(), name);
+        }
+        for bad in [
+            "sm",
+            "pcf4-512",
+            "sm-99999",
+            "csm9-pcf3-512",
+            "csm2-pcf-512",
+            "izb32",
+            "pcf3-x",
+        ] {
+            assert!(ShadowMapSettings::parse(bad).is_err(), "{bad} parsed");
+        }
+    }
+}
