@@ -11,6 +11,7 @@
 //! measured against.
 
 pub mod baseline;
+pub mod bench;
 pub mod gbuffer;
 pub mod gpu;
 pub mod izb;

@@ -200,7 +200,7 @@ pub fn shadow_map(
         .collect();
     let atomic: Vec<Vec<AtomicU32>> = maps
         .iter()
-        .map(|_| (0..texels).map(|_| AtomicU32::new(u32::MAX)).collect())
+        .map(|_| (0..texels).into_par_iter().map(|_| AtomicU32::new(u32::MAX)).collect())
         .collect();
     let projection = setup.projection;
     // Point lights: geometry nearer than a thousandth of the nearest
@@ -237,7 +237,7 @@ pub fn shadow_map(
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     for (map, depth) in maps.iter_mut().zip(atomic) {
         map.distance = depth
-            .into_iter()
+            .into_par_iter()
             .map(|a| {
                 let o = a.into_inner();
                 if o == u32::MAX {

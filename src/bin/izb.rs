@@ -5,6 +5,7 @@ use anyhow::{Context, Result};
 use clap::builder::TypedValueParser;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use izb::bench;
 use izb::gbuffer::gbuffer;
 use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
 use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
@@ -40,7 +41,7 @@ enum Command {
     Lut(LutArgs),
     /// Supersampled ray-traced ground truth: lit fraction per pixel.
     Reference(ReferenceArgs),
-    /// Benchmark the ground-truth tracer (rays/s) and the IZB passes; write JSON.
+    /// Run time against error: IZB, ray-traced samples and shadow maps against one ground truth; JSON.
     Bench(BenchArgs),
     /// Print a scene's triangle counts, bounds, camera and light.
     Info(InfoArgs),
@@ -217,24 +218,29 @@ struct BenchArgs {
     /// Scenes to measure (default: the largest shared scene if present,
     /// else the `default` procedural scene).
     scenes: Vec<String>,
-    /// Sub-pixel samples per pixel of the reference.
+    /// Sub-pixel samples per pixel of the ground truth (a square).
     #[arg(long, default_value_t = 16)]
     spp: u32,
     /// Image size WxH (default: each scene's own).
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<[u32; 2]>,
-    /// Methods, comma separated: reference (the ground-truth tracer's
-    /// rays/s), izb1, izb32, izb32-exact (seconds per pass).
+    /// Methods, comma separated: izb1, izb32, izb32-exact, rt32 (the 32
+    /// µQuad samples ray traced), shadow maps `sm-R`, `pcf3-R`, `pcf5-R`,
+    /// `csmN-pcfK-R` (R texels a side), or `shadow-maps` for all four
+    /// kinds at every `--map-sides`. The ground truth is always traced.
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "reference,izb1,izb32,izb32-exact"
+        default_value = "izb1,izb32,izb32-exact,rt32,shadow-maps"
     )]
     methods: Vec<String>,
-    /// Repetitions of each IZB method; the median per pass is reported.
+    /// Map sides `shadow-maps` expands over.
+    #[arg(long, value_delimiter = ',', default_value = "512,1024,2048,4096,8192")]
+    map_sides: Vec<u32>,
+    /// Repetitions of every method, interleaved; medians are reported.
     #[arg(long, default_value_t = 3)]
     repeat: usize,
-    /// Where to time the IZB methods: cpu, vulkan, or both (in one run,
+    /// Where to run the IZB methods: cpu, vulkan, or both (in one run,
     /// interleaved, so ratios GPU / CPU twin come from one process).
     #[arg(long, value_enum, default_value_t = BenchBackend::Cpu)]
     backend: BenchBackend,
@@ -249,7 +255,16 @@ struct BenchArgs {
     /// the flag to time several (e.g. `--cascades auto --cascades 1`).
     #[arg(long, default_value = "auto", value_parser = CascadeCount::parse)]
     cascades: Vec<CascadeCount>,
-    /// Output JSON file.
+    /// Also measure temporal stability: the light turns by
+    /// `--flicker-step` degrees per frame over `--flicker-frames` frames.
+    #[arg(long)]
+    flicker: bool,
+    #[arg(long, default_value_t = 100)]
+    flicker_frames: usize,
+    #[arg(long, default_value_t = 0.01)]
+    flicker_step: f64,
+    /// Output JSON file; the images go to a folder beside it with the
+    /// extension `.images`.
     #[arg(long, default_value = "out/bench.json")]
     out: PathBuf,
     /// Worker threads (default: all cores).
@@ -427,32 +442,41 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     } else {
         args.scenes.clone()
     };
-    let settings = ReferenceSettings::from_spp(args.spp, 1).map_err(anyhow::Error::msg)?;
-    let mut izb_methods: Vec<(String, IzbSettings)> = Vec::new();
+    anyhow::ensure!(args.repeat > 0, "--repeat must be at least 1");
+    let reference_settings =
+        ReferenceSettings::from_spp(args.spp, 1).map_err(anyhow::Error::msg)?;
+    // IZB methods once per skip × cascade setting; the others once.
+    let mut methods: Vec<bench::Method> = Vec::new();
     for &cascades in &args.cascades {
         for &skips in &args.skip {
-            for m in args.methods.iter().filter(|m| m.as_str() != "reference") {
-                let mut name = m.clone();
-                if args.skip.len() > 1 {
-                    name += &format!(" skip={skips}");
+            let izb = IzbSettings {
+                skips,
+                cascades,
+                ..Default::default()
+            };
+            for mut m in bench::parse_methods(&args.methods, &args.map_sides, izb)
+                .map_err(anyhow::Error::msg)?
+            {
+                let is_izb = matches!(m.kind, bench::MethodKind::Izb(_));
+                let first = skips == args.skip[0] && cascades == args.cascades[0];
+                if !is_izb && !first {
+                    continue;
                 }
-                if args.cascades.len() > 1 {
-                    name += &format!(" cascades={cascades}");
+                if is_izb && args.skip.len() > 1 {
+                    m.name += &format!(" skip={skips}");
                 }
-                let settings = IzbSettings {
-                    mode: parse_method(m)?,
-                    skips,
-                    cascades,
-                    ..Default::default()
-                };
-                izb_methods.push((name, settings));
+                if is_izb && args.cascades.len() > 1 {
+                    m.name += &format!(" cascades={cascades}");
+                }
+                methods.push(m);
             }
         }
     }
-    let with_reference = args.methods.iter().any(|m| m == "reference");
-    anyhow::ensure!(args.repeat > 0, "--repeat must be at least 1");
     let pool = thread_pool(args.threads)?;
-    let gpu = if args.backend == BenchBackend::Cpu || izb_methods.is_empty() {
+    let has_izb = methods
+        .iter()
+        .any(|m| matches!(m.kind, bench::MethodKind::Izb(_)));
+    let gpu = if args.backend == BenchBackend::Cpu || !has_izb {
         None
     } else {
         Some(
@@ -463,189 +487,141 @@ fn run_bench(args: BenchArgs) -> Result<()> {
             .context("bench --backend vulkan")?,
         )
     };
-    let mut rows = Vec::new();
+    let images_dir = args.out.with_extension("images");
+    let image_prefix = bench::relative_to(&images_dir, &args.out);
+    let options = bench::BenchOptions {
+        repeat: args.repeat,
+        reference: reference_settings,
+        images: Some(images_dir.clone()),
+    };
+    let flicker_options = bench::flicker::FlickerOptions {
+        frames: args.flicker_frames,
+        step_degrees: args.flicker_step,
+        reference: reference_settings,
+    };
+    let (mut rows, mut scene_rows, mut flicker_rows) = (Vec::new(), Vec::new(), Vec::new());
     for name in &scenes {
         let scene = load_scene(&SceneArgs {
             scene: name.clone(),
             resolution: args.resolution,
         })?;
-        if !izb_methods.is_empty() && args.backend != BenchBackend::Vulkan {
-            rows.extend(bench_izb(&pool, &scene, &izb_methods, args.repeat));
-        }
-        if let Some(gpu) = &gpu {
-            rows.extend(bench_izb_gpu(gpu, &scene, &izb_methods, args.repeat)?);
-        }
-        if !with_reference {
-            continue;
-        }
-        let (image, _, bvh_seconds) = pool.install(|| trace_reference(&scene, settings));
+        let bar = progress_bar(scene.pixel_count() as u64, &format!("truth {}", scene.name));
+        let shared = pool.install(|| {
+            bench::SceneTruth::new(&scene, reference_settings, &|n| bar.inc(n))
+        });
+        bar.finish_and_clear();
+        let stats = &shared.truth.stats;
         println!(
-            "{}: {} triangles, {}x{} at {} spp: BVH {:.2} s, trace {:.2} s, {:.2} Mrays/s ({} threads)",
+            "{}: {} triangles, {}x{}; ground truth {} spp: {:.2} s ({:.2} Mrays/s, {} threads)",
             scene.name,
             scene.triangles.len(),
             scene.resolution[0],
             scene.resolution[1],
-            settings.spp(),
-            bvh_seconds,
-            image.stats.seconds,
-            image.stats.rays_per_second / 1e6,
+            reference_settings.spp(),
+            stats.seconds,
+            stats.rays_per_second / 1e6,
             pool.current_num_threads()
         );
-        rows.push(serde_json::json!({
-            "method": "reference",
-            "scene": scene_summary(&scene),
-            "spp": settings.spp(),
-            "bvh_build_seconds": bvh_seconds,
-            "seconds": image.stats.seconds,
-            "rays_per_second": image.stats.rays_per_second,
-            "stats": image.stats,
+        let mut scene_results = Vec::new();
+        let mut refused = Vec::new();
+        if args.backend != BenchBackend::Vulkan {
+            let (r, why) = pool.install(|| {
+                bench::bench_scene_cpu(&scene, &shared, &methods, &options, Some(&image_prefix))
+            })?;
+            scene_results.extend(r);
+            refused.extend(why);
+        }
+        if let Some(gpu) = &gpu {
+            scene_results.extend(bench::bench_scene_vulkan(
+                gpu,
+                &scene,
+                &shared,
+                &methods,
+                args.repeat,
+            )?);
+        }
+        for why in &refused {
+            eprintln!("bench: {why}");
+        }
+        print_bench_table(&scene.name, &scene_results);
+        if args.flicker {
+            let bar = progress_bar(args.flicker_frames as u64, &format!("flicker {}", scene.name));
+            let f = pool.install(|| {
+                bench::flicker::flicker(&scene, &shared, &methods, &flicker_options, &|| bar.inc(1))
+            });
+            bar.finish_and_clear();
+            for r in &f {
+                println!(
+                    "{}: flicker {:<14} mean |Δ| {:.5} per frame, {:.2}x the ground truth's",
+                    scene.name, r.method, r.mean_abs_delta, r.ratio_to_truth
+                );
+            }
+            flicker_rows.push(serde_json::json!({ "scene": scene.name, "rows": f }));
+        }
+        scene_rows.push(serde_json::json!({
+            "summary": scene_summary(&scene),
+            "truth": {
+                "spp": reference_settings.spp(),
+                "seconds": stats.seconds,
+                "rays_per_second": stats.rays_per_second,
+                "bvh_build_seconds": shared.bvh_seconds,
+                "stats": stats,
+                "image": format!("{image_prefix}/{}/truth.exr", bench::file_stem(&scene.name)),
+            },
+            "gbuffer_seconds": shared.gbuffer_seconds,
+            "refused": refused,
         }));
+        for r in scene_results {
+            let mut v = serde_json::to_value(&r)?;
+            v["scene"] = serde_json::json!(scene.name);
+            rows.push(v);
+        }
     }
     let report = serde_json::json!({
+        "command": "bench",
         "device": gpu.as_ref().map(|g| g.context.info().clone()),
+        "cpu": cpu_model(),
         "threads": pool.current_num_threads(),
         "logical_cores": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        "repeat": args.repeat,
+        "reference_spp": reference_settings.spp(),
+        "flicker_settings": args.flicker.then_some(flicker_options),
+        "scenes": scene_rows,
         "results": rows,
+        "flicker": flicker_rows,
     });
     write_json(&args.out, &report).with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {}", args.out.display());
+    println!("wrote {} (images in {})", args.out.display(), images_dir.display());
     Ok(())
 }
 
-/// Times each IZB method on `scene`, `repeat` times interleaved (so drift
-/// in the machine's speed hits every method alike), and reports the median
-/// seconds of every pass plus the ratios 32 spp / 1 spp.
-fn bench_izb(
-    pool: &rayon::ThreadPool,
-    scene: &Scene,
-    methods: &[(String, IzbSettings)],
-    repeat: usize,
-) -> Vec<serde_json::Value> {
-    let bvh = pool.install(|| SceneBvh::build(scene));
-    let mut runs: Vec<Vec<izb::izb::RenderReport>> = vec![Vec::new(); methods.len()];
-    for _ in 0..repeat {
-        for (k, (_, settings)) in methods.iter().enumerate() {
-            runs[k].push(pool.install(|| render_cpu(scene, &bvh, *settings)).report);
-        }
-    }
-    let medians: Vec<izb::izb::PassTimes> = runs
-        .iter()
-        .map(|r| izb::izb::PassTimes::median(r.iter().map(|x| &x.seconds)))
-        .collect();
-    let one = methods
-        .iter()
-        .position(|(_, s)| s.mode == SampleMode::One)
-        .map(|k| medians[k].clone());
-    methods
-        .iter()
-        .zip(&medians)
-        .zip(&runs)
-        .map(|(((name, settings), s), r)| {
-            let shadow = s.shadow();
-            println!(
-                "{}: {name:<12} gbuffer {:.3} s, light_setup {:.4} s, bin {:.3} s, evaluate {:.3} s, \
-                 resolve {:.4} s; shadow passes {:.3} s{}",
-                scene.name,
-                s.gbuffer,
-                s.light_setup,
-                s.bin,
-                s.evaluate,
-                s.resolve,
-                shadow,
-                one.as_ref().map_or(String::new(), |o| format!(
-                    " ({:.2}x 1 spp)",
-                    shadow / o.shadow()
-                ))
-            );
-            let last = r.last().expect("repeat >= 1");
-            serde_json::json!({
-                "method": name,
-                "backend": "cpu",
-                "mode": settings.mode,
-                "skips": settings.skips.to_string(),
-                "scene": scene_summary(scene),
-                "repeat": r.len(),
-                "median_seconds": s,
-                "shadow_seconds": shadow,
-                "shadow_seconds_over_1spp": one.as_ref().map(|o| shadow / o.shadow()),
-                "evaluate_over_1spp": one.as_ref().map(|o| s.evaluate / o.evaluate),
-                "bin": last.bin,
-                "evaluate": last.evaluate,
-                "cascades": last.light.cascade_choice,
-                "grids": last.light.cascades,
-            })
-        })
-        .collect()
+/// The CPU's model name (Linux), for the bench JSON.
+fn cpu_model() -> Option<String> {
+    let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    info.lines()
+        .find_map(|l| l.strip_prefix("model name")?.split_once(':').map(|(_, v)| v.trim().to_string()))
 }
 
-/// Times each IZB method on the GPU (full pipeline, GPU G-buffer), `repeat`
-/// times interleaved; reports the median GPU milliseconds of every pass
-/// (timestamp queries) and the ratios 32 spp / 1 spp and LUT / exact.
-fn bench_izb_gpu(
-    gpu: &GpuRenderer,
-    scene: &Scene,
-    methods: &[(String, IzbSettings)],
-    repeat: usize,
-) -> Result<Vec<serde_json::Value>> {
-    let mut runs: Vec<Vec<izb::gpu::GpuRenderReport>> = vec![Vec::new(); methods.len()];
-    for _ in 0..repeat {
-        for (k, (_, settings)) in methods.iter().enumerate() {
-            runs[k].push(gpu.render(scene, *settings, GBufferSource::Gpu)?.report);
-        }
+/// One line per method: time, ratio to `izb32`, and the error metrics.
+fn print_bench_table(scene: &str, rows: &[bench::MethodRow]) {
+    println!(
+        "{scene}: {:<16} {:>7} {:>10} {:>8} {:>9} {:>9} {:>9} {:>8}",
+        "method", "backend", "shadow s", "/izb32", "MAE", "penumbra", "edge", "% wrong"
+    );
+    for r in rows {
+        println!(
+            "{scene}: {:<16} {:>7} {:>10.4} {:>8} {:>9.5} {:>9.4} {:>9.4} {:>8.3}",
+            r.method,
+            r.backend,
+            r.shadow_seconds,
+            r.shadow_seconds_over_izb32
+                .map_or("-".to_string(), |x| format!("{x:.2}")),
+            r.metrics.mae,
+            r.metrics.smooth_penumbra_mae,
+            r.metrics.edge_mae,
+            r.metrics.percent_over_one_sample
+        );
     }
-    let medians: Vec<Option<izb::izb::PassTimes>> = runs
-        .iter()
-        .map(|r| {
-            let all: Option<Vec<&izb::izb::PassTimes>> =
-                r.iter().map(|x| x.gpu_milliseconds.as_ref()).collect();
-            all.map(|all| izb::izb::PassTimes::median(all.into_iter()))
-        })
-        .collect();
-    let find = |m: SampleMode| {
-        methods
-            .iter()
-            .position(|(_, x)| x.mode == m)
-            .and_then(|k| medians[k].clone())
-    };
-    let (one, exact) = (find(SampleMode::One), find(SampleMode::Exact32));
-    let shadow = izb::izb::PassTimes::shadow;
-    let mut rows = Vec::new();
-    for (((name, settings), m), r) in methods.iter().zip(&medians).zip(&runs) {
-        if let Some(m) = m {
-            println!(
-                "{}: {name:<12} vulkan ({}): gbuffer {:.3} ms, light_setup {:.3} ms, bin {:.3} ms, \
-                 evaluate {:.3} ms, resolve {:.3} ms; shadow passes {:.3} ms{}",
-                scene.name,
-                gpu.context.info().name,
-                m.gbuffer,
-                m.light_setup,
-                m.bin,
-                m.evaluate,
-                m.resolve,
-                shadow(m),
-                one.as_ref()
-                    .map_or(String::new(), |o| format!(" ({:.2}x 1 spp)", shadow(m) / shadow(o)))
-            );
-        }
-        let last = r.last().expect("repeat >= 1");
-        rows.push(serde_json::json!({
-            "method": name,
-            "backend": "vulkan",
-            "device": gpu.context.info().name,
-            "mode": settings.mode,
-            "skips": settings.skips.to_string(),
-            "scene": scene_summary(scene),
-            "repeat": r.len(),
-            "median_gpu_milliseconds": m,
-            "shadow_over_1spp": m.as_ref().zip(one.as_ref()).map(|(m, o)| shadow(m) / shadow(o)),
-            "shadow_over_exact": m.as_ref().zip(exact.as_ref()).map(|(m, e)| shadow(m) / shadow(e)),
-            "counters": last.counters,
-            "memory_total_bytes": last.memory_total_bytes,
-            "memory": last.memory,
-            "light": last.light,
-        }));
-    }
-    Ok(rows)
 }
 
 fn mode_for(spp: u32, exact: bool) -> SampleMode {

@@ -1,0 +1,462 @@
+//! Run time against error (design §8, issue 6): every method on one scene,
+//! in one process, repetitions interleaved so that drift in the machine's
+//! speed hits every method alike, medians reported, every metric measured
+//! against one supersampled ground truth.
+//!
+//! Methods:
+//! - `izb1`, `izb32`, `izb32-exact`: the irregular z-buffer;
+//! - `rt32`: brute-force ray tracing of the same 32 µQuad samples (CPU BVH,
+//!   [`crate::reference::same_samples`]): what the IZB must equal;
+//! - shadow maps, [`crate::baseline`] (`sm-R`, `pcf3-R`, `pcf5-R`,
+//!   `csmN-pcfK-R`).
+//!
+//! Times: the *shadow seconds* of a method are everything after the
+//! G-buffer the methods share (light setup and the method's own passes);
+//! `rt32` traces its own primary rays, so its shadow seconds are its whole
+//! run. `total_seconds` adds the G-buffer.
+
+pub mod flicker;
+
+use crate::baseline::{render_shadow_map, ShadowMapSettings};
+use crate::gbuffer::{gbuffer, GBuffer};
+use crate::izb::{render_cpu, resolve, IzbSettings, PassTimes, SampleMode};
+use crate::metrics::{metrics, sample_mismatches, Metrics};
+use crate::output::write_exr;
+use crate::reference::bvh::SceneBvh;
+use crate::reference::same_samples::same_sample_masks;
+use crate::reference::{reference, ReferenceImage, ReferenceSettings};
+use crate::scene::Scene;
+use serde_json::{json, Value};
+use std::path::Path;
+use std::time::Instant;
+
+/// What a benchmarked method is.
+#[derive(Clone, Copy, Debug)]
+pub enum MethodKind {
+    Izb(IzbSettings),
+    /// The 32 µQuad samples traced exactly.
+    RayTraced32,
+    ShadowMap(ShadowMapSettings),
+}
+
+impl MethodKind {
+    /// The family a report groups by.
+    pub fn family(&self) -> &'static str {
+        match self {
+            MethodKind::Izb(_) => "izb",
+            MethodKind::RayTraced32 => "ray-traced",
+            MethodKind::ShadowMap(_) => "shadow-map",
+        }
+    }
+
+    /// Whether the method produces 32-sample masks (compared sample by
+    /// sample with `rt32`).
+    fn masks_32(&self) -> bool {
+        match self {
+            MethodKind::Izb(s) => s.mode != SampleMode::One,
+            MethodKind::RayTraced32 => true,
+            MethodKind::ShadowMap(_) => false,
+        }
+    }
+}
+
+/// A named method to measure.
+#[derive(Clone, Debug)]
+pub struct Method {
+    pub name: String,
+    pub kind: MethodKind,
+}
+
+/// The default shadow-map sides `shadow-maps` expands over.
+pub const DEFAULT_MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
+
+/// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5` and
+/// `csm4-pcf3` at every side of `map_sides`; `reference` (the ground
+/// truth's own timing) is always measured and skipped here.
+pub fn parse_methods(names: &[String], map_sides: &[u32], izb: IzbSettings) -> Result<Vec<Method>, String> {
+    let mut out = Vec::new();
+    for name in names {
+        let name = name.trim();
+        let izb_mode = |mode| MethodKind::Izb(IzbSettings { mode, ..izb });
+        match name {
+            "reference" => {}
+            "izb1" => out.push((name.to_string(), izb_mode(SampleMode::One))),
+            "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
+            "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
+            "rt32" => out.push((name.to_string(), MethodKind::RayTraced32)),
+            "shadow-maps" => {
+                for &side in map_sides {
+                    for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3"] {
+                        let n = format!("{prefix}-{side}");
+                        out.push((n.clone(), MethodKind::ShadowMap(ShadowMapSettings::parse(&n)?)));
+                    }
+                }
+            }
+            other => out.push((
+                other.to_string(),
+                MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
+                    format!("{e}; or one of reference, izb1, izb32, izb32-exact, rt32, shadow-maps")
+                })?),
+            )),
+        }
+    }
+    Ok(out.into_iter().map(|(name, kind)| Method { name, kind }).collect())
+}
+
+/// How to measure.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub repeat: usize,
+    pub reference: ReferenceSettings,
+    /// Where to write each method's visibility (`<dir>/<scene>/<method>.exr`,
+    /// plus `truth.exr`) for the report's crops; `None`: nowhere.
+    pub images: Option<std::path::PathBuf>,
+}
+
+/// One method's last image and its times over the repetitions.
+struct Runs {
+    seconds: Vec<Value>,
+    shadow: Vec<f64>,
+    total: Vec<f64>,
+    visibility: Vec<f32>,
+    masks: Option<Vec<u32>>,
+    details: Value,
+    error: Option<String>,
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// A file-name-safe form of a method name.
+pub fn file_stem(name: &str) -> String {
+    name.chars()
+        .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
+        .collect()
+}
+
+/// The ground truth and what every method shares on one scene.
+pub struct SceneTruth {
+    pub bvh: SceneBvh,
+    pub gbuffer: GBuffer,
+    pub gbuffer_seconds: f64,
+    pub truth: ReferenceImage,
+    pub bvh_seconds: f64,
+}
+
+impl SceneTruth {
+    pub fn new(scene: &Scene, settings: ReferenceSettings, progress: &(dyn Fn(u64) + Sync)) -> SceneTruth {
+        let t = Instant::now();
+        let bvh = SceneBvh::build(scene);
+        let bvh_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let g = gbuffer(scene, &bvh);
+        let gbuffer_seconds = t.elapsed().as_secs_f64();
+        let truth = reference(scene, &bvh, settings, progress);
+        SceneTruth {
+            bvh,
+            gbuffer: g,
+            gbuffer_seconds,
+            truth,
+            bvh_seconds,
+        }
+    }
+}
+
+/// Runs one method once on the CPU: (visibility, masks, per-pass seconds,
+/// shadow seconds, total seconds, details).
+fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Runs, String> {
+    let mut r = run_placeholder();
+    match kind {
+        MethodKind::Izb(settings) => {
+            let out = render_cpu(scene, &shared.bvh, *settings);
+            let s = &out.report.seconds;
+            r.shadow.push(s.shadow());
+            r.total.push(s.total);
+            r.seconds.push(json!(s));
+            r.details = json!({
+                "bin": out.report.bin,
+                "evaluate": out.report.evaluate,
+                "cascades": out.report.light.cascade_choice,
+                "grids": out.report.light.cascades,
+            });
+            r.visibility = out.visibility;
+            r.masks = Some(out.masks);
+        }
+        MethodKind::RayTraced32 => {
+            let t = Instant::now();
+            let masks = same_sample_masks(scene, &shared.bvh, crate::lut::sample_pattern());
+            let s = t.elapsed().as_secs_f64();
+            r.shadow.push(s);
+            r.total.push(s);
+            r.seconds.push(json!({ "trace": s }));
+            r.visibility = resolve(&masks, &shared.gbuffer);
+            r.masks = Some(masks);
+        }
+        MethodKind::ShadowMap(settings) => {
+            let out = render_shadow_map(scene, &shared.gbuffer, *settings)?;
+            r.shadow.push(out.report.seconds.shadow);
+            r.total.push(out.report.seconds.shadow + shared.gbuffer_seconds);
+            r.seconds.push(json!(out.report.seconds));
+            r.details = json!(out.report);
+            r.visibility = out.visibility;
+        }
+    }
+    Ok(r)
+}
+
+/// Everything measured of one method on one scene.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct MethodRow {
+    pub method: String,
+    pub family: &'static str,
+    pub backend: &'static str,
+    pub repeat: usize,
+    /// Median of each pass (seconds; the last repetition's pass names).
+    pub seconds: Value,
+    pub shadow_seconds: f64,
+    pub total_seconds: f64,
+    /// Against the ground truth.
+    pub metrics: Metrics,
+    /// Differing samples / all samples against `rt32` (32-sample methods).
+    pub sample_mismatch_rate: Option<f64>,
+    /// This method's time over `izb32`'s, measured in this run.
+    pub shadow_seconds_over_izb32: Option<f64>,
+    /// Visibility image, relative to the bench JSON's folder.
+    pub image: Option<String>,
+    pub details: Value,
+}
+
+/// Measures `methods` on `scene` on the CPU against `shared.truth`.
+/// Methods that cannot run on the scene (a point light surrounded by its
+/// receivers for a shadow map) are reported in the returned error list.
+pub fn bench_scene_cpu(
+    scene: &Scene,
+    shared: &SceneTruth,
+    methods: &[Method],
+    options: &BenchOptions,
+    image_prefix: Option<&str>,
+) -> anyhow::Result<(Vec<MethodRow>, Vec<String>)> {
+    let mut runs: Vec<Option<Runs>> = methods.iter().map(|_| None).collect();
+    let mut refused = Vec::new();
+    for _ in 0..options.repeat.max(1) {
+        for (k, m) in methods.iter().enumerate() {
+            if runs[k].as_ref().is_some_and(|r| r.error.is_some()) {
+                continue;
+            }
+            match run_once(scene, shared, &m.kind) {
+                Ok(one) => match &mut runs[k] {
+                    Some(all) => {
+                        all.seconds.extend(one.seconds);
+                        all.shadow.extend(one.shadow);
+                        all.total.extend(one.total);
+                        all.visibility = one.visibility;
+                        all.masks = one.masks;
+                        all.details = one.details;
+                    }
+                    None => runs[k] = Some(one),
+                },
+                Err(e) => {
+                    refused.push(e.clone());
+                    let mut r = run_placeholder();
+                    r.error = Some(e);
+                    runs[k] = Some(r);
+                }
+            }
+        }
+    }
+    // The same-sample masks: the method's own run, or traced once here.
+    let rt_masks = match methods
+        .iter()
+        .zip(&runs)
+        .find(|(m, _)| matches!(m.kind, MethodKind::RayTraced32))
+        .and_then(|(_, r)| r.as_ref()?.masks.clone())
+    {
+        Some(m) => Some(m),
+        None if methods.iter().any(|m| m.kind.masks_32()) => Some(same_sample_masks(
+            scene,
+            &shared.bvh,
+            crate::lut::sample_pattern(),
+        )),
+        None => None,
+    };
+    let [w, h] = scene.resolution;
+    if let Some(dir) = &options.images {
+        let scene_dir = dir.join(file_stem(&scene.name));
+        write_exr(
+            &scene_dir.join("truth.exr"),
+            w,
+            h,
+            &[("visibility", &shared.truth.visibility), ("smooth", &shared.truth.smooth)],
+        )?;
+    }
+    let tested = |i: usize| !shared.truth.visibility[i].is_nan();
+    let mut rows = Vec::new();
+    for (m, r) in methods.iter().zip(runs) {
+        let Some(r) = r else { continue };
+        if r.error.is_some() {
+            continue;
+        }
+        let image = match (&options.images, image_prefix) {
+            (Some(dir), Some(prefix)) => {
+                let rel = format!("{}/{}.exr", file_stem(&scene.name), file_stem(&m.name));
+                write_exr(&dir.join(&rel), w, h, &[("visibility", &r.visibility)])?;
+                Some(format!("{prefix}/{rel}"))
+            }
+            _ => None,
+        };
+        let sample_mismatch_rate = match (&r.masks, &rt_masks) {
+            (Some(a), Some(b)) if m.kind.masks_32() => {
+                let (d, n) = sample_mismatches(a, b, tested);
+                Some(d as f64 / n.max(1) as f64)
+            }
+            _ => None,
+        };
+        let mut metrics = metrics(&r.visibility, &shared.truth.visibility, &shared.truth.smooth);
+        metrics.sample_mismatch_rate = sample_mismatch_rate;
+        let seconds = median_passes(&r.seconds);
+        rows.push(MethodRow {
+            method: m.name.clone(),
+            family: m.kind.family(),
+            backend: "cpu",
+            repeat: r.shadow.len(),
+            seconds,
+            shadow_seconds: median(&r.shadow),
+            total_seconds: median(&r.total),
+            metrics,
+            sample_mismatch_rate,
+            shadow_seconds_over_izb32: None,
+            image,
+            details: r.details,
+        });
+    }
+    set_izb32_ratios(&mut rows);
+    Ok((rows, refused))
+}
+
+fn run_placeholder() -> Runs {
+    Runs {
+        seconds: Vec::new(),
+        shadow: Vec::new(),
+        total: Vec::new(),
+        visibility: Vec::new(),
+        masks: None,
+        details: Value::Null,
+        error: None,
+    }
+}
+
+/// Per-pass medians of JSON objects of seconds.
+fn median_passes(runs: &[Value]) -> Value {
+    let Some(Value::Object(first)) = runs.last() else {
+        return Value::Null;
+    };
+    let mut out = serde_json::Map::new();
+    for (key, v) in first {
+        if v.is_number() {
+            let all: Vec<f64> = runs.iter().filter_map(|r| r.get(key)?.as_f64()).collect();
+            out.insert(key.clone(), json!(median(&all)));
+        }
+    }
+    Value::Object(out)
+}
+
+/// Fills `shadow_seconds_over_izb32` from the `izb32` row of the same
+/// backend.
+pub fn set_izb32_ratios(rows: &mut [MethodRow]) {
+    let base: Vec<(&'static str, f64)> = rows
+        .iter()
+        .filter(|r| r.method == "izb32")
+        .map(|r| (r.backend, r.shadow_seconds))
+        .collect();
+    for r in rows.iter_mut() {
+        if let Some(&(_, b)) = base.iter().find(|(backend, _)| *backend == r.backend) {
+            r.shadow_seconds_over_izb32 = Some(r.shadow_seconds / b);
+        }
+    }
+}
+
+/// Median of GPU pass milliseconds as seconds per pass.
+pub fn gpu_seconds(ms: &PassTimes) -> Value {
+    json!({
+        "gbuffer": ms.gbuffer / 1e3,
+        "light_setup": ms.light_setup / 1e3,
+        "bin": ms.bin / 1e3,
+        "evaluate": ms.evaluate / 1e3,
+        "resolve": ms.resolve / 1e3,
+        "total": ms.total / 1e3,
+    })
+}
+
+/// Relative path of `path` from `base`'s folder, when under it.
+pub fn relative_to(path: &Path, base: &Path) -> String {
+    let dir = base.parent().unwrap_or(Path::new(""));
+    path.strip_prefix(dir).unwrap_or(path).display().to_string()
+}
+
+/// Measures the IZB methods of `methods` on a Vulkan device (full
+/// pipeline, GPU G-buffer, timestamp queries), repetitions interleaved,
+/// against `shared.truth`. Shadow maps and `rt32` have no Vulkan twin
+/// (`paper-notes/baselines.md`) and are left to the CPU rows.
+pub fn bench_scene_vulkan(
+    gpu: &crate::gpu::GpuRenderer,
+    scene: &Scene,
+    shared: &SceneTruth,
+    methods: &[Method],
+    repeat: usize,
+) -> anyhow::Result<Vec<MethodRow>> {
+    use crate::gpu::GBufferSource;
+    let izb: Vec<(&Method, IzbSettings)> = methods
+        .iter()
+        .filter_map(|m| match m.kind {
+            MethodKind::Izb(s) => Some((m, s)),
+            _ => None,
+        })
+        .collect();
+    let mut runs: Vec<Vec<crate::gpu::GpuRender>> = izb.iter().map(|_| Vec::new()).collect();
+    for _ in 0..repeat.max(1) {
+        for (k, (_, settings)) in izb.iter().enumerate() {
+            let out = gpu.render(scene, *settings, GBufferSource::Gpu)?;
+            // Keep the last frame's images only.
+            if let Some(prev) = runs[k].last_mut() {
+                prev.masks.clear();
+                prev.visibility.clear();
+            }
+            runs[k].push(out);
+        }
+    }
+    let mut rows = Vec::new();
+    for ((m, _), r) in izb.iter().zip(&runs) {
+        let last = r.last().expect("repeat >= 1");
+        let ms: Option<Vec<&PassTimes>> = r.iter().map(|x| x.report.gpu_milliseconds.as_ref()).collect();
+        let Some(ms) = ms.map(|all| PassTimes::median(all.into_iter())) else {
+            anyhow::bail!("{}: the device's queue has no timestamps to time {} with", gpu.context.info().name, m.name);
+        };
+        let mut metrics = metrics(&last.visibility, &shared.truth.visibility, &shared.truth.smooth);
+        metrics.sample_mismatch_rate = None;
+        rows.push(MethodRow {
+            method: m.name.clone(),
+            family: "izb",
+            backend: "vulkan",
+            repeat: r.len(),
+            seconds: gpu_seconds(&ms),
+            shadow_seconds: ms.shadow() / 1e3,
+            total_seconds: ms.total / 1e3,
+            metrics,
+            sample_mismatch_rate: None,
+            shadow_seconds_over_izb32: None,
+            image: None,
+            details: json!({
+                "device": gpu.context.info().name,
+                "counters": last.report.counters,
+                "memory_total_bytes": last.report.memory_total_bytes,
+                "memory": last.report.memory,
+                "light": last.report.light,
+            }),
+        });
+    }
+    set_izb32_ratios(&mut rows);
+    Ok(rows)
+}
