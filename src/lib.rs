@@ -19,6 +19,7 @@ pub mod lut;
 pub mod metrics;
 pub mod output;
 pub mod reference;
+pub mod report;
 pub mod scene;
 
 /// Visibility samples per pixel: one bit each in a `u32` occlusion mask.

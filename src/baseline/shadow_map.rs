@@ -200,7 +200,12 @@ pub fn shadow_map(
         .collect();
     let atomic: Vec<Vec<AtomicU32>> = maps
         .iter()
-        .map(|_| (0..texels).into_par_iter().map(|_| AtomicU32::new(u32::MAX)).collect())
+        .map(|_| {
+            (0..texels)
+                .into_par_iter()
+                .map(|_| AtomicU32::new(u32::MAX))
+                .collect()
+        })
         .collect();
     let projection = setup.projection;
     // Point lights: geometry nearer than a thousandth of the nearest

@@ -73,7 +73,11 @@ pub const DEFAULT_MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
 /// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5` and
 /// `csm4-pcf3` at every side of `map_sides`; `reference` (the ground
 /// truth's own timing) is always measured and skipped here.
-pub fn parse_methods(names: &[String], map_sides: &[u32], izb: IzbSettings) -> Result<Vec<Method>, String> {
+pub fn parse_methods(
+    names: &[String],
+    map_sides: &[u32],
+    izb: IzbSettings,
+) -> Result<Vec<Method>, String> {
     let mut out = Vec::new();
     for name in names {
         let name = name.trim();
@@ -88,7 +92,10 @@ pub fn parse_methods(names: &[String], map_sides: &[u32], izb: IzbSettings) -> R
                 for &side in map_sides {
                     for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3"] {
                         let n = format!("{prefix}-{side}");
-                        out.push((n.clone(), MethodKind::ShadowMap(ShadowMapSettings::parse(&n)?)));
+                        out.push((
+                            n.clone(),
+                            MethodKind::ShadowMap(ShadowMapSettings::parse(&n)?),
+                        ));
                     }
                 }
             }
@@ -100,7 +107,10 @@ pub fn parse_methods(names: &[String], map_sides: &[u32], izb: IzbSettings) -> R
             )),
         }
     }
-    Ok(out.into_iter().map(|(name, kind)| Method { name, kind }).collect())
+    Ok(out
+        .into_iter()
+        .map(|(name, kind)| Method { name, kind })
+        .collect())
 }
 
 /// How to measure.
@@ -133,7 +143,13 @@ fn median(v: &[f64]) -> f64 {
 /// A file-name-safe form of a method name.
 pub fn file_stem(name: &str) -> String {
     name.chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect()
 }
 
@@ -147,7 +163,11 @@ pub struct SceneTruth {
 }
 
 impl SceneTruth {
-    pub fn new(scene: &Scene, settings: ReferenceSettings, progress: &(dyn Fn(u64) + Sync)) -> SceneTruth {
+    pub fn new(
+        scene: &Scene,
+        settings: ReferenceSettings,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> SceneTruth {
         let t = Instant::now();
         let bvh = SceneBvh::build(scene);
         let bvh_seconds = t.elapsed().as_secs_f64();
@@ -198,7 +218,8 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
         MethodKind::ShadowMap(settings) => {
             let out = render_shadow_map(scene, &shared.gbuffer, *settings)?;
             r.shadow.push(out.report.seconds.shadow);
-            r.total.push(out.report.seconds.shadow + shared.gbuffer_seconds);
+            r.total
+                .push(out.report.seconds.shadow + shared.gbuffer_seconds);
             r.seconds.push(json!(out.report.seconds));
             r.details = json!(out.report);
             r.visibility = out.visibility;
@@ -289,7 +310,10 @@ pub fn bench_scene_cpu(
             &scene_dir.join("truth.exr"),
             w,
             h,
-            &[("visibility", &shared.truth.visibility), ("smooth", &shared.truth.smooth)],
+            &[
+                ("visibility", &shared.truth.visibility),
+                ("smooth", &shared.truth.smooth),
+            ],
         )?;
     }
     let tested = |i: usize| !shared.truth.visibility[i].is_nan();
@@ -314,7 +338,11 @@ pub fn bench_scene_cpu(
             }
             _ => None,
         };
-        let mut metrics = metrics(&r.visibility, &shared.truth.visibility, &shared.truth.smooth);
+        let mut metrics = metrics(
+            &r.visibility,
+            &shared.truth.visibility,
+            &shared.truth.smooth,
+        );
         metrics.sample_mismatch_rate = sample_mismatch_rate;
         let seconds = median_passes(&r.seconds);
         rows.push(MethodRow {
@@ -430,11 +458,22 @@ pub fn bench_scene_vulkan(
     let mut rows = Vec::new();
     for ((m, _), r) in izb.iter().zip(&runs) {
         let last = r.last().expect("repeat >= 1");
-        let ms: Option<Vec<&PassTimes>> = r.iter().map(|x| x.report.gpu_milliseconds.as_ref()).collect();
+        let ms: Option<Vec<&PassTimes>> = r
+            .iter()
+            .map(|x| x.report.gpu_milliseconds.as_ref())
+            .collect();
         let Some(ms) = ms.map(|all| PassTimes::median(all.into_iter())) else {
-            anyhow::bail!("{}: the device's queue has no timestamps to time {} with", gpu.context.info().name, m.name);
+            anyhow::bail!(
+                "{}: the device's queue has no timestamps to time {} with",
+                gpu.context.info().name,
+                m.name
+            );
         };
-        let mut metrics = metrics(&last.visibility, &shared.truth.visibility, &shared.truth.smooth);
+        let mut metrics = metrics(
+            &last.visibility,
+            &shared.truth.visibility,
+            &shared.truth.smooth,
+        );
         metrics.sample_mismatch_rate = None;
         rows.push(MethodRow {
             method: m.name.clone(),

@@ -43,6 +43,8 @@ enum Command {
     Reference(ReferenceArgs),
     /// Run time against error: IZB, ray-traced samples and shadow maps against one ground truth; JSON.
     Bench(BenchArgs),
+    /// Pareto charts (PNG, SVG), crops at a shadow edge and an index.html from a bench JSON.
+    Report(ReportArgs),
     /// Print a scene's triangle counts, bounds, camera and light.
     Info(InfoArgs),
     /// List the Vulkan devices `--device` can pick, best first.
@@ -210,6 +212,16 @@ struct LutArgs {
     #[arg(long, default_value_t = izb::lut::DEFAULT_DISTANCES)]
     distances: u32,
     #[arg(long, default_value = "out")]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+struct ReportArgs {
+    /// A JSON file written by `izb bench`.
+    #[arg(default_value = "out/bench.json")]
+    bench: PathBuf,
+    /// Folder for the charts, crops and index.html.
+    #[arg(long, default_value = "out/report")]
     out: PathBuf,
 }
 
@@ -506,9 +518,8 @@ fn run_bench(args: BenchArgs) -> Result<()> {
             resolution: args.resolution,
         })?;
         let bar = progress_bar(scene.pixel_count() as u64, &format!("truth {}", scene.name));
-        let shared = pool.install(|| {
-            bench::SceneTruth::new(&scene, reference_settings, &|n| bar.inc(n))
-        });
+        let shared =
+            pool.install(|| bench::SceneTruth::new(&scene, reference_settings, &|n| bar.inc(n)));
         bar.finish_and_clear();
         let stats = &shared.truth.stats;
         println!(
@@ -545,7 +556,10 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         }
         print_bench_table(&scene.name, &scene_results);
         if args.flicker {
-            let bar = progress_bar(args.flicker_frames as u64, &format!("flicker {}", scene.name));
+            let bar = progress_bar(
+                args.flicker_frames as u64,
+                &format!("flicker {}", scene.name),
+            );
             let f = pool.install(|| {
                 bench::flicker::flicker(&scene, &shared, &methods, &flicker_options, &|| bar.inc(1))
             });
@@ -591,15 +605,33 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         "flicker": flicker_rows,
     });
     write_json(&args.out, &report).with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {} (images in {})", args.out.display(), images_dir.display());
+    println!(
+        "wrote {} (images in {})",
+        args.out.display(),
+        images_dir.display()
+    );
+    Ok(())
+}
+
+fn run_report(args: ReportArgs) -> Result<()> {
+    let files = izb::report::report(&args.bench, &args.out)?;
+    println!(
+        "report: {} charts, {} crops -> {}",
+        files.charts.len(),
+        files.crops.len(),
+        files.index.display()
+    );
     Ok(())
 }
 
 /// The CPU's model name (Linux), for the bench JSON.
 fn cpu_model() -> Option<String> {
     let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
-    info.lines()
-        .find_map(|l| l.strip_prefix("model name")?.split_once(':').map(|(_, v)| v.trim().to_string()))
+    info.lines().find_map(|l| {
+        l.strip_prefix("model name")?
+            .split_once(':')
+            .map(|(_, v)| v.trim().to_string())
+    })
 }
 
 /// One line per method: time, ratio to `izb32`, and the error metrics.
@@ -975,6 +1007,7 @@ fn main() {
         Command::Lut(a) => run_lut(a),
         Command::Reference(a) => run_reference(a),
         Command::Bench(a) => run_bench(a),
+        Command::Report(a) => run_report(a),
         Command::Info(a) => run_info(a),
         Command::Devices => run_devices(),
     };

@@ -1,0 +1,506 @@
+//! `izb report`: turns a `bench.json` into pictures people can look at.
+//!
+//! Per scene and backend a Pareto chart (time on a log x axis; MAE,
+//! smooth-penumbra MAE, edge MAE and % wrong pixels on y; one point per
+//! method and setting, the front of undominated points joined), as PNG and
+//! SVG; per scene side-by-side crops of the ground truth, IZB 32 spp,
+//! IZB 1 spp and the most accurate shadow map at the window with the most
+//! penumbra, each with its error heat map; and an `index.html` that shows it
+//! all with the numbers. Nothing here is committed: the command makes it.
+
+use crate::metrics::error_heat_map;
+use crate::output::{read_exr_channel, write_atomically, write_png, UNTESTED_RGB};
+use anyhow::{Context, Result};
+use plotters::prelude::*;
+use serde_json::Value;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+/// Side of a crop window in image pixels, and its magnification.
+pub const CROP_SIDE: u32 = 64;
+pub const CROP_ZOOM: u32 = 4;
+
+/// The y axes of a Pareto chart: JSON key under `metrics`, label.
+const PANELS: [(&str, &str); 4] = [
+    ("mae", "MAE (all pixels)"),
+    ("smooth_penumbra_mae", "smooth-penumbra MAE"),
+    ("edge_mae", "edge MAE"),
+    ("percent_over_one_sample", "% pixels wrong by > 1/32"),
+];
+
+/// One plotted method.
+#[derive(Clone, Debug)]
+struct Point {
+    method: String,
+    family: String,
+    seconds: f64,
+    metrics: Value,
+}
+
+/// What the report wrote.
+#[derive(Debug, Default)]
+pub struct ReportFiles {
+    pub index: PathBuf,
+    pub charts: Vec<PathBuf>,
+    pub crops: Vec<PathBuf>,
+}
+
+fn register_font() {
+    static FONT: Once = Once::new();
+    FONT.call_once(|| {
+        // DejaVu Sans, embedded: no system font libraries needed (design §7).
+        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
+            .unwrap_or_else(|_| panic!("the embedded DejaVu Sans font is valid"));
+    });
+}
+
+/// Colour and marker kind of a method.
+fn style_of(p: &Point) -> (RGBColor, &'static str) {
+    let m = p.method.as_str();
+    match p.family.as_str() {
+        "izb" if m.starts_with("izb1") => (RGBColor(120, 170, 230), "IZB 1 spp"),
+        "izb" => (RGBColor(20, 60, 180), "IZB 32 spp"),
+        "ray-traced" => (RGBColor(30, 150, 60), "ray-traced 32 samples"),
+        _ if m.starts_with("csm") => (RGBColor(140, 90, 40), "cascaded SM + PCF"),
+        _ if m.starts_with("pcf5") => (RGBColor(150, 60, 170), "SM 5x5 PCF"),
+        _ if m.starts_with("pcf") => (RGBColor(240, 140, 20), "SM 3x3 PCF"),
+        _ => (RGBColor(210, 40, 40), "SM 1 tap"),
+    }
+}
+
+/// Indices of the points not dominated in (time, metric), fastest first.
+fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by(|&a, &b| {
+        points[a]
+            .0
+            .total_cmp(&points[b].0)
+            .then(points[a].1.total_cmp(&points[b].1))
+    });
+    let mut best = f64::INFINITY;
+    order
+        .into_iter()
+        .filter(|&i| {
+            let keep = points[i].1 < best;
+            best = best.min(points[i].1);
+            keep
+        })
+        .collect()
+}
+
+/// Draws the 2×2 Pareto panels of `points` onto `area`.
+fn draw_chart<DB: DrawingBackend>(
+    area: DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    points: &[Point],
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing the chart: {e:?}");
+    area.fill(&WHITE).map_err(err)?;
+    let area = area.titled(title, ("sans-serif", 22)).map_err(err)?;
+    let (t_lo, t_hi) = points.iter().fold((f64::INFINITY, 0.0f64), |a, p| {
+        (a.0.min(p.seconds), a.1.max(p.seconds))
+    });
+    let (t_lo, t_hi) = (t_lo.max(1e-9) / 1.6, t_hi.max(1e-9) * 1.6);
+    for ((key, label), panel) in PANELS.iter().zip(area.split_evenly((2, 2))) {
+        let ys: Vec<f64> = points
+            .iter()
+            .map(|p| p.metrics[key].as_f64().unwrap_or(f64::NAN))
+            .collect();
+        let y_hi = ys
+            .iter()
+            .copied()
+            .filter(|y| y.is_finite())
+            .fold(0.0f64, f64::max)
+            .max(1e-6)
+            * 1.15;
+        let mut chart = ChartBuilder::on(&panel)
+            .caption(*label, ("sans-serif", 16))
+            .margin(8)
+            .x_label_area_size(34)
+            .y_label_area_size(56)
+            .build_cartesian_2d((t_lo..t_hi).log_scale(), 0.0..y_hi)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("shadow seconds (log)")
+            .x_label_formatter(&|x| format!("{x:.3}"))
+            .label_style(("sans-serif", 11))
+            .draw()
+            .map_err(err)?;
+        let xy: Vec<(f64, f64)> = points
+            .iter()
+            .zip(&ys)
+            .map(|(p, &y)| (p.seconds, y))
+            .collect();
+        let finite: Vec<(f64, f64)> = xy.iter().copied().filter(|(_, y)| y.is_finite()).collect();
+        let front: Vec<(f64, f64)> = pareto_front(&finite)
+            .into_iter()
+            .map(|i| finite[i])
+            .collect();
+        chart
+            .draw_series(LineSeries::new(
+                front,
+                RGBColor(150, 150, 150).stroke_width(1),
+            ))
+            .map_err(err)?;
+        for (p, &(x, y)) in points.iter().zip(&xy) {
+            if !y.is_finite() {
+                continue;
+            }
+            let (colour, _) = style_of(p);
+            let style = colour.filled();
+            let marker: DynElement<DB, (f64, f64)> = match p.family.as_str() {
+                "shadow-map" => TriangleMarker::new((x, y), 5, style).into_dyn(),
+                "ray-traced" => Cross::new((x, y), 5, colour.stroke_width(2)).into_dyn(),
+                _ => Circle::new((x, y), 5, style).into_dyn(),
+            };
+            chart.plotting_area().draw(&marker).map_err(err)?;
+            // The label beside the marker, not under it.
+            let label = EmptyElement::at((x, y))
+                + Text::new(
+                    p.method.clone(),
+                    (7, -4),
+                    ("sans-serif", 10).into_font().color(&BLACK),
+                );
+            chart.plotting_area().draw(&label).map_err(err)?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes the Pareto chart of `points` as `<stem>.png` and `<stem>.svg`.
+fn write_chart(dir: &Path, stem: &str, title: &str, points: &[Point]) -> Result<Vec<PathBuf>> {
+    register_font();
+    let (w, h) = (1200u32, 900u32);
+    let svg_path = dir.join(format!("{stem}.svg"));
+    let mut svg = String::new();
+    draw_chart(
+        SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area(),
+        title,
+        points,
+    )?;
+    write_atomically(&svg_path, |tmp| Ok(std::fs::write(tmp, &svg)?))?;
+    let png_path = dir.join(format!("{stem}.png"));
+    let mut rgb = vec![0u8; (w * h * 3) as usize];
+    draw_chart(
+        BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area(),
+        title,
+        points,
+    )?;
+    let img = image::RgbImage::from_raw(w, h, rgb).context("chart buffer size")?;
+    write_png(&png_path, &img)?;
+    Ok(vec![png_path, svg_path])
+}
+
+/// The top-left corner of the `side`² window holding the most penumbra
+/// pixels of `truth` (0 < t < 1): a shadow edge.
+pub fn penumbra_window(truth: &[f32], width: u32, height: u32, side: u32) -> (u32, u32) {
+    let (w, h) = (width as usize, height as usize);
+    let s = (side as usize).min(w).min(h);
+    // Summed-area table of penumbra pixels.
+    let mut sat = vec![0u32; (w + 1) * (h + 1)];
+    for y in 0..h {
+        for x in 0..w {
+            let t = truth[y * w + x];
+            let p = (t > 0.0 && t < 1.0) as u32;
+            sat[(y + 1) * (w + 1) + x + 1] =
+                p + sat[y * (w + 1) + x + 1] + sat[(y + 1) * (w + 1) + x] - sat[y * (w + 1) + x];
+        }
+    }
+    let count = |x: usize, y: usize| {
+        sat[(y + s) * (w + 1) + x + s] + sat[y * (w + 1) + x]
+            - sat[y * (w + 1) + x + s]
+            - sat[(y + s) * (w + 1) + x]
+    };
+    let mut best = (0, 0, 0);
+    for y in (0..=h - s).step_by(4) {
+        for x in (0..=w - s).step_by(4) {
+            let c = count(x, y);
+            if c > best.2 {
+                best = (x, y, c);
+            }
+        }
+    }
+    (best.0 as u32, best.1 as u32)
+}
+
+/// A magnified crop of a lit-fraction image (grey; untested pixels blue).
+fn crop_visibility(v: &[f32], width: u32, (x0, y0): (u32, u32), side: u32) -> image::RgbImage {
+    image::RgbImage::from_fn(side * CROP_ZOOM, side * CROP_ZOOM, |x, y| {
+        let t = v[((y0 + y / CROP_ZOOM) * width + x0 + x / CROP_ZOOM) as usize];
+        if t.is_nan() {
+            image::Rgb(UNTESTED_RGB)
+        } else {
+            image::Rgb([(t.clamp(0.0, 1.0) * 255.0).round() as u8; 3])
+        }
+    })
+}
+
+fn crop_image(img: &image::RgbImage, (x0, y0): (u32, u32), side: u32) -> image::RgbImage {
+    image::RgbImage::from_fn(side * CROP_ZOOM, side * CROP_ZOOM, |x, y| {
+        *img.get_pixel(x0 + x / CROP_ZOOM, y0 + y / CROP_ZOOM)
+    })
+}
+
+fn html_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+fn num(v: &Value, digits: usize) -> String {
+    v.as_f64()
+        .map_or("–".to_string(), |x| format!("{x:.digits$}"))
+}
+
+/// Reads `bench` (a `bench.json`) and writes the report into `out`.
+pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
+    let text =
+        std::fs::read_to_string(bench).with_context(|| format!("reading {}", bench.display()))?;
+    let doc: Value =
+        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", bench.display()))?;
+    let results = doc["results"].as_array().with_context(|| {
+        format!(
+            "{}: no `results` array (not an `izb bench` output?)",
+            bench.display()
+        )
+    })?;
+    let base = bench.parent().unwrap_or(Path::new("."));
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let mut files = ReportFiles::default();
+    let mut scene_names: Vec<String> = Vec::new();
+    for r in results {
+        let s = r["scene"]
+            .as_str()
+            .context("a result without a scene")?
+            .to_string();
+        if !scene_names.contains(&s) {
+            scene_names.push(s);
+        }
+    }
+    let mut html = String::new();
+    let device = doc["device"]["name"].as_str().unwrap_or("none (CPU only)");
+    let cpu = doc["cpu"].as_str().unwrap_or("unknown CPU");
+    let _ = write!(
+        html,
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>izb: run time against error</title>\n\
+         <style>body{{font-family:sans-serif;margin:2em;max-width:1300px}}table{{border-collapse:collapse;font-size:13px}}\
+         td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}td:first-child,th:first-child{{text-align:left}}\
+         figure{{display:inline-block;margin:4px;text-align:center;font-size:12px}}img{{image-rendering:pixelated}}\
+         .chart{{width:100%;max-width:1200px}}</style></head><body>\n\
+         <h1>Run time against error</h1>\n<p>From <code>{}</code>: CPU {} ({} threads of {} logical cores), Vulkan device {}; \
+         ground truth {} spp; medians of {} interleaved repetitions. Times are the shadow passes (everything after the shared G-buffer); \
+         compare times only within one backend.</p>\n",
+        html_escape(&bench.display().to_string()),
+        html_escape(cpu),
+        doc["threads"],
+        doc["logical_cores"],
+        html_escape(device),
+        doc["reference_spp"],
+        doc["repeat"],
+    );
+    for scene in &scene_names {
+        let stem = crate::bench::file_stem(scene);
+        let rows: Vec<&Value> = results
+            .iter()
+            .filter(|r| r["scene"] == scene.as_str())
+            .collect();
+        let _ = writeln!(html, "<h2 id=\"{0}\">{0}</h2>", html_escape(scene));
+        // The table.
+        html.push_str("<table><tr><th>method</th><th>backend</th><th>shadow s</th><th>/ izb32</th><th>MAE</th><th>smooth-penumbra MAE</th><th>edge MAE</th><th>% wrong</th><th>samples ≠ rt32</th></tr>\n");
+        for r in &rows {
+            let m = &r["metrics"];
+            let _ = writeln!(
+                html,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                html_escape(r["method"].as_str().unwrap_or("?")),
+                html_escape(r["backend"].as_str().unwrap_or("?")),
+                num(&r["shadow_seconds"], 5),
+                num(&r["shadow_seconds_over_izb32"], 2),
+                num(&m["mae"], 5),
+                num(&m["smooth_penumbra_mae"], 4),
+                num(&m["edge_mae"], 4),
+                num(&m["percent_over_one_sample"], 3),
+                num(&r["sample_mismatch_rate"], 6),
+            );
+        }
+        html.push_str("</table>\n");
+        // One chart per backend.
+        let mut backends: Vec<&str> = rows.iter().filter_map(|r| r["backend"].as_str()).collect();
+        backends.dedup();
+        for backend in backends {
+            let points: Vec<Point> = rows
+                .iter()
+                .filter(|r| r["backend"] == backend)
+                .filter_map(|r| {
+                    Some(Point {
+                        method: r["method"].as_str()?.to_string(),
+                        family: r["family"].as_str()?.to_string(),
+                        seconds: r["shadow_seconds"].as_f64()?,
+                        metrics: r["metrics"].clone(),
+                    })
+                })
+                .collect();
+            if points.is_empty() {
+                continue;
+            }
+            let chart_stem = format!("{stem}-{backend}-pareto");
+            let title = format!("{scene} ({backend}): run time against error");
+            files
+                .charts
+                .extend(write_chart(out, &chart_stem, &title, &points)?);
+            let _ = writeln!(
+                html,
+                "<p><img class=\"chart\" src=\"{chart_stem}.svg\" alt=\"Pareto chart, {0}\" onerror=\"console.error('missing image: ' + this.src)\"><br>\
+                 <a href=\"{chart_stem}.png\">PNG</a> · <a href=\"{chart_stem}.svg\">SVG</a></p>",
+                html_escape(&title)
+            );
+        }
+        // Crops.
+        let truth_rel = doc["scenes"]
+            .as_array()
+            .and_then(|s| s.iter().find(|s| s["summary"]["name"] == scene.as_str()))
+            .and_then(|s| s["truth"]["image"].as_str());
+        let Some(truth_rel) = truth_rel else {
+            continue;
+        };
+        let (w, h, truth) = read_exr_channel(&base.join(truth_rel), "visibility")?;
+        let side = CROP_SIDE.min(w).min(h);
+        let corner = penumbra_window(&truth, w, h, side);
+        let cpu_rows: Vec<&&Value> = rows
+            .iter()
+            .filter(|r| r["backend"] == "cpu" && r["image"].is_string())
+            .collect();
+        let best_sm = cpu_rows
+            .iter()
+            .filter(|r| r["family"] == "shadow-map")
+            .min_by(|a, b| {
+                let f = |r: &Value| r["metrics"]["mae"].as_f64().unwrap_or(f64::INFINITY);
+                f(a).total_cmp(&f(b))
+            });
+        let pick = |name: &str| cpu_rows.iter().find(|r| r["method"] == name).copied();
+        let shown: Vec<(String, Option<&Value>)> = vec![
+            ("ground truth".to_string(), None),
+            ("izb32".to_string(), pick("izb32").copied()),
+            ("izb1".to_string(), pick("izb1").copied()),
+            (
+                best_sm.map_or("best shadow map".to_string(), |r| {
+                    format!("best shadow map: {}", r["method"].as_str().unwrap_or("?"))
+                }),
+                best_sm.copied().copied(),
+            ),
+        ];
+        let _ = writeln!(
+            html,
+            "<h3>Crops at the shadow edge ({side}×{side} pixels from ({}, {}), ×{CROP_ZOOM})</h3><div>",
+            corner.0, corner.1
+        );
+        let mut heat_row = String::new();
+        for (k, (label, row)) in shown.iter().enumerate() {
+            let visibility = match row {
+                None => truth.clone(),
+                Some(r) => {
+                    let rel = r["image"].as_str().unwrap_or_default();
+                    read_exr_channel(&base.join(rel), "visibility")?.2
+                }
+            };
+            if row.is_none() && k > 0 {
+                continue; // a method the bench did not run
+            }
+            let crop_name = format!("{stem}-crop-{k}.png");
+            let path = out.join(&crop_name);
+            write_png(&path, &crop_visibility(&visibility, w, corner, side))?;
+            files.crops.push(path);
+            let _ = writeln!(
+                html,
+                "<figure><img src=\"{crop_name}\" width=\"{0}\" height=\"{0}\" alt=\"{1}\" onerror=\"console.error('missing image: ' + this.src)\"><figcaption>{1}</figcaption></figure>",
+                side * CROP_ZOOM,
+                html_escape(label)
+            );
+            if row.is_none() {
+                // The truth has no error: a blank cell keeps the columns.
+                let _ = writeln!(
+                    heat_row,
+                    "<figure style=\"width:{}px\"></figure>",
+                    side * CROP_ZOOM
+                );
+            } else {
+                let heat = error_heat_map(&visibility, &truth, w, h, 0.5);
+                let heat_name = format!("{stem}-crop-{k}-error.png");
+                let path = out.join(&heat_name);
+                write_png(&path, &crop_image(&heat, corner, side))?;
+                files.crops.push(path);
+                let _ = writeln!(
+                    heat_row,
+                    "<figure><img src=\"{heat_name}\" width=\"{0}\" height=\"{0}\" alt=\"error of {1}\" onerror=\"console.error('missing image: ' + this.src)\"><figcaption>|error| of {1} (white = 0.5)</figcaption></figure>",
+                    side * CROP_ZOOM,
+                    html_escape(label)
+                );
+            }
+        }
+        let _ = writeln!(html, "</div><div>{heat_row}</div>");
+    }
+    // Flicker.
+    if let Some(flicker) = doc["flicker"].as_array().filter(|f| !f.is_empty()) {
+        let _ = writeln!(
+            html,
+            "<h2 id=\"flicker\">Temporal stability</h2><p>Light turned by {}° per frame over {} frames; mean per-pixel |Δ visibility| \
+             between frames, and its ratio to the ground truth's (1 = no shimmer beyond the shadow's real motion).</p>",
+            num(&doc["flicker_settings"]["step_degrees"], 3),
+            doc["flicker_settings"]["frames"]
+        );
+        html.push_str(
+            "<table><tr><th>scene</th><th>method</th><th>mean |Δ|</th><th>/ truth</th></tr>\n",
+        );
+        for s in flicker {
+            for r in s["rows"].as_array().into_iter().flatten() {
+                let _ = writeln!(
+                    html,
+                    "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                    html_escape(s["scene"].as_str().unwrap_or("?")),
+                    html_escape(r["method"].as_str().unwrap_or("?")),
+                    num(&r["mean_abs_delta"], 6),
+                    num(&r["ratio_to_truth"], 2)
+                );
+            }
+        }
+        html.push_str("</table>\n");
+    }
+    html.push_str("</body></html>\n");
+    let index = out.join("index.html");
+    write_atomically(&index, |tmp| Ok(std::fs::write(tmp, &html)?))?;
+    files.index = index;
+    Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pareto_front_keeps_only_undominated_points() {
+        let pts = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 1.0), (0.5, 9.0)];
+        assert_eq!(pareto_front(&pts), vec![4, 0, 1, 3]);
+    }
+
+    #[test]
+    fn penumbra_window_finds_the_edge() {
+        let (w, h) = (100u32, 80u32);
+        let truth: Vec<f32> = (0..w * h)
+            .map(|i| {
+                if (60..64).contains(&(i % w)) && i / w >= 40 {
+                    0.5
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let (x, y) = penumbra_window(&truth, w, h, 16);
+        assert!((48..=60).contains(&x) && y >= 40, "window at ({x}, {y})");
+    }
+}
