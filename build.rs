@@ -84,6 +84,8 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ("bin_scatter", "bin.comp", &[("STEP_SCATTER", "1")]),
     ("evaluate", "evaluate.comp", &[]),
     ("resolve", "resolve.comp", &[]),
+    ("shadow_map", "shadow_map.comp", &[]),
+    ("shadow_lookup", "shadow_lookup.comp", &[]),
 ];
 
 /// Resolves `#include "x"` against `shaders/`.

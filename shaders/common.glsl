@@ -40,6 +40,7 @@
 #define B_SHADED 18
 #define B_TRIANGLE_NORMALS 19
 #define B_CELL_RECEIVERS 20
+#define B_SHADOW_MAP 21
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u
@@ -168,9 +169,9 @@ struct FrameParams {
     vec3 cam_forward;     // unit view direction: view depth = position · cam_forward
     uint cascades;        // 1..4, or 0 for auto (cascades::CascadeCount::code)
     float split_lambda;   // 1 logarithmic splits, 0 uniform
-    uint pad0;
-    uint pad1;
-    uint pad2;
+    uint map_side;        // shadow-map frames: texels per side of each cascade's map
+    uint map_filter;      // 0 one tap, k for k×k PCF
+    uint map_reach;       // texels the map reaches beyond the fitted bounds
     vec2 pattern[32];
 };
 

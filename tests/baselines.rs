@@ -1,8 +1,12 @@
 //! The shadow-map baselines are real shadow maps: the rasteriser agrees
 //! with a brute-force loop over every triangle at every texel centre, and a
 //! fine one-tap map agrees with the exact point-in-shadow test (IZB 1 spp)
-//! away from shadow edges.
+//! away from shadow edges; the Vulkan twin of each pass gives the CPU's
+//! lit fractions pixel for pixel on the same G-buffer.
 
+mod common;
+
+use common::gpu::{assert_no_validation_messages, lock, renderer};
 use izb::baseline::shadow_map::{shadow_map, CascadeMap, Filter};
 use izb::baseline::{render_shadow_map, ShadowMapSettings};
 use izb::gbuffer::gbuffer;
@@ -149,4 +153,72 @@ fn fine_one_tap_map_agrees_with_the_exact_point_test() {
 fn method_names_are_checked() {
     let err = ShadowMapSettings::parse("pcf4-512").unwrap_err();
     assert!(err.contains("pcf4-512"), "{err}");
+}
+
+/// Largest fraction of shadow-tested pixels whose GPU lit fraction may
+/// differ from the CPU twin's by more than rounding: a texel centre exactly
+/// on a triangle edge, or a receiver exactly at its bias limit, can go the
+/// other way. (lavapipe's `x / z` is not always the CPU's correctly rounded
+/// quotient, so a point light's PCF weights differ in the last bits.)
+const MAX_GPU_PIXEL_MISMATCH: f64 = 2e-3;
+
+#[test]
+fn gpu_shadow_maps_match_the_cpu_twin() {
+    let Some(r) = renderer() else { return };
+    let r = lock(r);
+    let shared = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
+    let mut scenes: Vec<Scene> = ["default", "city", "wires", "grazing"].iter().map(|n| small(n)).collect();
+    if std::path::Path::new(shared).exists() {
+        for name in ["deckchair", "engine"] {
+            let s = scene::load(&format!("{shared}/{name}.scene.json")).unwrap();
+            scenes.push(s.with_resolution([160, 90]).unwrap());
+        }
+    } else {
+        eprintln!("shared scenes skipped: ../shared/scenes not found");
+    }
+    let methods = ["sm-256", "pcf3-256", "pcf5-128", "csm2-pcf3-128"];
+    for scene in &scenes {
+        let bvh = SceneBvh::build(scene);
+        let g = gbuffer(scene, &bvh);
+        for name in methods {
+            let settings = ShadowMapSettings::parse(name).unwrap();
+            let cpu = render_shadow_map(scene, &g, settings);
+            let gpu = r.render_shadow_map(scene, settings, izb::gpu::GBufferSource::Upload(&g));
+            assert_no_validation_messages(&r, name);
+            let (cpu, gpu) = match (cpu, gpu) {
+                (Ok(c), Ok(g)) => (c, g),
+                (Err(c), Err(g)) => {
+                    println!("{} {name}: refused by both: {c} / {g}", scene.name);
+                    continue;
+                }
+                (c, g) => panic!("{} {name}: CPU {:?} vs GPU {:?}", scene.name, c.err(), g.err()),
+            };
+            // A bilinear weight is a fraction of a texel coordinate up to
+            // `side`: one rounding of that coordinate moves it by
+            // side·ε. Beyond a few of those a difference is a decision.
+            let rounding = 8.0 * settings.side as f32 * f32::EPSILON;
+            let (mut tested, mut inexact, mut differ, mut worst) = (0usize, 0usize, 0usize, 0.0f32);
+            for (a, b) in cpu.visibility.iter().zip(&gpu.visibility) {
+                assert_eq!(a.is_nan(), b.is_nan(), "{} {name}: tested pixels differ", scene.name);
+                if !a.is_nan() {
+                    tested += 1;
+                    let d = (a - b).abs();
+                    inexact += (d > 0.0) as usize;
+                    differ += (d > rounding) as usize;
+                    worst = worst.max(d);
+                }
+            }
+            let rate = differ as f64 / tested.max(1) as f64;
+            println!(
+                "{} {name}: {tested} pixels, {inexact} not bit-identical, {differ} differ by more than \
+                 rounding ({rounding:.1e}); largest |Δ| {worst:.2e}",
+                scene.name
+            );
+            assert!(
+                rate <= MAX_GPU_PIXEL_MISMATCH,
+                "{} {name}: {differ} of {tested} pixels differ by more than {rounding:.1e} (largest |Δ| {worst})",
+                scene.name
+            );
+        }
+    }
 }

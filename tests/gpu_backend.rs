@@ -15,11 +15,13 @@
 //! validation-layer message (`IZB_VALIDATION=1` turns the layer on).
 
 use izb::gbuffer::{flags, GBuffer};
-use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
+mod common;
+
+use common::gpu::{assert_no_validation_messages, renderer};
+use izb::gpu::{GBufferSource, GpuError, GpuRenderer};
 use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode};
 use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
-use std::sync::{Mutex, OnceLock};
 
 /// Test resolution; `IZB_GPU_TEST_RESOLUTION=scene` runs each scene at its
 /// own resolution (slow on lavapipe: for measurements, not CI).
@@ -51,36 +53,6 @@ const MAX_ID_MISMATCH: f64 = 1e-3;
 /// factor) and κ = (distance of the hit triangle from the eye) / (its
 /// shortest edge), the conditioning of its f32 normal.
 const AXIS_RELATIVE_TOLERANCE: f32 = 1e-3;
-
-/// One renderer for the whole binary (tests run in parallel threads; one
-/// device is enough and lavapipe is slow to open).
-fn renderer() -> Option<&'static Mutex<GpuRenderer>> {
-    static RENDERER: OnceLock<Result<Mutex<GpuRenderer>, String>> = OnceLock::new();
-    match RENDERER.get_or_init(|| {
-        GpuRenderer::new(&GpuOptions::from_env())
-            .map(Mutex::new)
-            .map_err(|e| e.to_string())
-    }) {
-        Ok(r) => Some(r),
-        Err(e) => {
-            if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}");
-            }
-            eprintln!("skipped (no Vulkan device: {e})");
-            None
-        }
-    }
-}
-
-fn assert_no_validation_messages(r: &GpuRenderer, what: &str) {
-    let messages = r.take_validation_messages();
-    assert!(
-        messages.is_empty(),
-        "{what}: {} validation message(s):\n{}",
-        messages.len(),
-        messages.join("\n")
-    );
-}
 
 /// (differing samples, compared samples) over pixels shadow-tested in `g`.
 fn mask_mismatch(a: &[u32], b: &[u32], g: &GBuffer) -> (u64, u64) {

@@ -10,7 +10,10 @@
 //! GPU part: skips with a message without a Vulkan device, fails instead
 //! with `IZB_REQUIRE_GPU=1`; any validation message fails it.
 
-use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
+mod common;
+
+use common::gpu::{lock, renderer};
+use izb::gpu::{GBufferSource, GpuError};
 use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
 use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
@@ -203,22 +206,10 @@ fn cpu_masks_agree_for_any_cascade_count() {
     }
 }
 
-fn renderer() -> Option<GpuRenderer> {
-    match GpuRenderer::new(&GpuOptions::from_env()) {
-        Ok(r) => Some(r),
-        Err(e) => {
-            if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}");
-            }
-            eprintln!("skipped (no Vulkan device: {e})");
-            None
-        }
-    }
-}
-
 #[test]
 fn gpu_masks_are_identical_with_and_without_skips() {
     let Some(r) = renderer() else { return };
+    let r = lock(r);
     let (resolution, modes) = gpu_resolution_and_modes();
     let (mut tests_on, mut tests_off) = (0u64, 0u64);
     for (name, scene) in scenes(resolution) {
@@ -277,6 +268,7 @@ fn gpu_masks_are_identical_with_and_without_skips() {
 fn gpu_masks_are_identical_for_any_cascade_count() {
     // Exact mode: bit-identical (the LUT's allowance is for the CPU test).
     let Some(r) = renderer() else { return };
+    let r = lock(r);
     let (resolution, _) = gpu_resolution_and_modes();
     for (name, scene) in scenes(resolution) {
         let render = |cascades| {

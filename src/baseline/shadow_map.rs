@@ -75,6 +75,18 @@ impl CascadeMap {
         self.ndc_origin + (Vec2::new(x as f32, y as f32) + 0.5) * self.texel_ndc
     }
 
+    /// The integer texel of floored texel coordinates: clamped to one
+    /// texel beyond the map (so any coordinate outside reads as outside),
+    /// NaN to (−1, −1). The GPU twin converts exactly so.
+    #[inline]
+    pub fn texel_of(&self, floored: Vec2) -> (i32, i32) {
+        if floored.is_nan() {
+            return (-1, -1);
+        }
+        let c = floored.clamp(Vec2::splat(-1.0), Vec2::splat(self.side as f32));
+        (c.x as i32, c.y as i32)
+    }
+
     /// Stored distance of texel (x, y); `+∞` (lit) outside the map.
     #[inline]
     pub fn at(&self, x: i32, y: i32) -> f32 {
@@ -289,8 +301,8 @@ fn draw_triangle(
     // Texel centres (x + 0.5) inside [lo, hi].
     let x0 = (lo.x - 0.5).ceil().max(0.0) as i32;
     let y0 = (lo.y - 0.5).ceil().max(0.0) as i32;
-    let x1 = ((hi.x - 0.5).floor() as i32).min(map.side as i32 - 1);
-    let y1 = ((hi.y - 0.5).floor() as i32).min(map.side as i32 - 1);
+    let x1 = (hi.x - 0.5).floor().min(side - 1.0) as i32;
+    let y1 = (hi.y - 0.5).floor().min(side - 1.0) as i32;
     let sign = area.signum();
     let mut written = 0;
     for y in y0..=y1 {
@@ -367,8 +379,8 @@ fn tan_to_light(projection: Projection, p: Vec3, n: Vec3) -> f32 {
 
 /// One texel, slope-scaled bias (seed 003).
 fn one_tap(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2) -> f32 {
-    let t = map.texel_coords(ndc).floor();
-    let stored = map.at(t.x as i32, t.y as i32);
+    let (x, y) = map.texel_of(map.texel_coords(ndc).floor());
+    let stored = map.at(x, y);
     let slope = tan_to_light(projection, p, n).min(MAX_BIAS_SLOPE);
     let bias = texel_world(map, projection, p) * (SLOPE_BIAS_TEXELS * slope + CONSTANT_BIAS_TEXELS);
     let lit = light_distance(projection, p) <= stored + bias;
@@ -393,7 +405,7 @@ fn pcf(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2, k:
             let s = t + Vec2::new(ox as f32, oy as f32) - 0.5;
             let base = s.floor();
             let f = s - base;
-            let (bx, by) = (base.x as i32, base.y as i32);
+            let (bx, by) = map.texel_of(base);
             for (dx, dy, w) in [
                 (0, 0, (1.0 - f.x) * (1.0 - f.y)),
                 (1, 0, f.x * (1.0 - f.y)),

@@ -615,6 +615,18 @@ fn run_bench(args: BenchArgs) -> Result<()> {
 
 fn run_report(args: ReportArgs) -> Result<()> {
     let files = izb::report::report(&args.bench, &args.out)?;
+    for v in &files.verdicts {
+        println!(
+            "{} ({}): izb32 vs {:<16} penumbra MAE {:+.4}, MAE {:+.5}, time {:.2}x izb32{}",
+            v.scene,
+            v.backend,
+            v.shadow_map,
+            v.penumbra_mae_margin,
+            v.mae_margin,
+            v.time_ratio,
+            if v.izb_more_accurate() { "" } else { "  <- not more accurate" }
+        );
+    }
     println!(
         "report: {} charts, {} crops -> {}",
         files.charts.len(),

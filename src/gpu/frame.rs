@@ -8,6 +8,7 @@ use super::pipeline::{BindingLayout, DescriptorSet};
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{self, binding, counter, FrameParams, GpuTriangle, LightState};
 use super::{GpuError, Kernels, Recorder};
+use crate::baseline::ShadowMapSettings;
 use crate::gbuffer::{flags, GBuffer, GBufferStats, MAX_MICROQUAD_STRETCH};
 use crate::izb::cascades::CascadeChoice;
 use crate::izb::light_setup::directional_rotation;
@@ -343,8 +344,16 @@ impl GpuRenderer {
         let mut frames_run = 0;
         loop {
             frames_run += 1;
-            let out =
-                self.run_frame(scene, settings, source, &upload, &bvh, max_cells, capacity)?;
+            let out = self.run_frame(
+                scene,
+                settings,
+                source,
+                &upload,
+                &bvh,
+                max_cells,
+                capacity,
+                FramePasses::Izb,
+            )?;
             let needed = u64::from(out.counters[counter::CELL_ENTRIES]);
             if out.counters[counter::CAPACITY_EXCEEDED] != 0 && frames_run == 1 {
                 capacity = needed;
@@ -375,6 +384,104 @@ impl GpuRenderer {
         }
     }
 
+    /// Renders the shadow-map baseline `map` on the GPU: the IZB's
+    /// G-buffer and light setup (with `map.cascades` cascades), then the
+    /// raster and lookup passes; the twin of
+    /// [`crate::baseline::render_shadow_map`].
+    pub fn render_shadow_map(
+        &self,
+        scene: &Scene,
+        map: ShadowMapSettings,
+        source: GBufferSource,
+    ) -> Result<GpuShadowMapRender, GpuError> {
+        let [w, h] = scene.resolution;
+        let limits = &self.shared().limits;
+        if w.div_ceil(8) > limits.max_compute_work_group_count[0]
+            || h.div_ceil(8) > limits.max_compute_work_group_count[1]
+        {
+            return Err(GpuError::Unsupported(format!(
+                "{w}x{h} needs more workgroups than this device allows"
+            )));
+        }
+        if let GBufferSource::Upload(g) = source {
+            if g.width != w || g.height != h {
+                return Err(GpuError::Unsupported(format!(
+                    "uploaded G-buffer is {}x{}, the scene renders at {w}x{h}",
+                    g.width, g.height
+                )));
+            }
+        }
+        let passes = FramePasses::ShadowMap(map);
+        let map_bytes = passes.shadow_map_texels() * 4;
+        let range = u64::from(limits.max_storage_buffer_range);
+        if map_bytes > range {
+            return Err(GpuError::Unsupported(format!(
+                "{map}: {} MiB of maps, above this device's {} MiB storage-buffer range",
+                map_bytes >> 20,
+                range >> 20
+            )));
+        }
+        let upload = SceneUpload::new(scene);
+        if upload.triangles.len() >= shared::ID_MASK as usize {
+            return Err(GpuError::Unsupported(format!(
+                "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
+                upload.triangles.len(),
+                shared::ID_BITS
+            )));
+        }
+        let bvh = match source {
+            GBufferSource::Gpu => super::gbuffer::build_bvh(&upload.triangles)?,
+            GBufferSource::Upload(_) => super::gbuffer::GpuBvh {
+                nodes: Vec::new(),
+                prims: Vec::new(),
+                depth: 0,
+            },
+        };
+        // The light setup the CPU baseline asks for: `map.cascades` fixed
+        // cascades; the 8×8 grid is unused.
+        let settings = IzbSettings {
+            cells: Some(8),
+            cascades: crate::izb::CascadeCount::Fixed(map.cascades),
+            ..Default::default()
+        };
+        let max_cells = crate::izb::cascades::max_total_cells(8);
+        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
+        let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
+        if trips != 0 {
+            return Err(GpuError::LoopCap {
+                device: self.context.info().name.clone(),
+                cap: LLVMPIPE_LOOP_CAP,
+                trips,
+            });
+        }
+        if out.light.grid_disabled != 0 {
+            return Err(GpuError::Unsupported(format!(
+                "{map} on {}: the receivers surround the point light, which one shadow-map frustum cannot hold (a cube map would)",
+                scene.name
+            )));
+        }
+        let visibility = out
+            .masks
+            .iter()
+            .zip(&out.id_flags)
+            .map(|(&m, &word)| {
+                let (_, flags) = shared::unpack_id_flags(word);
+                if flags & flags::SHADOW_TESTED != 0 {
+                    f32::from_bits(m)
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect();
+        Ok(GpuShadowMapRender {
+            visibility,
+            gpu_milliseconds: out.millis,
+            wall_seconds: out.wall_seconds,
+            map_bytes,
+            memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
+        })
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn run_frame(
         &self,
@@ -385,6 +492,7 @@ impl GpuRenderer {
         bvh: &super::gbuffer::GpuBvh,
         max_cells: u64,
         cell_capacity: u64,
+        passes: FramePasses,
     ) -> Result<FrameOutput, GpuError> {
         let triangles = &upload.triangles[..];
         let shared = self.shared();
@@ -400,6 +508,7 @@ impl GpuRenderer {
             max_cells,
             cell_capacity,
             lut_entries: lut.masks.len() as u64,
+            shadow_map_texels: passes.shadow_map_texels(),
         });
         debug_assert_eq!(descs.len(), binding::COUNT as usize);
         let frame_buffers = FrameBuffers {
@@ -414,7 +523,7 @@ impl GpuRenderer {
         let set = DescriptorSet::new(shared, &self.layout, &refs)?;
 
         // Uploads through staging buffers, kept alive until the fence.
-        let params = frame_params(
+        let mut params = frame_params(
             scene,
             settings,
             triangles.len(),
@@ -422,6 +531,14 @@ impl GpuRenderer {
             cell_capacity,
             loop_budget(&shared.info.name),
         );
+        if let FramePasses::ShadowMap(map) = passes {
+            params.map_side = map.side;
+            params.map_filter = match map.filter {
+                crate::baseline::Filter::OneTap => 0,
+                crate::baseline::Filter::Pcf(k) => k,
+            };
+            params.map_reach = map.filter.reach();
+        }
         let mut uploads: Vec<(GpuBuffer, u32)> = Vec::new();
         let mut stage = |b: u32, bytes: &[u8]| -> Result<(), GpuError> {
             if bytes.is_empty() {
@@ -520,6 +637,14 @@ impl GpuRenderer {
                     vk::WHOLE_SIZE,
                     u32::MAX,
                 );
+                // Every texel empty (the largest ordered distance).
+                device.cmd_fill_buffer(
+                    cmd,
+                    fb.get(binding::SHADOW_MAP).buffer,
+                    0,
+                    vk::WHOLE_SIZE,
+                    u32::MAX,
+                );
             }
             rec.barrier();
             timestamps.reset(cmd);
@@ -530,12 +655,22 @@ impl GpuRenderer {
             timestamps.write(cmd, 1);
             super::light_setup::light_setup(&rec, &self.kernels, [w, h]);
             timestamps.write(cmd, 2);
-            let receivers = settings.skips.behind_receivers.then_some(w * h);
-            super::bin::bin(&rec, &self.kernels, triangles.len() as u32, receivers);
-            timestamps.write(cmd, 3);
-            super::evaluate::evaluate(&rec, &self.kernels, [w, h]);
-            timestamps.write(cmd, 4);
-            super::resolve::resolve(&rec, &self.kernels, [w, h]);
+            match passes {
+                FramePasses::Izb => {
+                    let receivers = settings.skips.behind_receivers.then_some(w * h);
+                    super::bin::bin(&rec, &self.kernels, triangles.len() as u32, receivers);
+                    timestamps.write(cmd, 3);
+                    super::evaluate::evaluate(&rec, &self.kernels, [w, h]);
+                    timestamps.write(cmd, 4);
+                    super::resolve::resolve(&rec, &self.kernels, [w, h]);
+                }
+                FramePasses::ShadowMap(_) => {
+                    super::shadow_map::shadow_map(&rec, &self.kernels, triangles.len() as u32);
+                    timestamps.write(cmd, 3);
+                    super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
+                    timestamps.write(cmd, 4);
+                }
+            }
             timestamps.write(cmd, 5);
             for (rb, b) in &readbacks {
                 let region = [vk::BufferCopy::default().size(rb.size())];
@@ -754,6 +889,36 @@ impl GpuRenderer {
     }
 }
 
+/// Which passes follow the G-buffer and light setup in a frame.
+#[derive(Clone, Copy, Debug)]
+enum FramePasses {
+    /// bin, evaluate, resolve.
+    Izb,
+    /// The shadow-map baseline: raster, lookup.
+    ShadowMap(ShadowMapSettings),
+}
+
+impl FramePasses {
+    fn shadow_map_texels(&self) -> u64 {
+        match self {
+            FramePasses::Izb => 0,
+            FramePasses::ShadowMap(s) => u64::from(s.cascades) * u64::from(s.side).pow(2),
+        }
+    }
+}
+
+/// What a GPU shadow-map frame returns.
+pub struct GpuShadowMapRender {
+    /// Lit fraction, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    /// GPU milliseconds: `bin` holds the raster pass, `evaluate` the
+    /// lookup, `resolve` is 0.
+    pub gpu_milliseconds: Option<GpuPassMillis>,
+    pub wall_seconds: f64,
+    pub map_bytes: u64,
+    pub memory_total_bytes: u64,
+}
+
 /// What one frame read back.
 struct FrameOutput {
     counters: Vec<u32>,
@@ -786,6 +951,8 @@ pub struct FrameSizes {
     pub max_cells: u64,
     pub cell_capacity: u64,
     pub lut_entries: u64,
+    /// Texels of every cascade's shadow map (0 in an IZB frame).
+    pub shadow_map_texels: u64,
 }
 
 /// Every device buffer of a frame, in binding order (`shared::binding`),
@@ -815,6 +982,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("resolve", "shaded_and_lit_samples", p * 4),
         BufferDesc::device("scene", "triangle_normals", t * vec3),
         BufferDesc::device("bin", "cell_receivers", z.max_cells * 8),
+        BufferDesc::device("shadow_map", "shadow_maps", z.shadow_map_texels.max(1) * 4),
     ]
 }
 
@@ -833,6 +1001,7 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         max_cells: crate::izb::cascades::max_total_cells(side),
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
+        shadow_map_texels: 0,
     });
     Ok(group_by_pass(descs.iter().filter(|d| is_allocated(d)).map(
         |d| (d.pass, d.name, d.size.max(4).next_multiple_of(4)),
@@ -921,7 +1090,9 @@ fn frame_params(
         cam_forward: frame.forward.as_vec3().to_array(),
         cascades: settings.cascades.code(),
         split_lambda: settings.split_lambda,
-        pad: [0; 3],
+        map_side: 0,
+        map_filter: 0,
+        map_reach: 0,
         pattern: *crate::lut::sample_pattern(),
     }
 }

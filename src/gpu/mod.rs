@@ -24,6 +24,7 @@ pub mod light_setup;
 pub mod pipeline;
 pub mod resolve;
 pub mod resources;
+pub mod shadow_map;
 pub mod shared;
 
 pub use context::{list_devices, DeviceInfo, GpuContext, GpuOptions};
@@ -105,6 +106,8 @@ pub struct Kernels {
     pub bin_scatter: ComputeKernel,
     pub evaluate: ComputeKernel,
     pub resolve: ComputeKernel,
+    pub shadow_map: ComputeKernel,
+    pub shadow_lookup: ComputeKernel,
 }
 
 impl Kernels {
@@ -125,6 +128,8 @@ impl Kernels {
             bin_scatter: k("bin_scatter", spirv!("bin_scatter"))?,
             evaluate: k("evaluate", spirv!("evaluate"))?,
             resolve: k("resolve", spirv!("resolve"))?,
+            shadow_map: k("shadow_map", spirv!("shadow_map"))?,
+            shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,
         })
     }
 }

@@ -41,8 +41,12 @@ pub mod binding {
     /// Per cell: lowest receiver z (ordered bits) and !reach
     /// ([`crate::izb::bin::CellReceivers`]).
     pub const CELL_RECEIVERS: u32 = 20;
+    /// The shadow-map baseline's maps, cascade after cascade, one
+    /// order-preserving distance word per texel ([`ordered_bits`]; empty
+    /// texels `u32::MAX`); 4 bytes in an IZB frame.
+    pub const SHADOW_MAP: u32 = 21;
     /// Number of bindings.
-    pub const COUNT: u32 = 21;
+    pub const COUNT: u32 = 22;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two
@@ -121,7 +125,12 @@ pub struct FrameParams {
     /// [`crate::izb::CascadeCount::code`]: 1..=4, 0 for auto.
     pub cascades: u32,
     pub split_lambda: f32,
-    pub pad: [u32; 3],
+    /// Shadow-map frames ([`crate::baseline`]): texels per side of each
+    /// cascade's map, the filter (0 one tap, k for k×k PCF) and the texels
+    /// the map reaches beyond the fitted bounds; 0 in an IZB frame.
+    pub map_side: u32,
+    pub map_filter: u32,
+    pub map_reach: u32,
     pub pattern: [[f32; 2]; 32],
 }
 const _: () = assert!(size_of::<FrameParams>() == 192 + 256);

@@ -38,10 +38,54 @@ struct Point {
     metrics: Value,
 }
 
+/// IZB 32 spp against one shadow-map setting on one scene and backend.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Verdict {
+    pub scene: String,
+    pub backend: String,
+    pub shadow_map: String,
+    /// Shadow-map error minus IZB 32 error: positive = the IZB is better.
+    pub penumbra_mae_margin: f64,
+    pub mae_margin: f64,
+    /// Shadow-map shadow seconds over IZB 32's.
+    pub time_ratio: f64,
+}
+
+impl Verdict {
+    /// The IZB is more accurate on both smooth-penumbra and overall MAE.
+    pub fn izb_more_accurate(&self) -> bool {
+        self.penumbra_mae_margin > 0.0 && self.mae_margin > 0.0
+    }
+}
+
+/// IZB 32 spp (`izb32`) against every shadow-map row of the same scene and
+/// backend.
+pub fn verdicts(results: &[Value]) -> Vec<Verdict> {
+    let f = |r: &Value, k: &str| r["metrics"][k].as_f64().unwrap_or(f64::NAN);
+    let mut out = Vec::new();
+    for izb in results.iter().filter(|r| r["method"] == "izb32") {
+        for sm in results.iter().filter(|r| {
+            r["family"] == "shadow-map" && r["scene"] == izb["scene"] && r["backend"] == izb["backend"]
+        }) {
+            out.push(Verdict {
+                scene: izb["scene"].as_str().unwrap_or("?").to_string(),
+                backend: izb["backend"].as_str().unwrap_or("?").to_string(),
+                shadow_map: sm["method"].as_str().unwrap_or("?").to_string(),
+                penumbra_mae_margin: f(sm, "smooth_penumbra_mae") - f(izb, "smooth_penumbra_mae"),
+                mae_margin: f(sm, "mae") - f(izb, "mae"),
+                time_ratio: sm["shadow_seconds"].as_f64().unwrap_or(f64::NAN)
+                    / izb["shadow_seconds"].as_f64().unwrap_or(f64::NAN),
+            });
+        }
+    }
+    out
+}
+
 /// What the report wrote.
 #[derive(Debug, Default)]
 pub struct ReportFiles {
     pub index: PathBuf,
+    pub verdicts: Vec<Verdict>,
     pub charts: Vec<PathBuf>,
     pub crops: Vec<PathBuf>,
 }
@@ -330,6 +374,21 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
             );
         }
         html.push_str("</table>\n");
+        let scene_verdicts: Vec<Verdict> = verdicts(results).into_iter().filter(|v| &v.scene == scene).collect();
+        if !scene_verdicts.is_empty() {
+            let better = scene_verdicts.iter().filter(|v| v.izb_more_accurate()).count();
+            let worse: Vec<String> = scene_verdicts
+                .iter()
+                .filter(|v| !v.izb_more_accurate())
+                .map(|v| format!("{} ({})", v.shadow_map, v.backend))
+                .collect();
+            let _ = writeln!(
+                html,
+                "<p class=\"verdict\">IZB 32 spp is more accurate (smooth-penumbra and overall MAE) than {better} of {} shadow-map settings{}.</p>",
+                scene_verdicts.len(),
+                if worse.is_empty() { String::new() } else { format!("; not than {}", html_escape(&worse.join(", "))) }
+            );
+        }
         // One chart per backend.
         let mut backends: Vec<&str> = rows.iter().filter_map(|r| r["backend"].as_str()).collect();
         backends.dedup();
@@ -475,6 +534,7 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
     let index = out.join("index.html");
     write_atomically(&index, |tmp| Ok(std::fs::write(tmp, &html)?))?;
     files.index = index;
+    files.verdicts = verdicts(results);
     Ok(files)
 }
 

@@ -8,6 +8,8 @@
 // Each test binary uses a different subset of these helpers.
 #![allow(dead_code)]
 
+pub mod gpu;
+
 use izb::scene::{Scene, SceneError};
 use serde_json::{json, Value};
 use std::fmt::Display;

@@ -1,0 +1,114 @@
+#version 460
+// Baseline pass `shadow_lookup` — GPU twin of
+// `baseline::shadow_map::shadow_lookup`: each shadow-tested pixel's lit
+// fraction from its cascade's map (the cascade light_setup stored in the
+// pixel's `masks` word), one tap with slope-scaled bias (seed 003) or k×k
+// bilinear PCF with receiver-plane depth bias (seed 001). The lit
+// fraction's float bits replace the word: a shadow-map frame has no
+// occlusion masks.
+#extension GL_GOOGLE_include_directive : require
+#include "common.glsl"
+
+layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
+
+layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
+layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
+layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
+layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
+layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
+layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
+layout(scalar, binding = B_SHADOW_MAP) readonly buffer MapBuf { uint shadow_map[]; };
+
+#include "light_view.glsl"
+#include "shadow_map.glsl"
+
+// Stored distance of texel t of cascade k; +inf (lit) outside the map.
+float stored(uint k, ivec2 t) {
+    int s = int(frame.map_side);
+    if (t.x < 0 || t.y < 0 || t.x >= s || t.y >= s) return 1.0 / 0.0;
+    uint o = shadow_map[k * frame.map_side * frame.map_side + uint(t.y) * frame.map_side + uint(t.x)];
+    return o == MAP_EMPTY ? 1.0 / 0.0 : from_ordered(o);
+}
+
+// Integer texel of a floored coordinate, out of the map when not finite
+// or beyond it (the CPU's saturating cast lands outside the map too).
+ivec2 texel_of(vec2 floored) {
+    vec2 c = clamp(floored, vec2(-1.0), vec2(float(frame.map_side)));
+    return isnan(c.x) || isnan(c.y) ? ivec2(-1) : ivec2(c);
+}
+
+float texel_world(vec2 texel, vec3 p) {
+    float s = max(texel.x, texel.y);
+    return light.projection == 0u ? s : s * p.z;
+}
+
+float tan_to_light(vec3 p, vec3 n) {
+    vec3 to_light = light.projection == 0u ? vec3(0.0, 0.0, 1.0) : -(p * (1.0 / sqrt(dot3(p, p))));
+    float c = clamp(dot3(n, to_light), 1e-6, 1.0);
+    precise float t = sqrt(1.0 - c * c) / c;
+    return t;
+}
+
+float one_tap(uint k, vec2 origin, vec2 texel, vec3 p, vec3 n, vec2 ndc) {
+    float s = stored(k, texel_of(floor(texel_coords(origin, texel, ndc))));
+    float slope = min(tan_to_light(p, n), MAX_BIAS_SLOPE);
+    precise float bias = texel_world(texel, p) * (SLOPE_BIAS_TEXELS * slope + CONSTANT_BIAS_TEXELS);
+    precise float limit = s + bias;
+    return light_distance(p) <= limit ? 1.0 : 0.0;
+}
+
+float pcf(uint k, vec2 origin, vec2 texel, vec3 p, vec3 n, vec2 ndc, uint size) {
+    float own = light_distance(p);
+    precise float bias = texel_world(texel, p) * CONSTANT_BIAS_TEXELS;
+    vec2 t = texel_coords(origin, texel, ndc);
+    int r = int(size / 2u);
+    precise float lit = 0.0;
+    for (int oy = -r; oy <= r; ++oy) {
+        for (int ox = -r; ox <= r; ++ox) {
+            precise vec2 s = t + vec2(float(ox), float(oy)) - 0.5;
+            vec2 base = floor(s);
+            precise vec2 f = s - base;
+            ivec2 b = texel_of(base);
+            precise float w[4] = float[4]((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
+            ivec2 d[4] = ivec2[4](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec2(1, 1));
+            [[unroll]] for (int q = 0; q < 4; ++q) {
+                ivec2 tx = b + d[q];
+                float st = stored(k, tx);
+                if (isinf(st)) {
+                    lit += w[q];
+                    continue;
+                }
+                float receiver = plane_distance(texel_centre(origin, texel, tx), p, n);
+                receiver = finite(receiver) ? min(receiver, own) : own;
+                precise float limit = st + bias;
+                lit += receiver <= limit ? w[q] : 0.0;
+            }
+        }
+    }
+    return lit / float(size * size);
+}
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    if (pixel.x >= frame.width || pixel.y >= frame.height) return;
+    uint i = pixel.y * frame.width + pixel.x;
+    uint word = g_id_flags[i];
+    if ((gbuffer_flags(word) & FLAG_SHADOW_TESTED) == 0u) {
+        masks[i] = 0u;
+        return;
+    }
+    uint k = min(masks[i], max(light.cascade_count, 1u) - 1u);
+    vec3 position = g_position[i];
+    vec3 p = to_light_view(position);
+    vec3 n = rotate(receiver_normal(triangle_normals[gbuffer_triangle(word)], word));
+    float lit = 1.0;
+    if (light.projection == 0u || p.z > 0.0) {
+        vec2 ndc = ndc_of(p);
+        vec2 origin, texel;
+        map_frame(k, origin, texel);
+        lit = frame.map_filter == 0u
+            ? one_tap(k, origin, texel, p, n, ndc)
+            : pcf(k, origin, texel, p, n, ndc, frame.map_filter);
+    }
+    masks[i] = floatBitsToUint(lit);
+}

@@ -1,0 +1,75 @@
+// shadow_map.glsl — the shadow-map baseline's arithmetic shared by
+// shadow_map.comp and shadow_lookup.comp: the GPU twin of
+// `baseline::shadow_map::{CascadeMap, light_distance, plane_distance,
+// texel_world, tan_to_light}`, same operation order, every product and sum
+// `precise` (no fused multiply-adds the CPU does not do). Include after
+// light_view.glsl.
+
+// baseline::shadow_map::{SLOPE_BIAS_TEXELS, MAX_BIAS_SLOPE, CONSTANT_BIAS_TEXELS}.
+#define SLOPE_BIAS_TEXELS 1.0
+#define MAX_BIAS_SLOPE 10.0
+#define CONSTANT_BIAS_TEXELS 0.1
+#define MAP_EMPTY 0xFFFFFFFFu
+
+// glam's left-to-right dot and cross.
+float dot3(vec3 a, vec3 b) {
+    precise float d = a.x * b.x + a.y * b.y;
+    precise float e = d + a.z * b.z;
+    return e;
+}
+
+vec3 cross3(vec3 a, vec3 b) {
+    precise vec3 c = vec3(a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y);
+    return c;
+}
+
+float perp_dot(vec2 a, vec2 b) {
+    precise float d = a.x * b.y - a.y * b.x;
+    return d;
+}
+
+// CascadeMap of cascade k: light-NDC corner of texel (0, 0), NDC size of a
+// texel (cascade_frame: the fitted bounds grown by `reach` texels).
+void map_frame(uint k, out vec2 origin, out vec2 texel) {
+    vec2 extent = light.cascade[k].ndc_max - light.cascade[k].ndc_min;
+    float inner = max(float(frame.map_side) - 2.0 * float(frame.map_reach), 1.0);
+    texel = extent / inner;
+    precise vec2 o = light.cascade[k].ndc_min - texel * float(frame.map_reach);
+    origin = o;
+}
+
+vec2 texel_coords(vec2 origin, vec2 texel, vec2 ndc) {
+    return (ndc - origin) / texel;
+}
+
+vec2 texel_centre(vec2 origin, vec2 texel, ivec2 t) {
+    precise vec2 c = origin + (vec2(t) + 0.5) * texel;
+    return c;
+}
+
+float light_distance(vec3 p) {
+    return light.projection == 0u ? -p.z : p.z;
+}
+
+// plane_distance: where the light ray through NDC n meets the plane
+// (point, normal); NaN/inf when the ray runs along it.
+float plane_distance(vec2 n, vec3 point, vec3 normal) {
+    vec3 origin = light.projection == 0u ? vec3(n, 0.0) : vec3(0.0);
+    vec3 dir = light.projection == 0u ? vec3(0.0, 0.0, -1.0) : vec3(n, 1.0);
+    precise float denom = dot3(normal, dir);
+    precise float t = dot3(normal, point - origin) / denom;
+    return t;
+}
+
+bool finite(float x) {
+    return !isnan(x) && !isinf(x);
+}
+
+float from_ordered(uint o) {
+    return uintBitsToFloat((o >> 31) == 1u ? (o & 0x7FFFFFFFu) : ~o);
+}
+
+uint to_ordered(float x) {
+    uint b = floatBitsToUint(x);
+    return (b >> 31) == 1u ? ~b : (b | 0x80000000u);
+}
