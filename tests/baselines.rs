@@ -167,7 +167,10 @@ fn gpu_shadow_maps_match_the_cpu_twin() {
     let Some(r) = renderer() else { return };
     let r = lock(r);
     let shared = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
-    let mut scenes: Vec<Scene> = ["default", "city", "wires", "grazing"].iter().map(|n| small(n)).collect();
+    let mut scenes: Vec<Scene> = ["default", "city", "wires", "grazing"]
+        .iter()
+        .map(|n| small(n))
+        .collect();
     if std::path::Path::new(shared).exists() {
         for name in ["deckchair", "engine"] {
             let s = scene::load(&format!("{shared}/{name}.scene.json")).unwrap();
@@ -191,7 +194,12 @@ fn gpu_shadow_maps_match_the_cpu_twin() {
                     println!("{} {name}: refused by both: {c} / {g}", scene.name);
                     continue;
                 }
-                (c, g) => panic!("{} {name}: CPU {:?} vs GPU {:?}", scene.name, c.err(), g.err()),
+                (c, g) => panic!(
+                    "{} {name}: CPU {:?} vs GPU {:?}",
+                    scene.name,
+                    c.err(),
+                    g.err()
+                ),
             };
             // A bilinear weight is a fraction of a texel coordinate up to
             // `side`: one rounding of that coordinate moves it by
@@ -199,7 +207,12 @@ fn gpu_shadow_maps_match_the_cpu_twin() {
             let rounding = 8.0 * settings.side as f32 * f32::EPSILON;
             let (mut tested, mut inexact, mut differ, mut worst) = (0usize, 0usize, 0usize, 0.0f32);
             for (a, b) in cpu.visibility.iter().zip(&gpu.visibility) {
-                assert_eq!(a.is_nan(), b.is_nan(), "{} {name}: tested pixels differ", scene.name);
+                assert_eq!(
+                    a.is_nan(),
+                    b.is_nan(),
+                    "{} {name}: tested pixels differ",
+                    scene.name
+                );
                 if !a.is_nan() {
                     tested += 1;
                     let d = (a - b).abs();

@@ -252,8 +252,9 @@ struct BenchArgs {
     /// Repetitions of every method, interleaved; medians are reported.
     #[arg(long, default_value_t = 3)]
     repeat: usize,
-    /// Where to run the IZB methods: cpu, vulkan, or both (in one run,
-    /// interleaved, so ratios GPU / CPU twin come from one process).
+    /// Where to run the IZB and shadow-map methods: cpu, vulkan, or both
+    /// (in one run, so ratios GPU / CPU twin come from one process; rt32
+    /// always runs on the CPU).
     #[arg(long, value_enum, default_value_t = BenchBackend::Cpu)]
     backend: BenchBackend,
     /// Vulkan device index (see `izb devices`).
@@ -485,10 +486,10 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         }
     }
     let pool = thread_pool(args.threads)?;
-    let has_izb = methods
+    let has_gpu_method = methods
         .iter()
-        .any(|m| matches!(m.kind, bench::MethodKind::Izb(_)));
-    let gpu = if args.backend == BenchBackend::Cpu || !has_izb {
+        .any(|m| !matches!(m.kind, bench::MethodKind::RayTraced32));
+    let gpu = if args.backend == BenchBackend::Cpu || !has_gpu_method {
         None
     } else {
         Some(
@@ -535,21 +536,26 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         );
         let mut scene_results = Vec::new();
         let mut refused = Vec::new();
-        if args.backend != BenchBackend::Vulkan {
+        // rt32 has no Vulkan twin: it runs on the CPU whatever the backend.
+        let cpu_methods: Vec<bench::Method> = methods
+            .iter()
+            .filter(|m| {
+                args.backend != BenchBackend::Vulkan
+                    || matches!(m.kind, bench::MethodKind::RayTraced32)
+            })
+            .cloned()
+            .collect();
+        if !cpu_methods.is_empty() {
             let (r, why) = pool.install(|| {
-                bench::bench_scene_cpu(&scene, &shared, &methods, &options, Some(&image_prefix))
+                bench::bench_scene_cpu(&scene, &shared, &cpu_methods, &options, Some(&image_prefix))
             })?;
             scene_results.extend(r);
             refused.extend(why);
         }
         if let Some(gpu) = &gpu {
-            scene_results.extend(bench::bench_scene_vulkan(
-                gpu,
-                &scene,
-                &shared,
-                &methods,
-                args.repeat,
-            )?);
+            let (r, why) = bench::bench_scene_vulkan(gpu, &scene, &shared, &methods, args.repeat)?;
+            scene_results.extend(r);
+            refused.extend(why);
         }
         for why in &refused {
             eprintln!("bench: {why}");
@@ -624,7 +630,11 @@ fn run_report(args: ReportArgs) -> Result<()> {
             v.penumbra_mae_margin,
             v.mae_margin,
             v.time_ratio,
-            if v.izb_more_accurate() { "" } else { "  <- not more accurate" }
+            if v.izb_more_accurate() {
+                ""
+            } else {
+                "  <- not more accurate"
+            }
         );
     }
     println!(

@@ -65,7 +65,9 @@ pub fn verdicts(results: &[Value]) -> Vec<Verdict> {
     let mut out = Vec::new();
     for izb in results.iter().filter(|r| r["method"] == "izb32") {
         for sm in results.iter().filter(|r| {
-            r["family"] == "shadow-map" && r["scene"] == izb["scene"] && r["backend"] == izb["backend"]
+            r["family"] == "shadow-map"
+                && r["scene"] == izb["scene"]
+                && r["backend"] == izb["backend"]
         }) {
             out.push(Verdict {
                 scene: izb["scene"].as_str().unwrap_or("?").to_string(),
@@ -374,9 +376,15 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
             );
         }
         html.push_str("</table>\n");
-        let scene_verdicts: Vec<Verdict> = verdicts(results).into_iter().filter(|v| &v.scene == scene).collect();
+        let scene_verdicts: Vec<Verdict> = verdicts(results)
+            .into_iter()
+            .filter(|v| &v.scene == scene)
+            .collect();
         if !scene_verdicts.is_empty() {
-            let better = scene_verdicts.iter().filter(|v| v.izb_more_accurate()).count();
+            let better = scene_verdicts
+                .iter()
+                .filter(|v| v.izb_more_accurate())
+                .count();
             let worse: Vec<String> = scene_verdicts
                 .iter()
                 .filter(|v| !v.izb_more_accurate())
