@@ -80,13 +80,25 @@ bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
     return beyond > tolerance * length(n);     // P beyond the plane, away from the light
 }
 
-// frustum::edge_functions: (α, β, γ) of the side plane through x→y, oriented
-// so z is inside.
-vec3 edge_function(vec3 x, vec3 y, vec3 z, vec3 light_rel) {
+// frustum::side_plane_normal.
+vec3 side_plane_normal(vec3 x, vec3 y, vec3 light_rel) {
     precise vec3 n = light.projection == 0u ? cross(y - x, vec3(0.0, 0.0, 1.0))
                                             : cross(x - light_rel, y - light_rel);
-    precise float side = dot(n, z - x);
-    if (side < 0.0) n = -n;
+    return n;
+}
+
+// frustum::winding: one orientation for all three edges (see there why
+// each edge must not orient itself by its own third vertex).
+float winding(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
+    precise float w = dot(side_plane_normal(t0, t1, light_rel), t2 - t0);
+    return w;
+}
+
+// frustum::edge_function: (α, β, γ) of the side plane through x→y, flipped
+// when the triangle winds negatively.
+vec3 edge_function(vec3 x, vec3 y, vec3 light_rel, bool flip) {
+    precise vec3 n = side_plane_normal(x, y, light_rel);
+    if (flip) n = -n;
     precise vec3 e = vec3(-dot(n, x), dot(n, px_ex), dot(n, px_ey));
     return e;
 }
@@ -161,21 +173,24 @@ uint triangle_mask(Triangle tri) {
     precise vec3 light_rel = -px_p;   // point light at the light-view origin
     if (!may_shadow(t0, t1, t2, light_rel)) return 0u;
     depth_passed += 1u;
+    float w = winding(t0, t1, t2, light_rel);
+    if (!(w != 0.0)) return 0u;   // edge-on from the light (or NaN)
+    bool flip = w < 0.0;
     bool cheap;
     if ((frame.skips & SKIP_SATURATED_EDGES) == 0u) {
-        return edge_mask(edge_function(t0, t1, t2, light_rel), cheap)
-            & edge_mask(edge_function(t1, t2, t0, light_rel), cheap)
-            & edge_mask(edge_function(t2, t0, t1, light_rel), cheap);
+        return edge_mask(edge_function(t0, t1, light_rel, flip), cheap)
+            & edge_mask(edge_function(t1, t2, light_rel, flip), cheap)
+            & edge_mask(edge_function(t2, t0, light_rel, flip), cheap);
     }
     // The cheap path: stop at the first edge that leaves no sample.
-    uint mask = edge_mask(edge_function(t0, t1, t2, light_rel), cheap);
+    uint mask = edge_mask(edge_function(t0, t1, light_rel, flip), cheap);
     bool all_cheap = cheap;
     if (mask != 0u) {
-        mask &= edge_mask(edge_function(t1, t2, t0, light_rel), cheap);
+        mask &= edge_mask(edge_function(t1, t2, light_rel, flip), cheap);
         all_cheap = all_cheap && cheap;
     }
     if (mask != 0u) {
-        mask &= edge_mask(edge_function(t2, t0, t1, light_rel), cheap);
+        mask &= edge_mask(edge_function(t2, t0, light_rel, flip), cheap);
         all_cheap = all_cheap && cheap;
     }
     if (all_cheap) saturated_masks += 1u;

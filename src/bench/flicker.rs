@@ -34,6 +34,10 @@ pub struct FlickerRow {
     pub mean_abs_delta: f64,
     /// `mean_abs_delta` over the ground truth's.
     pub ratio_to_truth: f64,
+    /// The same over smooth pixels (every sub-pixel hit on the centre's
+    /// plane in both frames) and over edge pixels.
+    pub smooth_ratio_to_truth: f64,
+    pub edge_ratio_to_truth: f64,
     pub frames: usize,
     pub step_degrees: f64,
 }
@@ -60,29 +64,41 @@ pub fn rotated_light(scene: &Scene, degrees: f64) -> Light {
     }
 }
 
-/// Running sum of |Δ| between consecutive frames.
+/// Running sums of |Δ| between consecutive frames, over all pixels and
+/// split by the ground truth's pixel class (smooth in both frames, or
+/// not: design §8).
 #[derive(Default)]
 struct Delta {
     previous: Option<Vec<f32>>,
-    sum: f64,
-    pixels: u64,
+    sum: [f64; 3],
+    pixels: [u64; 3],
 }
 
+/// Index of the sums: all, smooth, edge.
+const ALL: usize = 0;
+const SMOOTH: usize = 1;
+const EDGE: usize = 2;
+
 impl Delta {
-    fn push(&mut self, visibility: Vec<f32>) {
+    /// `smooth[i]`: whether pixel i is smooth in this frame and the last.
+    fn push(&mut self, visibility: Vec<f32>, smooth: &[bool]) {
         if let Some(prev) = &self.previous {
-            for (a, b) in prev.iter().zip(&visibility) {
+            for (i, (a, b)) in prev.iter().zip(&visibility).enumerate() {
                 if !a.is_nan() && !b.is_nan() {
-                    self.sum += (a - b).abs() as f64;
-                    self.pixels += 1;
+                    let d = (a - b).abs() as f64;
+                    let class = if smooth[i] { SMOOTH } else { EDGE };
+                    for k in [ALL, class] {
+                        self.sum[k] += d;
+                        self.pixels[k] += 1;
+                    }
                 }
             }
         }
         self.previous = Some(visibility);
     }
 
-    fn mean(&self) -> f64 {
-        self.sum / self.pixels.max(1) as f64
+    fn mean(&self, class: usize) -> f64 {
+        self.sum[class] / self.pixels[class].max(1) as f64
     }
 }
 
@@ -99,11 +115,22 @@ pub fn flicker(
     let mut truth = Delta::default();
     let mut deltas: Vec<Option<Delta>> = methods.iter().map(|_| Some(Delta::default())).collect();
     let bvh = &shared.bvh;
+    let mut last_smooth: Option<Vec<f32>> = None;
     for f in 0..options.frames {
         let mut frame = scene.clone();
         frame.light = rotated_light(scene, f as f64 * options.step_degrees);
         let g = gbuffer(&frame, bvh);
-        truth.push(reference(&frame, bvh, options.reference, &|_| {}).visibility);
+        let t = reference(&frame, bvh, options.reference, &|_| {});
+        let smooth: Vec<bool> = match &last_smooth {
+            Some(prev) => prev
+                .iter()
+                .zip(&t.smooth)
+                .map(|(a, b)| *a == 1.0 && *b == 1.0)
+                .collect(),
+            None => vec![false; t.smooth.len()],
+        };
+        truth.push(t.visibility, &smooth);
+        last_smooth = Some(t.smooth);
         for (m, d) in methods.iter().zip(deltas.iter_mut()) {
             let Some(delta) = d else { continue };
             let visibility = match &m.kind {
@@ -120,29 +147,25 @@ pub fn flicker(
                     }
                 },
             };
-            delta.push(visibility);
+            delta.push(visibility, &smooth);
         }
         progress();
     }
-    let base = truth.mean();
-    let mut rows = vec![FlickerRow {
-        method: "truth".into(),
-        family: "reference",
-        mean_abs_delta: base,
-        ratio_to_truth: 1.0,
+    let base = [truth.mean(ALL), truth.mean(SMOOTH), truth.mean(EDGE)];
+    let row = |method: String, family: &'static str, d: &Delta| FlickerRow {
+        method,
+        family,
+        mean_abs_delta: d.mean(ALL),
+        ratio_to_truth: d.mean(ALL) / base[ALL],
+        smooth_ratio_to_truth: d.mean(SMOOTH) / base[SMOOTH],
+        edge_ratio_to_truth: d.mean(EDGE) / base[EDGE],
         frames: options.frames,
         step_degrees: options.step_degrees,
-    }];
+    };
+    let mut rows = vec![row("truth".into(), "reference", &truth)];
     for (m, d) in methods.iter().zip(deltas) {
         if let Some(d) = d {
-            rows.push(FlickerRow {
-                method: m.name.clone(),
-                family: m.kind.family(),
-                mean_abs_delta: d.mean(),
-                ratio_to_truth: d.mean() / base,
-                frames: options.frames,
-                step_degrees: options.step_degrees,
-            });
+            rows.push(row(m.name.clone(), m.kind.family(), &d));
         }
     }
     rows

@@ -140,6 +140,14 @@ fn median(v: &[f64]) -> f64 {
     v[v.len() / 2]
 }
 
+/// [fastest, slowest] of non-empty `v`.
+fn range(v: &[f64]) -> [f64; 2] {
+    v.iter()
+        .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], &x| {
+            [lo.min(x), hi.max(x)]
+        })
+}
+
 /// A file-name-safe form of a method name.
 pub fn file_stem(name: &str) -> String {
     name.chars()
@@ -238,6 +246,9 @@ pub struct MethodRow {
     /// Median of each pass (seconds; the last repetition's pass names).
     pub seconds: Value,
     pub shadow_seconds: f64,
+    /// Fastest and slowest repetition: the run-to-run spread behind the
+    /// median.
+    pub shadow_seconds_range: [f64; 2],
     pub total_seconds: f64,
     /// Against the ground truth.
     pub metrics: Metrics,
@@ -352,6 +363,7 @@ pub fn bench_scene_cpu(
             repeat: r.shadow.len(),
             seconds,
             shadow_seconds: median(&r.shadow),
+            shadow_seconds_range: range(&r.shadow),
             total_seconds: median(&r.total),
             metrics,
             sample_mismatch_rate,
@@ -520,6 +532,12 @@ pub fn bench_scene_vulkan(
             repeat: r.millis.len(),
             seconds: gpu_seconds(&ms),
             shadow_seconds: ms.shadow() / 1e3,
+            shadow_seconds_range: range(
+                &r.millis
+                    .iter()
+                    .map(|m| m.shadow() / 1e3)
+                    .collect::<Vec<_>>(),
+            ),
             total_seconds: ms.total / 1e3,
             metrics,
             sample_mismatch_rate: None,

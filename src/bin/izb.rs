@@ -572,8 +572,14 @@ fn run_bench(args: BenchArgs) -> Result<()> {
             bar.finish_and_clear();
             for r in &f {
                 println!(
-                    "{}: flicker {:<14} mean |Δ| {:.5} per frame, {:.2}x the ground truth's",
-                    scene.name, r.method, r.mean_abs_delta, r.ratio_to_truth
+                    "{}: flicker {:<14} mean |Δ| {:.5} per frame, {:.2}x the ground truth's \
+                     (smooth pixels {:.2}x, edge pixels {:.2}x)",
+                    scene.name,
+                    r.method,
+                    r.mean_abs_delta,
+                    r.ratio_to_truth,
+                    r.smooth_ratio_to_truth,
+                    r.edge_ratio_to_truth
                 );
             }
             flicker_rows.push(serde_json::json!({ "scene": scene.name, "rows": f }));

@@ -11,7 +11,9 @@
 //! visits every triangle able to shadow any of the 32 samples.
 
 use super::bin::{cell_range, Bins, NO_COVER};
-use super::frustum::{edge_function, exact_edge_mask, may_shadow, saturated_edge, LightRel};
+use super::frustum::{
+    edge_function, exact_edge_mask, may_shadow, saturated_edge, winding, LightRel,
+};
 use super::light_setup::LightSetup;
 use super::{is_receiver, Skips};
 use crate::gbuffer::{flags, GBuffer};
@@ -174,7 +176,11 @@ fn triangle_mask(
         return 0;
     }
     counters.depth_passed += 1;
-    let edge = |k| edge_function(&t, k, px.ex, px.ey, light);
+    let w = winding(&t, light);
+    if !(w != 0.0) {
+        return 0; // edge-on from the light (or NaN): no shadow area
+    }
+    let edge = |k| edge_function(&t, k, px.ex, px.ey, light, w < 0.0);
     if !rule.skips.saturated_edges {
         return (0..3).fold(FULL, |m, k| m & rule.edge_mask(edge(k)).0);
     }
