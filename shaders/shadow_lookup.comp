@@ -27,7 +27,7 @@ float stored(uint k, ivec2 t) {
     int s = int(frame.map_side);
     if (t.x < 0 || t.y < 0 || t.x >= s || t.y >= s) return 1.0 / 0.0;
     uint o = shadow_map[k * frame.map_side * frame.map_side + uint(t.y) * frame.map_side + uint(t.x)];
-    return o == MAP_EMPTY ? 1.0 / 0.0 : from_ordered(o);
+    return o == MAP_EMPTY ? 1.0 / 0.0 : from_ordered_bits(o);
 }
 
 // Integer texel of a floored coordinate, out of the map when not finite

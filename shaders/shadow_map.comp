@@ -53,7 +53,7 @@ void draw(uint k, vec3 f0, vec3 f1, vec3 f2, vec3 plane_point, vec3 plane_normal
         float d = plane_distance(texel_centre(origin, texel, ivec2(x, y)), plane_point, plane_normal);
         if (!finite(d)) d = dmin;
         d = clamp(d, dmin, dmax);
-        atomicMin(shadow_map[base + uint(y) * frame.map_side + uint(x)], to_ordered(d));
+        atomicMin(shadow_map[base + uint(y) * frame.map_side + uint(x)], ordered_bits(d));
     }
 }
 

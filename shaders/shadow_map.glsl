@@ -64,12 +64,3 @@ float plane_distance(vec2 n, vec3 point, vec3 normal) {
 bool finite(float x) {
     return !isnan(x) && !isinf(x);
 }
-
-float from_ordered(uint o) {
-    return uintBitsToFloat((o >> 31) == 1u ? (o & 0x7FFFFFFFu) : ~o);
-}
-
-uint to_ordered(float x) {
-    uint b = floatBitsToUint(x);
-    return (b >> 31) == 1u ? ~b : (b | 0x80000000u);
-}

@@ -11,6 +11,8 @@
 //! through the texel centre: smaller is nearer the light.
 
 use crate::gbuffer::{flags, GBuffer};
+// The GLSL twin's order-preserving float bits (for `fetch_min`).
+use crate::gpu::shared::{from_ordered_bits, ordered_bits};
 use crate::izb::light_setup::{CascadeGrid, LightSetup, Projection};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -144,22 +146,6 @@ fn plane_distance(projection: Projection, n: Vec2, point: Vec3, normal: Vec3) ->
     let denom = normal.dot(dir);
     let t = normal.dot(point - origin) / denom;
     t.is_finite().then_some(t)
-}
-
-/// Order-preserving map of an `f32` onto `u32` (for `fetch_min`).
-#[inline]
-fn ordered_bits(x: f32) -> u32 {
-    let b = x.to_bits();
-    if b >> 31 == 1 {
-        !b
-    } else {
-        b | 0x8000_0000
-    }
-}
-
-#[inline]
-fn from_ordered_bits(o: u32) -> f32 {
-    f32::from_bits(if o >> 31 == 1 { o & 0x7fff_ffff } else { !o })
 }
 
 /// The square map of `grid` at `side`² texels, grown by `reach` texels on
