@@ -4,17 +4,16 @@
 // back to back in the cell arrays), in these dispatches:
 //   STEP_RECEIVERS  (per pixel, behind-receivers skip only) per cell the
 //                   lowest receiver z and reach (bin::cell_receivers);
-//   STEP_COUNT      (per triangle) light-view vertex cache (written over the
-//                   eye-relative triangle it came from: the two bindings
-//                   alias one buffer); per cascade its placement, an atomic
-//                   count per covered cell and the cover floor (the
-//                   conservative shadow map); one overflow entry tagged
-//                   with the cascades it overflows in;
+//   STEP_COUNT      (per triangle) per cascade its placement (from its
+//                   light-view vertices), an atomic count per covered cell
+//                   and the cover floor (the conservative shadow map); one
+//                   overflow entry tagged with the cascades it overflows in;
 //   STEP_PREFIX_SUM (1 workgroup)  exclusive prefix sum of the counts into
 //                   cell_start (and a copy as the scatter cursor), total
 //                   checked against the cell list's capacity;
-//   STEP_SCATTER    (per triangle) entries into their cells (the rectangle
-//                   recomputed from the cache with the count's arithmetic),
+//   STEP_SCATTER    (per triangle) entries into their cells (light view and
+//                   rectangle recomputed with the count's `precise`
+//                   arithmetic, so the same cells),
 //                   and each cell's cover triangle among the best floors.
 // When the total exceeds the capacity nothing is scattered past it and
 // C_CAPACITY_EXCEEDED is raised: the host grows the list and runs the frame
@@ -25,10 +24,9 @@
 layout(local_size_x = WORKGROUP_LINEAR) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) buffer TriBuf { Triangle triangles[]; };
+layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
-layout(scalar, binding = B_VERTEX_CACHE) buffer CacheBuf { Triangle vertex_cache[]; };
 // Per cell, the conservative shadow map: .x = ordered bits of the best
 // cover floor (atomicMax; 0 = none), .y = ~id of the lowest-id triangle
 // with that floor (atomicMax; 0 = bin::NO_COVER). Filled with 0.
@@ -53,6 +51,13 @@ layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint pixel_cascade[]
 // receivers touching the cell (atomicMin), .y = ~reach (atomicMin, so the
 // largest reach wins): bin::CellReceivers.
 layout(scalar, binding = B_CELL_RECEIVERS) buffer CellRecvBuf { uvec2 cell_receivers[]; };
+
+// Triangle `id` in light view (to_light_view is `precise`): the placement
+// input of STEP_COUNT and STEP_SCATTER, as the CPU twin's `light_view`.
+Triangle light_view_triangle(uint id) {
+    Triangle w = triangles[id];
+    return Triangle(to_light_view(w.a), to_light_view(w.b), to_light_view(w.c));
+}
 
 // bin::BEHIND_MARGIN.
 #define BEHIND_MARGIN (1.0 / 1024.0)
@@ -194,9 +199,7 @@ void main() {
 #ifdef STEP_COUNT
     uint id = gl_GlobalInvocationID.x;
     if (id >= frame.triangle_count) return;
-    Triangle w = triangles[id];
-    Triangle t = Triangle(to_light_view(w.a), to_light_view(w.b), to_light_view(w.c));
-    vertex_cache[id] = t;
+    Triangle t = light_view_triangle(id);
     uint overflows = 0u;
     bool placed = false;
     uint binned = 0u, dropped = 0u, dropped_everywhere = 0u;
@@ -273,9 +276,9 @@ void main() {
 #ifdef STEP_SCATTER
     uint id = gl_GlobalInvocationID.x;
     if (id >= frame.triangle_count) return;
-    // The rectangles again, from the values STEP_COUNT stored: the same
-    // arithmetic on the same floats, so the same cells.
-    Triangle t = vertex_cache[id];
+    // The rectangles again: the same `precise` arithmetic on the same
+    // floats as STEP_COUNT, so the same cells.
+    Triangle t = light_view_triangle(id);
     for (uint k = 0u; k < light.cascade_count && spend_trip(); ++k) {
         uvec2 p = placement_in(t, k);
         if (p.x >= PLACEMENT_CULLED) continue;

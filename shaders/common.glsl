@@ -29,18 +29,17 @@
 #define B_G_ID_FLAGS 7
 #define B_LIGHT 8
 #define B_COUNTERS 9
-#define B_VERTEX_CACHE 10
-#define B_CELL_COVER 11
-#define B_CELL_CURSOR 12
-#define B_CELL_START 13
-#define B_CELL_TRIANGLES 14
-#define B_OVERFLOW 15
-#define B_EDGE_LUT 16
-#define B_MASKS 17
-#define B_SHADED 18
-#define B_TRIANGLE_NORMALS 19
-#define B_CELL_RECEIVERS 20
-#define B_SHADOW_MAP 21
+#define B_CELL_COVER 10
+#define B_CELL_CURSOR 11
+#define B_CELL_START 12
+#define B_CELL_TRIANGLES 13
+#define B_OVERFLOW 14
+#define B_EDGE_LUT 15
+#define B_MASKS 16
+#define B_SHADED 17
+#define B_TRIANGLE_NORMALS 18
+#define B_CELL_RECEIVERS 19
+#define B_SHADOW_MAP 20
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u

@@ -33,7 +33,7 @@ layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
-layout(scalar, binding = B_VERTEX_CACHE) readonly buffer CacheBuf { Triangle vertex_cache[]; };
+layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
 layout(scalar, binding = B_CELL_COVER) readonly buffer CellCoverBuf { uvec2 cell_cover[]; };
 layout(scalar, binding = B_CELL_START) readonly buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) readonly buffer CellTriBuf { uint cell_triangles[]; };
@@ -55,9 +55,13 @@ shared Triangle sm_tri[WORKGROUP_PIXELS];
 shared uint sm_id[WORKGROUP_PIXELS];
 shared uint sm_cell;
 
-// The pixel in light view, relative quantities as the CPU twin's
-// `PixelFrustum`.
+// The pixel in eye space, as the CPU twin's `PixelFrustum` (the frustum
+// test runs in eye space: its depth test then sees the same floats in
+// every frame while the light moves; see evaluate::triangle_mask).
 vec3 px_p, px_normal, px_ex, px_ey;
+// LightSetup::light_from(P): the direction toward a directional light
+// (light.rot_z), or the point light's position minus P.
+vec3 px_light;
 float px_size;
 uint px_receiver;
 uint px_cascade;
@@ -73,7 +77,7 @@ bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
     precise float height = max_of3(dot(px_normal, t0), dot(px_normal, t1), dot(px_normal, t2));
     if (!(height > tolerance)) return false;   // wholly below the tangent plane
     precise vec3 n = cross(t1 - t0, t2 - t0);
-    precise float facing = light.projection == 0u ? dot(n, vec3(0.0, 0.0, 1.0)) : dot(n, light_rel - t0);
+    precise float facing = light.projection == 0u ? dot(n, light_rel) : dot(n, light_rel - t0);
     if (facing == 0.0) return false;           // seen edge-on from the light
     if (facing < 0.0) n = -n;
     precise float beyond = dot(n, t0);
@@ -82,7 +86,7 @@ bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
 
 // frustum::side_plane_normal.
 vec3 side_plane_normal(vec3 x, vec3 y, vec3 light_rel) {
-    precise vec3 n = light.projection == 0u ? cross(y - x, vec3(0.0, 0.0, 1.0))
+    precise vec3 n = light.projection == 0u ? cross(y - x, light_rel)
                                             : cross(x - light_rel, y - light_rel);
     return n;
 }
@@ -165,12 +169,12 @@ bool done(uint mask) {
 #define LOOP_BUDGET_SLOTS WORKGROUP_PIXELS
 #include "loop_budget.glsl"
 
-// Occluded samples of one light-view triangle for this pixel.
+// Occluded samples of one eye-relative triangle for this pixel.
 uint triangle_mask(Triangle tri) {
     precise vec3 t0 = tri.a - px_p;
     precise vec3 t1 = tri.b - px_p;
     precise vec3 t2 = tri.c - px_p;
-    precise vec3 light_rel = -px_p;   // point light at the light-view origin
+    vec3 light_rel = px_light;
     if (!may_shadow(t0, t1, t2, light_rel)) return 0u;
     depth_passed += 1u;
     float w = winding(t0, t1, t2, light_rel);
@@ -214,21 +218,27 @@ bool tests_overflow(uint entry) {
     return id != px_receiver && id != px_cover && ((entry >> ID_BITS) & (1u << px_cascade)) != 0u;
 }
 
-// evaluate::pixel_frustum: light-view µQuad, its cascade, its cell
+// evaluate::pixel_frustum: the eye-space µQuad, its cascade, its cell
 // rectangle and the cover triangle of the centre's cell.
 void pixel_frustum(uint i) {
     vec3 p = g_position[i], ex = g_axis_x[i], ey = g_axis_y[i];
-    px_p = to_light_view(p);
+    px_p = p;
+    if (light.projection == 0u) {
+        px_light = light.rot_z;
+    } else {
+        precise vec3 l = light.origin - p;
+        px_light = l;
+    }
     uint word = g_id_flags[i];
     px_receiver = gbuffer_triangle(word);
     px_cascade = masks[i];
-    // The host's f64 normal, not one rebuilt from the light-view vertices:
-    // the tangent-plane test compares heights against 2^-8 of a µQuad, and
-    // a normal rebuilt from f32 light-view vertices (error ~ε·|v|/|edge|)
+    // The host's f64 normal, not one rebuilt from the f32 vertices: the
+    // tangent-plane test compares heights against 2^-8 of a µQuad, and a
+    // normal rebuilt from f32 light-view vertices (error ~ε·|v|/|edge|)
     // flipped 1.1–1.8e-4 of the samples at 960×540 (wires, deckchair).
-    px_normal = rotate(receiver_normal(triangle_normals[px_receiver], word));
-    px_ex = rotate(ex);
-    px_ey = rotate(ey);
+    px_normal = receiver_normal(triangle_normals[px_receiver], word);
+    px_ex = ex;
+    px_ey = ey;
     precise float size = max(length(px_ex), length(px_ey));
     px_size = size;
     px_has_cells = false;
@@ -237,9 +247,10 @@ void pixel_frustum(uint i) {
     vec2 lo, hi;
     microquad_grid_box(px_cascade, p, ex, ey, lo, hi);
     px_has_cells = cell_range(px_cascade, lo, hi, px_cells);
-    bool in_front = light.projection == 0u || px_p.z > 0.0;
+    vec3 p_light_view = to_light_view(p);
+    bool in_front = light.projection == 0u || p_light_view.z > 0.0;
     if (px_has_cells && in_front && (frame.skips & SKIP_SHADOW_MAP) != 0u) {
-        vec2 c = grid_coords(px_cascade, ndc_of(px_p));
+        vec2 c = grid_coords(px_cascade, ndc_of(p_light_view));
         uint x = clamp(uint(max(c.x, 0.0)), px_cells.x, px_cells.z);
         uint y = clamp(uint(max(c.y, 0.0)), px_cells.y, px_cells.w);
         px_cover = ~cell_cover[cell_index(px_cascade, x, y)].y;
@@ -275,7 +286,7 @@ void main() {
         // testing it again leaves the mask as it was.
         if (px_cover != NO_COVER && px_cover != px_receiver) {
             tests_spawned += 1u;
-            mask = triangle_mask(vertex_cache[px_cover]);
+            mask = triangle_mask(triangles[px_cover]);
             covered = mask == FULL_MASK;
         }
     }
@@ -288,7 +299,7 @@ void main() {
         if (lid < count) {
             uint entry = overflow_list[base + lid];
             sm_id[lid] = entry;
-            sm_tri[lid] = vertex_cache[entry & ID_MASK];
+            sm_tri[lid] = triangles[entry & ID_MASK];
         }
         barrier();
         if (live && !done(mask)) {
@@ -327,7 +338,7 @@ void main() {
             if (lid < count) {
                 uint entry = cell_triangles[base + lid];
                 sm_id[lid] = entry;
-                sm_tri[lid] = vertex_cache[entry & ID_MASK];
+                sm_tri[lid] = triangles[entry & ID_MASK];
             }
             barrier();
             if (in_elected && !done(mask)) {
@@ -353,7 +364,7 @@ void main() {
                     uint entry = cell_triangles[k];
                     if (!tests_in_cell(entry, x, y)) continue;
                     tests_spawned += 1u;
-                    mask |= triangle_mask(vertex_cache[entry & ID_MASK]);
+                    mask |= triangle_mask(triangles[entry & ID_MASK]);
                 }
             }
         }

@@ -39,12 +39,8 @@ fn check_grid(
     } else {
         None
     };
-    let bins = bin(
-        &setup,
-        &eye_relative_f32(scene),
-        Skips::ALL,
-        receivers.as_ref(),
-    );
+    let triangles = eye_relative_f32(scene);
+    let bins = bin(&setup, &triangles, Skips::ALL, receivers.as_ref());
 
     // Scatter against the placements, cell by cell and cascade by cascade
     // (with the cull, a subset of them), first-column/row bits included.
@@ -97,7 +93,7 @@ fn check_grid(
             false
         });
         for id in 0..scene.triangles.len() as u32 {
-            let mask = triangle_mask_for_pixel(&setup, &bins, &g, i, id, &rule);
+            let mask = triangle_mask_for_pixel(&setup, &triangles, &g, i, id, &rule);
             if mask != 0 {
                 occluder_pairs += 1;
                 assert!(

@@ -34,6 +34,9 @@ pub struct FlickerRow {
     pub mean_abs_delta: f64,
     /// `mean_abs_delta` over the ground truth's.
     pub ratio_to_truth: f64,
+    /// 95 % interval of `ratio_to_truth`: a moving-block bootstrap over
+    /// frame steps ([`ratio_interval`]).
+    pub ratio_ci95: [f64; 2],
     /// The same over smooth pixels (every sub-pixel hit on the centre's
     /// plane in both frames) and over edge pixels.
     pub smooth_ratio_to_truth: f64,
@@ -72,6 +75,8 @@ struct Delta {
     previous: Option<Vec<f32>>,
     sum: [f64; 3],
     pixels: [u64; 3],
+    /// Per frame step, the sum and the pixel count over all pixels.
+    steps: Vec<(f64, u64)>,
 }
 
 /// Index of the sums: all, smooth, edge.
@@ -83,6 +88,7 @@ impl Delta {
     /// `smooth[i]`: whether pixel i is smooth in this frame and the last.
     fn push(&mut self, visibility: Vec<f32>, smooth: &[bool]) {
         if let Some(prev) = &self.previous {
+            let before = (self.sum[ALL], self.pixels[ALL]);
             for (i, (a, b)) in prev.iter().zip(&visibility).enumerate() {
                 if !a.is_nan() && !b.is_nan() {
                     let d = (a - b).abs() as f64;
@@ -93,6 +99,8 @@ impl Delta {
                     }
                 }
             }
+            self.steps
+                .push((self.sum[ALL] - before.0, self.pixels[ALL] - before.1));
         }
         self.previous = Some(visibility);
     }
@@ -157,6 +165,7 @@ pub fn flicker(
         family,
         mean_abs_delta: d.mean(ALL),
         ratio_to_truth: d.mean(ALL) / base[ALL],
+        ratio_ci95: ratio_interval(&d.steps, &truth.steps),
         smooth_ratio_to_truth: d.mean(SMOOTH) / base[SMOOTH],
         edge_ratio_to_truth: d.mean(EDGE) / base[EDGE],
         frames: options.frames,
@@ -169,4 +178,79 @@ pub fn flicker(
         }
     }
     rows
+}
+
+/// Resamples of [`ratio_interval`].
+const BOOTSTRAP_RESAMPLES: usize = 2000;
+
+/// 95 % interval of the flicker ratio `Σ method / Σ truth` (each a mean
+/// over pixels) by a paired moving-block bootstrap over frame steps:
+/// blocks of ⌈√n⌉ consecutive steps, drawn with replacement (circularly)
+/// until n steps are drawn, the same steps for the method and the truth.
+/// Blocks, not single steps, because a shadow edge crossing a sample row
+/// toggles samples in several consecutive frames; the interval then
+/// counts such a burst as one event, not as many independent ones. With
+/// fewer than 3 steps the interval is the point value.
+pub fn ratio_interval(method: &[(f64, u64)], truth: &[(f64, u64)]) -> [f64; 2] {
+    use rand::{Rng, SeedableRng};
+    let n = method.len().min(truth.len());
+    let ratio = |idx: &mut dyn Iterator<Item = usize>| {
+        let (mut ms, mut mp, mut ts, mut tp) = (0.0, 0u64, 0.0, 0u64);
+        for i in idx {
+            ms += method[i].0;
+            mp += method[i].1;
+            ts += truth[i].0;
+            tp += truth[i].1;
+        }
+        (ms / mp.max(1) as f64) / (ts / tp.max(1) as f64)
+    };
+    let point = ratio(&mut (0..n));
+    if n < 3 {
+        return [point, point];
+    }
+    let block = (n as f64).sqrt().ceil() as usize;
+    let mut rng = rand_pcg::Pcg32::seed_from_u64(0x5eed);
+    let mut ratios: Vec<f64> = (0..BOOTSTRAP_RESAMPLES)
+        .map(|_| {
+            let starts: Vec<usize> = (0..n.div_ceil(block))
+                .map(|_| rng.random_range(0..n))
+                .collect();
+            ratio(
+                &mut starts
+                    .iter()
+                    .flat_map(|&s| (s..s + block).map(|i| i % n))
+                    .take(n),
+            )
+        })
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    let at = |q: f64| ratios[((q * (BOOTSTRAP_RESAMPLES - 1) as f64).round()) as usize];
+    [at(0.025), at(0.975)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ratio_interval;
+
+    #[test]
+    fn interval_holds_the_ratio_and_shrinks_with_agreement() {
+        // A method that always changes twice as much as the truth: every
+        // resample gives exactly 2.
+        let truth: Vec<(f64, u64)> = (0..50).map(|i| (1.0 + (i % 7) as f64, 100)).collect();
+        let twice: Vec<(f64, u64)> = truth.iter().map(|&(s, p)| (2.0 * s, p)).collect();
+        let [lo, hi] = ratio_interval(&twice, &truth);
+        assert!(
+            (lo - 2.0).abs() < 1e-12 && (hi - 2.0).abs() < 1e-12,
+            "[{lo}, {hi}]"
+        );
+        // One burst frame: the interval is wide and holds the point value.
+        let mut burst = truth.clone();
+        burst[10].0 += 100.0;
+        let [lo, hi] = ratio_interval(&burst, &truth);
+        let point = burst.iter().map(|s| s.0).sum::<f64>() / truth.iter().map(|s| s.0).sum::<f64>();
+        assert!(
+            lo < point && point < hi && lo < 1.05 && hi > 1.5,
+            "{point} in [{lo}, {hi}]"
+        );
+    }
 }

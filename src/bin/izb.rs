@@ -573,11 +573,13 @@ fn run_bench(args: BenchArgs) -> Result<()> {
             for r in &f {
                 println!(
                     "{}: flicker {:<14} mean |Δ| {:.5} per frame, {:.2}x the ground truth's \
-                     (smooth pixels {:.2}x, edge pixels {:.2}x)",
+                     (95% {:.2}-{:.2}x; smooth pixels {:.2}x, edge pixels {:.2}x)",
                     scene.name,
                     r.method,
                     r.mean_abs_delta,
                     r.ratio_to_truth,
+                    r.ratio_ci95[0],
+                    r.ratio_ci95[1],
                     r.smooth_ratio_to_truth,
                     r.edge_ratio_to_truth
                 );

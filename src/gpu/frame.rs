@@ -205,24 +205,14 @@ impl SceneUpload {
     }
 }
 
-/// The frame's device buffers, in binding order, except that
-/// [`binding::VERTEX_CACHE`] aliases [`binding::TRIANGLES`]: `bin_count`
-/// turns each eye-relative triangle into its light-view copy in place (one
-/// thread reads and writes the same element), after the `gbuffer` pass,
-/// the only other reader, has finished. That saves 36 bytes per triangle.
+/// The frame's device buffers, one per binding, in binding order.
 struct FrameBuffers {
     buffers: Vec<GpuBuffer>,
 }
 
 impl FrameBuffers {
     fn get(&self, b: u32) -> &GpuBuffer {
-        // `buffers` holds no entry for the alias itself.
-        let index = match b {
-            binding::VERTEX_CACHE => binding::TRIANGLES,
-            b if b > binding::VERTEX_CACHE => b - 1,
-            b => b,
-        };
-        &self.buffers[index as usize]
+        &self.buffers[b as usize]
     }
 }
 
@@ -514,7 +504,6 @@ impl GpuRenderer {
         let frame_buffers = FrameBuffers {
             buffers: descs
                 .into_iter()
-                .filter(is_allocated)
                 .map(|d| GpuBuffer::new(shared, d))
                 .collect::<Result<_, _>>()?,
         };
@@ -934,14 +923,6 @@ struct FrameOutput {
     memory: Vec<PassMemory>,
 }
 
-/// Name of the binding that has no buffer of its own (see `FrameBuffers`).
-const VERTEX_CACHE_ALIAS: &str = "vertex_cache";
-
-/// Whether a frame allocates `d` (every binding but the alias).
-fn is_allocated(d: &BufferDesc) -> bool {
-    d.name != VERTEX_CACHE_ALIAS
-}
-
 /// The sizes that decide a frame's buffers.
 pub struct FrameSizes {
     pub pixels: u64,
@@ -961,7 +942,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
     let (p, t, vec3) = (z.pixels, z.triangles, 12u64);
     [
         BufferDesc::device("frame", "frame_params", size_of::<FrameParams>() as u64),
-        BufferDesc::device("scene", "triangles_then_vertex_cache", t * 36),
+        BufferDesc::device("scene", "triangles", t * 36),
         BufferDesc::device("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
         BufferDesc::device("gbuffer", "bvh_prims", z.bvh_prims * 4),
         BufferDesc::device("gbuffer", "g_position", p * vec3),
@@ -970,8 +951,6 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("gbuffer", "g_id_flags", p * 4),
         BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
         BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
-        // Aliases `triangles_then_vertex_cache` (see `FrameBuffers`).
-        BufferDesc::device("bin", VERTEX_CACHE_ALIAS, 0),
         BufferDesc::device("bin", "cell_cover", z.max_cells * 8),
         BufferDesc::device("bin", "cell_cursor", z.max_cells * 4),
         BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
@@ -1003,9 +982,9 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
         shadow_map_texels: 0,
     });
-    Ok(group_by_pass(descs.iter().filter(|d| is_allocated(d)).map(
-        |d| (d.pass, d.name, d.size.max(4).next_multiple_of(4)),
-    )))
+    Ok(group_by_pass(descs.iter().map(|d| {
+        (d.pass, d.name, d.size.max(4).next_multiple_of(4))
+    })))
 }
 
 /// Sums buffer sizes per owning pass, keeping each buffer's own size.

@@ -21,32 +21,31 @@ pub mod binding {
     pub const G_ID_FLAGS: u32 = 7;
     pub const LIGHT: u32 = 8;
     pub const COUNTERS: u32 = 9;
-    pub const VERTEX_CACHE: u32 = 10;
     /// Per cell: the conservative shadow map's cover floor (ordered bits)
     /// and !id of its cover triangle ([`crate::izb::bin::Bins::cover`]).
-    pub const CELL_COVER: u32 = 11;
-    pub const CELL_CURSOR: u32 = 12;
-    pub const CELL_START: u32 = 13;
-    pub const CELL_TRIANGLES: u32 = 14;
-    pub const OVERFLOW: u32 = 15;
-    pub const EDGE_LUT: u32 = 16;
-    pub const MASKS: u32 = 17;
+    pub const CELL_COVER: u32 = 10;
+    pub const CELL_CURSOR: u32 = 11;
+    pub const CELL_START: u32 = 12;
+    pub const CELL_TRIANGLES: u32 = 13;
+    pub const OVERFLOW: u32 = 14;
+    pub const EDGE_LUT: u32 = 15;
+    pub const MASKS: u32 = 16;
     /// Shaded RGB8 with the lit sample count in alpha ([`ALPHA_NOT_TESTED`]).
-    pub const SHADED: u32 = 18;
+    pub const SHADED: u32 = 17;
     /// Unit normal per triangle, computed on the host in `f64` exactly as
     /// the CPU twin computes it, then rounded. A receiver's normal is its
     /// triangle's, negated when its G-buffer word has
     /// [`super::FLAG_NORMAL_FLIPPED`].
-    pub const TRIANGLE_NORMALS: u32 = 19;
+    pub const TRIANGLE_NORMALS: u32 = 18;
     /// Per cell: lowest receiver z (ordered bits) and !reach
     /// ([`crate::izb::bin::CellReceivers`]).
-    pub const CELL_RECEIVERS: u32 = 20;
+    pub const CELL_RECEIVERS: u32 = 19;
     /// The shadow-map baseline's maps, cascade after cascade, one
     /// order-preserving distance word per texel ([`ordered_bits`]; empty
     /// texels `u32::MAX`); 4 bytes in an IZB frame.
-    pub const SHADOW_MAP: u32 = 21;
+    pub const SHADOW_MAP: u32 = 20;
     /// Number of bindings.
-    pub const COUNT: u32 = 22;
+    pub const COUNT: u32 = 21;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two
@@ -207,8 +206,7 @@ impl LightState {
     }
 }
 
-/// `Triangle`: three vertices (eye-relative input, or light view in the
-/// vertex cache).
+/// `Triangle`: three eye-relative vertices.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuTriangle {

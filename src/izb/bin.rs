@@ -1,6 +1,6 @@
 //! Pass 2, `bin`: triangles into the light-space grids by counting sort
 //! (seed 000): count per cell, exclusive prefix sum, scatter of triangle
-//! ids. The light-view vertex cache is written once here; each triangle is
+//! ids. Each triangle is
 //! placed in every cascade's grid its shadow reaches; one whose rectangle
 //! holds more than the cascade's `overflow_cells` cells goes to the
 //! overflow list that every pixel of that cascade tests, so one huge ground
@@ -81,10 +81,13 @@ pub struct BinStats {
     pub covered_cells: usize,
 }
 
-/// The binned grids of every cascade, back to back.
+/// The binned grids of every cascade, back to back. Cells hold triangle
+/// ids into the eye-relative triangle buffer, which `evaluate` reads as it
+/// is: its frustum test runs in eye space, so there is no light-view copy
+/// to cache (seed 000's vertex cache saves the evaluate pass a fetch,
+/// skin and transform chain; this crate's input is already flat
+/// eye-relative `f32` triangles, the very vertices the test needs).
 pub struct Bins {
-    /// Light-view vertices per triangle id (written once).
-    pub vertex_cache: Vec<[Vec3; 3]>,
     /// `placement[cascade][id]`.
     pub placement: Vec<Vec<Placement>>,
     /// Exclusive prefix sum of the per-cell counts; `cells + 1` entries.
@@ -329,7 +332,9 @@ pub fn bin(
     skips: Skips,
     receivers: Option<&CellReceivers>,
 ) -> Bins {
-    let vertex_cache: Vec<[Vec3; 3]> = triangles
+    // Light-view vertices, for placing triangles only (the GPU recomputes
+    // them in the scatter with the same arithmetic).
+    let light_view: Vec<[Vec3; 3]> = triangles
         .par_iter()
         .map(|t| t.map(|v| setup.to_light_view(v)))
         .collect();
@@ -337,7 +342,7 @@ pub fn bin(
         .cascades
         .iter()
         .map(|grid| {
-            vertex_cache
+            light_view
                 .par_iter()
                 .map(|t| match place(setup, grid, t) {
                     Placement::Culled if !skips.outside_bounds => Placement::Overflow,
@@ -348,7 +353,7 @@ pub fn bin(
         .collect();
     let cells = setup.total_cells();
     let lists = |grid: &CascadeGrid, id: usize, x: u32, y: u32| match receivers {
-        Some(r) => !behind_receivers(grid, r, &vertex_cache[id], x, y),
+        Some(r) => !behind_receivers(grid, r, &light_view[id], x, y),
         None => true,
     };
     let covers = skips.shadow_map && setup.projection == Projection::Orthographic;
@@ -382,7 +387,7 @@ pub fn bin(
                             counts[c] += 1;
                             listed = true;
                             if let Some(floor) = covers
-                                .then(|| cover_floor(grid, &vertex_cache[id], x, y))
+                                .then(|| cover_floor(grid, &light_view[id], x, y))
                                 .flatten()
                             {
                                 // Highest floor wins; ties go to the lowest id
@@ -451,7 +456,6 @@ pub fn bin(
         }
     }
     Bins {
-        vertex_cache,
         placement,
         cell_start,
         cell_triangles,

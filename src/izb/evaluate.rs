@@ -58,12 +58,16 @@ pub struct EvaluateStats {
     pub shadow_map_early_outs: usize,
 }
 
-/// What evaluate needs of one pixel, in light view.
+/// What evaluate needs of one pixel. The frustum test runs in eye space,
+/// relative to P (see [`triangle_mask`] for why not in light view): `p`,
+/// `normal`, `ex`, `ey` are the G-buffer's own eye-relative values.
 struct PixelFrustum {
     p: Vec3,
     normal: Vec3,
     ex: Vec3,
     ey: Vec3,
+    /// Where the light is, seen from P.
+    light: LightRel<Vec3>,
     receiver: u32,
     /// The pixel's cascade.
     cascade: usize,
@@ -91,10 +95,11 @@ fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
         }
     }
     PixelFrustum {
-        p: setup.to_light_view(p),
-        normal: setup.rotate(g.normal[i]),
-        ex: setup.rotate(ex),
-        ey: setup.rotate(ey),
+        p,
+        normal: g.normal[i],
+        ex,
+        ey,
+        light: setup.light_from(p),
         receiver: g.triangle_id[i],
         cascade,
         cells,
@@ -154,23 +159,31 @@ struct TestCounters {
     saturated_masks: u64,
 }
 
-/// Occluded samples of `tri` (light view, not yet relative to P) for one
-/// pixel, or 0 when it fails the depth test: the AND of its three edge
+/// Occluded samples of `tri` (eye-relative, not yet relative to P) for
+/// one pixel, or 0 when it fails the depth test: the AND of its three edge
 /// masks. With the `saturated_edges` skip an edge that misses the whole
 /// µQuad ends the test and an edge that contains it costs one comparison.
+///
+/// Eye space, not light view (design §4 and seed 000 say light view; both
+/// are relative to P, so equally precise): the depth test's inputs —
+/// vertices, P, normal, µQuad — do not depend on the light, so in eye space
+/// they are the same floats in every frame while the light moves, and a
+/// triangle whose height sits within rounding of the tolerance keeps its
+/// verdict. In light view every vertex is re-rounded by a new rotation each
+/// frame and such a triangle passes and fails at random: measured with
+/// `izb bench --flicker` on `engine` (240×135, 0.01° steps), one pixel's
+/// neighbour at 1/256 µQuad above the tangent plane toggled three samples
+/// on and one off in 9 of 40 frames while the `f64` same-sample reference
+/// held still (paper-notes/frustum-test.md, "Temporal stability").
 #[inline]
 fn triangle_mask(
     px: &PixelFrustum,
     tri: &[Vec3; 3],
-    setup: &LightSetup,
     rule: &MaskRule,
     counters: &mut TestCounters,
 ) -> u32 {
     let t = tri.map(|v| v - px.p);
-    let light = match setup.light_position() {
-        None => LightRel::Toward(Vec3::Z),
-        Some(l) => LightRel::At(l - px.p),
-    };
+    let light = px.light;
     let size = px.ex.length().max(px.ey.length());
     if !may_shadow(&t, px.normal, size, light) {
         return 0;
@@ -250,6 +263,7 @@ fn candidates_of(
 fn evaluate_pixel(
     setup: &LightSetup,
     bins: &Bins,
+    triangles: &[[Vec3; 3]],
     g: &GBuffer,
     i: usize,
     rule: &MaskRule,
@@ -270,13 +284,7 @@ fn evaluate_pixel(
     };
     if cover != NO_COVER && cover != px.receiver {
         tests += 1;
-        mask = triangle_mask(
-            &px,
-            &bins.vertex_cache[cover as usize],
-            setup,
-            rule,
-            &mut counters,
-        );
+        mask = triangle_mask(&px, &triangles[cover as usize], rule, &mut counters);
     }
     let cells = if mask == FULL {
         stats.shadow_map_early_outs += 1;
@@ -286,13 +294,7 @@ fn evaluate_pixel(
         let cells = candidates_of(setup, bins, &px, |id| {
             if id != px.receiver && id != cover {
                 tests += 1;
-                mask |= triangle_mask(
-                    &px,
-                    &bins.vertex_cache[id as usize],
-                    setup,
-                    rule,
-                    &mut counters,
-                );
+                mask |= triangle_mask(&px, &triangles[id as usize], rule, &mut counters);
             }
             stop_when_full && mask == FULL
         });
@@ -311,7 +313,7 @@ fn evaluate_pixel(
 /// grid against brute force).
 pub fn triangle_mask_for_pixel(
     setup: &LightSetup,
-    bins: &Bins,
+    triangles: &[[Vec3; 3]],
     g: &GBuffer,
     i: usize,
     id: u32,
@@ -323,8 +325,7 @@ pub fn triangle_mask_for_pixel(
     }
     triangle_mask(
         &px,
-        &bins.vertex_cache[id as usize],
-        setup,
+        &triangles[id as usize],
         rule,
         &mut TestCounters::default(),
     )
@@ -336,6 +337,7 @@ pub fn triangle_mask_for_pixel(
 pub fn evaluate(
     setup: &LightSetup,
     bins: &Bins,
+    triangles: &[[Vec3; 3]],
     g: &GBuffer,
     rule: &MaskRule,
 ) -> (Vec<u32>, EvaluateStats) {
@@ -350,7 +352,7 @@ pub fn evaluate(
                         return 0;
                     }
                     stats.pixels_tested += 1;
-                    let mask = evaluate_pixel(setup, bins, g, i, rule, &mut stats);
+                    let mask = evaluate_pixel(setup, bins, triangles, g, i, rule, &mut stats);
                     if g.flags[i] & flags::SHADOW_TESTED == 0 {
                         0
                     } else {

@@ -8,6 +8,7 @@
 //! light's view axis).
 
 use super::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
+use super::frustum::LightRel;
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::{Light, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
@@ -162,10 +163,16 @@ impl LightSetup {
         (lo, hi)
     }
 
-    /// Light-view position of the light: the origin for a point light,
-    /// `None` for a directional one (it is at +z infinity).
-    pub fn light_position(&self) -> Option<Vec3> {
-        (self.projection == Projection::Perspective).then_some(Vec3::ZERO)
+    /// Where the light is, seen from the eye-relative point `p`, in eye
+    /// space: a point light at the light-view origin, or a directional
+    /// light along the light view's +z row (the frustum test runs in eye
+    /// space: see `evaluate`).
+    #[inline]
+    pub fn light_from(&self, p: Vec3) -> LightRel<Vec3> {
+        match self.projection {
+            Projection::Orthographic => LightRel::Toward(self.rotation.row(2)),
+            Projection::Perspective => LightRel::At(self.origin - p),
+        }
     }
 }
 

@@ -4,7 +4,7 @@
 //! 1. [`light_setup`]: light-view frame, cascades ([`cascades`]), one grid
 //!    per cascade fitted to its pixels' µQuads;
 //! 2. [`bin`](bin::bin): count, prefix sum, scatter into every cascade's
-//!    grid; vertex cache; overflow; the conservative shadow map;
+//!    grid; overflow; the conservative shadow map;
 //! 3. [`evaluate`](evaluate::evaluate): frustum-triangle tests per pixel,
 //!    OR of per-triangle masks, early exit when full;
 //! 4. [`resolve`]: lit fraction from the mask.
@@ -192,7 +192,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let bins = bin::bin(&setup, &triangles, settings.skips, receivers.as_ref());
     seconds.bin = lap();
     let rule = MaskRule::new(settings.mode, settings.skips);
-    let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &g, &rule);
+    let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &rule);
     seconds.evaluate = lap();
     let visibility = resolve(&masks, &g);
     seconds.resolve = lap();
