@@ -124,8 +124,10 @@ pub fn flicker(
     let mut deltas: Vec<Option<Delta>> = methods.iter().map(|_| Some(Delta::default())).collect();
     let bvh = &shared.bvh;
     let mut last_smooth: Option<Vec<f32>> = None;
+    // One copy whose light each frame replaces (not a copy per frame: on
+    // courtyard that is 60 MB of triangles a frame).
+    let mut frame = scene.clone();
     for f in 0..options.frames {
-        let mut frame = scene.clone();
         frame.light = rotated_light(scene, f as f64 * options.step_degrees);
         let g = gbuffer(&frame, bvh);
         let t = reference(&frame, bvh, options.reference, &|_| {});
