@@ -1,7 +1,10 @@
 #version 460
 // Pass 2, `bin` — GPU twin of `izb::izb::bin::bin`: a counting sort of
-// triangles into every cascade's light-space grid (seed 000; the grids lie
-// back to back in the cell arrays), in these dispatches:
+// triangles into every cascade's light-space grid pyramid (seed 000; the
+// pyramids lie back to back in the cell arrays, levels finest first; each
+// triangle at the finest level where its rectangle holds at most
+// level_cells cells, listed in the cells its projection touches:
+// izb::izb::footprint), in these dispatches:
 //   STEP_RECEIVERS  (per pixel, behind-receivers skip only) per cell the
 //                   lowest receiver z and reach (bin::cell_receivers);
 //   STEP_COUNT      (per triangle) per cascade its placement (from its
@@ -80,16 +83,18 @@ float plane_height(Triangle t, vec3 n, vec2 q) {
 // receiver that can test it in cell (x, y) of cascade k, so the cell need
 // not list it. Directional lights only (STEP_RECEIVERS gathers nothing for
 // a point light).
-bool behind_receivers(Triangle t, uint k, uint x, uint y) {
+bool behind_receivers(Triangle t, uint k, uint level, uint cell, uint x, uint y) {
     if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || light.projection != 0u) return false;
-    uvec2 r = cell_receivers[cell_index(k, x, y)];
+    uvec2 r = cell_receivers[cell];
     if (r.x == 0xFFFFFFFFu) return true;   // no receiver touches the cell
     float z_min = from_ordered_bits(r.x);
     vec3 n;
     if (!upward_normal(t, n)) return false;
     float reach = float(~r.y) + CELL_PADDING;
-    vec2 lo = ndc_of_grid(k, vec2(float(x) - reach, float(y) - reach));
-    vec2 hi = ndc_of_grid(k, vec2(float(x) + 1.0 + reach, float(y) + 1.0 + reach));
+    // Level-l grid coordinates to level 0: times 2^l, exact.
+    float up = float(1u << level);
+    vec2 lo = ndc_of_grid(k, vec2(float(x) - reach, float(y) - reach) * up);
+    vec2 hi = ndc_of_grid(k, vec2(float(x) + 1.0 + reach, float(y) + 1.0 + reach) * up);
     // No loop (see strictly_inside).
     float plane_max = max(max(plane_height(t, n, lo), plane_height(t, n, vec2(hi.x, lo.y))),
                           max(plane_height(t, n, hi), plane_height(t, n, vec2(lo.x, hi.y))));
@@ -114,17 +119,18 @@ bool strictly_inside(vec2 a, vec2 b, vec2 c, float w, vec2 q) {
 }
 
 // bin::cover_floor: when t's light-space projection contains cell (x, y)
-// of cascade k, the lowest height of its plane over the cell (as ordered
+// of level `level` of cascade k, the lowest height of its plane over the cell (as ordered
 // bits, never 0); else 0. Only with the shadow-map skip and a directional
 // light.
-uint cover_floor(Triangle t, uint k, uint x, uint y) {
+uint cover_floor(Triangle t, uint k, uint level, uint x, uint y) {
     if ((frame.skips & SKIP_SHADOW_MAP) == 0u || light.projection != 0u) return 0u;
     vec3 n;
     if (!upward_normal(t, n)) return 0u;
-    vec2 q0 = ndc_of_grid(k, vec2(float(x), float(y)));
-    vec2 q1 = ndc_of_grid(k, vec2(float(x) + 1.0, float(y)));
-    vec2 q2 = ndc_of_grid(k, vec2(float(x) + 1.0, float(y) + 1.0));
-    vec2 q3 = ndc_of_grid(k, vec2(float(x), float(y) + 1.0));
+    float up = float(1u << level);
+    vec2 q0 = ndc_of_grid(k, vec2(float(x), float(y)) * up);
+    vec2 q1 = ndc_of_grid(k, vec2(float(x) + 1.0, float(y)) * up);
+    vec2 q2 = ndc_of_grid(k, vec2(float(x) + 1.0, float(y) + 1.0) * up);
+    vec2 q3 = ndc_of_grid(k, vec2(float(x), float(y) + 1.0) * up);
     vec2 a = t.a.xy, b = t.b.xy, c = t.c.xy;
     precise float w = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
     if (!(strictly_inside(a, b, c, w, q0) && strictly_inside(a, b, c, w, q1)
@@ -134,33 +140,113 @@ uint cover_floor(Triangle t, uint k, uint x, uint y) {
     return max(ordered_bits(floor_z), 1u);
 }
 
-// bin::place in cascade k: PLACEMENT_CULLED, PLACEMENT_OVERFLOW or a packed
-// cell rectangle.
-uvec2 place(Triangle t, uint k) {
-    if (light.grid_disabled != 0u) return uvec2(PLACEMENT_OVERFLOW);
+// footprint::TOUCH_ROUNDING and SLIVER_RATIO.
+#define TOUCH_ROUNDING (1.0 / 262144.0)
+#define SLIVER_RATIO (1.0 / 65536.0)
+
+// footprint::Footprint: the level a triangle is binned at, its rectangle
+// there, its vertices in that level's grid coordinates and the side of
+// each edge it lies on (0: a sliver, every rectangle cell touched).
+struct Footprint {
+    uint level;
+    uvec4 rect;
+    vec2 v0;
+    vec2 v1;
+    vec2 v2;
+    float orientation;
+};
+
+// footprint::footprint from the vertices' level-0 grid coordinates; false
+// when the padded box misses level 0 (culled).
+bool footprint(uint k, vec2 g0, vec2 g1, vec2 g2, out Footprint f) {
+    f = Footprint(0u, uvec4(0u), vec2(0.0), vec2(0.0), vec2(0.0), 0.0);
+    vec2 lo = min(min(g0, g1), g2), hi = max(max(g0, g1), g2);
+    uvec4 r;
+    if (!cell_range(k, lo, hi, r)) return false;
+    uint levels = light.cascade[k].levels;
+    uint top = max(levels, 1u) - 1u;
+    uint limit = max(light.cascade[k].level_cells, 1u);
+    bool found = false;
+    for (uint l = 0u; l < levels && spend_trip(); ++l) {
+        if (!cell_range_at(k, l, lo, hi, r)) continue;
+        // Sides are at most MAX_GRID_SIDE (2^14), so the area fits a uint.
+        if (l == top || (r.z - r.x + 1u) * (r.w - r.y + 1u) <= limit) {
+            f.level = l;
+            f.rect = r;
+            found = true;
+            break;
+        }
+    }
+    if (!found) return false;
+    ivec2 e = ivec2(-int(f.level));
+    f.v0 = ldexp(g0, e);
+    f.v1 = ldexp(g1, e);
+    f.v2 = ldexp(g2, e);
+    precise vec2 d1 = f.v1 - f.v0;
+    precise vec2 d2 = f.v2 - f.v0;
+    precise float winding = d1.x * d2.y - d1.y * d2.x;
+    precise float scale = (abs(d1.x) + abs(d1.y)) * (abs(d2.x) + abs(d2.y));
+    f.orientation = abs(winding) > SLIVER_RATIO * scale ? sign(winding) : 0.0;
+    return true;
+}
+
+// One edge a→b of Footprint::touches: whether some corner of the padded
+// cell box is inside it, up to rounding. No loops (see strictly_inside).
+bool edge_reaches(vec2 a, vec2 b, float o, float lo_x, float lo_y, float hi_x, float hi_y) {
+    precise float dx = b.x - a.x, dy = b.y - a.y;
+    precise float r0x = lo_x - a.x, r0y = lo_y - a.y;
+    precise float r1x = hi_x - a.x, r1y = lo_y - a.y;
+    precise float r2x = hi_x - a.x, r2y = hi_y - a.y;
+    precise float r3x = lo_x - a.x, r3y = hi_y - a.y;
+    precise float e0 = o * (dx * r0y - dy * r0x);
+    precise float e1 = o * (dx * r1y - dy * r1x);
+    precise float e2 = o * (dx * r2y - dy * r2x);
+    precise float e3 = o * (dx * r3y - dy * r3x);
+    float inside = max(max(e0, e1), max(e2, e3));
+    precise float reach = max(max(abs(r0x) + abs(r0y), abs(r1x) + abs(r1y)),
+                              max(abs(r2x) + abs(r2y), abs(r3x) + abs(r3y)));
+    precise float bound = TOUCH_ROUNDING * (abs(dx) + abs(dy)) * reach;
+    return inside >= -bound;
+}
+
+// Footprint::touches: whether the projection touches the padded box of
+// cell (x, y) of its level (false outside its rectangle).
+bool touches(Footprint f, int x, int y) {
+    ivec4 r = ivec4(f.rect);
+    if (x < r.x || x > r.z || y < r.y || y > r.w) return false;
+    if (f.orientation == 0.0) return true;
+    precise float lo_x = float(x) - CELL_PADDING, lo_y = float(y) - CELL_PADDING;
+    precise float hi_x = float(x) + 1.0 + CELL_PADDING, hi_y = float(y) + 1.0 + CELL_PADDING;
+    return edge_reaches(f.v0, f.v1, f.orientation, lo_x, lo_y, hi_x, hi_y)
+        && edge_reaches(f.v1, f.v2, f.orientation, lo_x, lo_y, hi_x, hi_y)
+        && edge_reaches(f.v2, f.v0, f.orientation, lo_x, lo_y, hi_x, hi_y);
+}
+
+// bin::place in cascade k: PLACEMENT_CULLED, PLACEMENT_OVERFLOW, or
+// PLACEMENT_CELLS with the footprint.
+#define PLACEMENT_CELLS 0u
+uint place(Triangle t, uint k, out Footprint f) {
+    f = Footprint(0u, uvec4(0u), vec2(0.0), vec2(0.0), vec2(0.0), 0.0);
+    if (light.grid_disabled != 0u) return PLACEMENT_OVERFLOW;
     vec2 n0, n1, n2;
     if (light.projection == 0u) {
         n0 = t.a.xy; n1 = t.b.xy; n2 = t.c.xy;
     } else {
         uint in_front = uint(t.a.z > 0.0) + uint(t.b.z > 0.0) + uint(t.c.z > 0.0);
-        if (in_front == 0u) return uvec2(PLACEMENT_CULLED);   // wholly behind the light
-        if (in_front < 3u) return uvec2(PLACEMENT_OVERFLOW);  // crosses the light's plane
+        if (in_front == 0u) return PLACEMENT_CULLED;   // wholly behind the light
+        if (in_front < 3u) return PLACEMENT_OVERFLOW;  // crosses the light's plane
         n0 = t.a.xy / t.a.z; n1 = t.b.xy / t.b.z; n2 = t.c.xy / t.c.z;
     }
-    vec2 g0 = grid_coords(k, n0), g1 = grid_coords(k, n1), g2 = grid_coords(k, n2);
-    uvec4 r;
-    if (!cell_range(k, min(min(g0, g1), g2), max(max(g0, g1), g2), r)) return uvec2(PLACEMENT_CULLED);
-    // Sides are below 2^16 (the host checks), so the area fits a uint.
-    if ((r.z - r.x + 1u) * (r.w - r.y + 1u) > light.cascade[k].overflow_cells) return uvec2(PLACEMENT_OVERFLOW);
-    return uvec2(r.x | (r.y << 16), r.z | (r.w << 16));
+    if (!footprint(k, grid_coords(k, n0), grid_coords(k, n1), grid_coords(k, n2), f)) return PLACEMENT_CULLED;
+    return PLACEMENT_CELLS;
 }
 
 // The placement the bin uses: without the outside-bounds skip a triangle
 // that misses the grid is tested by every pixel of the cascade (the
 // overflow list) instead of dropped.
-uvec2 placement_in(Triangle t, uint k) {
-    uvec2 p = place(t, k);
-    if (p.x == PLACEMENT_CULLED && (frame.skips & SKIP_OUTSIDE_BOUNDS) == 0u) p = uvec2(PLACEMENT_OVERFLOW);
+uint placement_in(Triangle t, uint k, out Footprint f) {
+    uint p = place(t, k, f);
+    if (p == PLACEMENT_CULLED && (frame.skips & SKIP_OUTSIDE_BOUNDS) == 0u) p = PLACEMENT_OVERFLOW;
     return p;
 }
 
@@ -181,17 +267,24 @@ void main() {
     vec3 p = g_position[i];
     vec2 lo, hi;
     microquad_grid_box(k, p, g_axis_x[i], g_axis_y[i], lo, hi);
-    uvec4 cells;
-    if (!cell_range(k, lo, hi, cells)) return;
     uint z = ordered_bits(to_light_view(p).z);
-    vec2 extent = hi - lo;
-    uint reach = uint(ceil(max(extent.x, extent.y))) + 1u;
-    for (uint y = cells.y; y <= cells.w && spend_trip(); ++y) {
-        for (uint x = cells.x; x <= cells.z && spend_trip(); ++x) {
-            uint c = cell_index(k, x, y);
-            atomicMin(cell_receivers[c].x, z);
-            atomicMin(cell_receivers[c].y, ~reach);
+    // Every level of the pyramid: the level-0 box scaled by 2^-l.
+    uint level_start = light.cascade[k].cell_offset;
+    for (uint l = 0u; l < light.cascade[k].levels && spend_trip(); ++l) {
+        uvec4 cells;
+        if (!cell_range_at(k, l, lo, hi, cells)) break;
+        ivec2 e = ivec2(-int(l));
+        vec2 extent = ldexp(hi, e) - ldexp(lo, e);
+        uint reach = uint(ceil(max(extent.x, extent.y))) + 1u;
+        for (uint y = cells.y; y <= cells.w && spend_trip(); ++y) {
+            for (uint x = cells.x; x <= cells.z && spend_trip(); ++x) {
+                uint c = cell_index_at(k, level_start, l, x, y);
+                atomicMin(cell_receivers[c].x, z);
+                atomicMin(cell_receivers[c].y, ~reach);
+            }
         }
+        uvec2 d = level_dims(k, l);
+        level_start += d.x * d.y;
     }
     loop_budget_report();
 #endif
@@ -202,32 +295,40 @@ void main() {
     Triangle t = light_view_triangle(id);
     uint overflows = 0u;
     bool placed = false;
-    uint binned = 0u, dropped = 0u, dropped_everywhere = 0u;
+    uint binned = 0u, dropped = 0u, dropped_everywhere = 0u, untouched = 0u;
     for (uint k = 0u; k < light.cascade_count && spend_trip(); ++k) {
-        uvec2 p = placement_in(t, k);
-        if (p.x == PLACEMENT_CULLED) continue;
-        if (p.x == PLACEMENT_OVERFLOW) {
+        Footprint f;
+        uint p = placement_in(t, k, f);
+        if (p == PLACEMENT_CULLED) continue;
+        if (p == PLACEMENT_OVERFLOW) {
             overflows |= 1u << k;
             continue;
         }
         placed = true;
         binned += 1u;
+        atomicOr(counters[C_LEVELS + k], 1u << f.level);
+        uint level_start = level_offset(k, f.level);
         bool listed = false;
-        for (uint y = p.x >> 16; y <= p.y >> 16 && spend_trip(); ++y) {
-            for (uint x = p.x & 0xFFFFu; x <= (p.y & 0xFFFFu) && spend_trip(); ++x) {
-                if (behind_receivers(t, k, x, y)) {
+        for (uint y = f.rect.y; y <= f.rect.w && spend_trip(); ++y) {
+            for (uint x = f.rect.x; x <= f.rect.z && spend_trip(); ++x) {
+                if (!touches(f, int(x), int(y))) {
+                    untouched += 1u;
+                    continue;
+                }
+                uint c = cell_index_at(k, level_start, f.level, x, y);
+                if (behind_receivers(t, k, f.level, c, x, y)) {
                     dropped += 1u;
                     continue;
                 }
-                uint c = cell_index(k, x, y);
                 atomicAdd(cell_cursor[c], 1u);
                 listed = true;
-                uint f = cover_floor(t, k, x, y);
-                if (f != 0u) atomicMax(cell_cover[c].x, f);
+                uint fl = cover_floor(t, k, f.level, x, y);
+                if (fl != 0u) atomicMax(cell_cover[c].x, fl);
             }
         }
         if (!listed) dropped_everywhere += 1u;
     }
+    if (untouched != 0u) atomicAdd(counters[C_CELLS_UNTOUCHED], untouched);
     if (overflows != 0u) {
         overflow_list[atomicAdd(counters[C_OVERFLOW], 1u)] = id | (overflows << ID_BITS);
     } else if (!placed) {
@@ -280,18 +381,21 @@ void main() {
     // floats as STEP_COUNT, so the same cells.
     Triangle t = light_view_triangle(id);
     for (uint k = 0u; k < light.cascade_count && spend_trip(); ++k) {
-        uvec2 p = placement_in(t, k);
-        if (p.x >= PLACEMENT_CULLED) continue;
-        uint x0 = p.x & 0xFFFFu, y0 = p.x >> 16;
-        for (uint y = y0; y <= p.y >> 16 && spend_trip(); ++y) {
-            for (uint x = x0; x <= (p.y & 0xFFFFu) && spend_trip(); ++x) {
-                if (behind_receivers(t, k, x, y)) continue;
-                uint c = cell_index(k, x, y);
+        Footprint f;
+        if (placement_in(t, k, f) != PLACEMENT_CELLS) continue;
+        uint level_start = level_offset(k, f.level);
+        for (uint y = f.rect.y; y <= f.rect.w && spend_trip(); ++y) {
+            for (uint x = f.rect.x; x <= f.rect.z && spend_trip(); ++x) {
+                if (!touches(f, int(x), int(y))) continue;
+                uint c = cell_index_at(k, level_start, f.level, x, y);
+                if (behind_receivers(t, k, f.level, c, x, y)) continue;
                 uint slot = atomicAdd(cell_cursor[c], 1u);
-                uint entry = id | (x == x0 ? ENTRY_FIRST_COLUMN : 0u) | (y == y0 ? ENTRY_FIRST_ROW : 0u);
+                // CellEntry::new: whether the cells to the left / below lack it.
+                uint entry = id | (touches(f, int(x) - 1, int(y)) ? 0u : ENTRY_FIRST_COLUMN)
+                    | (touches(f, int(x), int(y) - 1) ? 0u : ENTRY_FIRST_ROW);
                 if (slot < frame.cell_capacity) cell_triangles[slot] = entry;
-                uint f = cover_floor(t, k, x, y);
-                if (f != 0u && f == cell_cover[c].x) atomicMax(cell_cover[c].y, ~id);
+                uint fl = cover_floor(t, k, f.level, x, y);
+                if (fl != 0u && fl == cell_cover[c].x) atomicMax(cell_cover[c].y, ~id);
             }
         }
     }

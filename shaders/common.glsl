@@ -97,14 +97,16 @@ bool is_receiver(uint flags, uint skips) {
 #define FULL_MASK 0xFFFFFFFFu
 
 // ---- placement of a triangle in one cascade (src/izb/bin.rs: `Placement`) ----
-// A cell rectangle is packed as .x = x0 | y0 << 16, .y = x1 | y1 << 16.
+// A cell rectangle is packed as .x = x0 | y0 << 16, .y = x1 | y1 << 16,
+// its pyramid level returned beside it.
 #define PLACEMENT_CULLED 0xFFFFFFFEu
 #define PLACEMENT_OVERFLOW 0xFFFFFFFFu
 
 // ---- list entries (src/izb/bin.rs: `CellEntry`, `OverflowEntry`) ----
 // The triangle id in the low ID_BITS; above it a cell entry keeps whether
 // the cell is in the first column / first row of the triangle's rectangle
-// (all a pixel needs to test it once), an overflow entry the cascades
+// (footprint::Footprint::touches: whether the triangle lacks the cell to
+// the left / below, all a pixel needs to test it once), an overflow entry the cascades
 // (bit k = cascade k) whose pixels test it.
 #define ENTRY_FIRST_COLUMN (1u << ID_BITS)
 #define ENTRY_FIRST_ROW (2u << ID_BITS)
@@ -113,6 +115,7 @@ bool is_receiver(uint flags, uint skips) {
 #define MAX_CASCADES 4
 #define AUTO_MAX_DEPTH_RATIO 16.0
 #define MAX_GRID_SIDE 16384
+#define DEFAULT_LEVEL_CELLS 64u
 // bin::NO_COVER
 #define NO_COVER 0xFFFFFFFFu
 
@@ -135,7 +138,11 @@ bool is_receiver(uint flags, uint skips) {
 #define C_ENTRIES_BEHIND 19  // cell entries the behind-receivers skip dropped
 #define C_TRIANGLES_BEHIND 20 // binned placements dropped from every cell
 #define C_SHADOW_MAP_EARLY_OUTS 21 // pixels the cover triangle alone filled
-#define COUNTER_WORDS 22
+#define C_LEVELS 22          // per cascade k, word C_LEVELS + k: bit l = level l holds a placement
+#define C_LEVELS_VISITED 26  // 64-bit
+#define C_CELLS_UNTOUCHED 28 // rectangle cells a binned triangle's projection misses
+#define C_MASKS_NONEMPTY 29  // 64-bit
+#define COUNTER_WORDS 31
 
 // Per-frame constants, written by the host once per frame.
 struct FrameParams {
@@ -155,7 +162,7 @@ struct FrameParams {
     uint triangle_count;
     uint mode;
     uint cells_hint;      // 0: from the receiver count
-    uint overflow_cells;  // cells per triangle before it overflows; 0: per cascade (cascades::cascade_overflow_cells)
+    uint level_cells;  // cells per triangle before it overflows; 0: per cascade (cascades::cascade_level_cells)
     uint cell_capacity;   // entries the cell list can hold
     float lut_angle_scale;
     float lut_distance_scale;
@@ -180,12 +187,13 @@ struct CascadeGrid {
     vec2 ndc_max;
     uint cells_x;         // 0 for a cascade without receivers
     uint cells_y;
-    uint cell_offset;     // first cell in the cell arrays (grids lie back to back)
-    uint overflow_cells;
+    uint cell_offset;     // first cell in the cell arrays (pyramids lie back to back)
+    uint level_cells;     // a triangle is binned at the finest level where its rectangle holds ≤ this
     uint receivers;
     // Reduction scratch (ordered bits): light-NDC bounds of its µQuads.
     uint ndc_lo[2];
     uint ndc_hi[2];
+    uint levels;          // pyramid levels, finest (cells_x × cells_y) to 1×1
 };
 
 // Light view, cascades and grids, computed on the GPU by light_setup (no

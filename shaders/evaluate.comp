@@ -2,16 +2,16 @@
 // Pass 3, `evaluate` — GPU twin of `izb::izb::evaluate::evaluate`.
 //
 // One thread per pixel, 8×8 tiles (seed 000). A shadow-tested pixel's
-// µQuad maps to a rectangle of cells in its cascade's grid; every triangle
-// binned in those cells, plus the overflow entries of its cascade, is a
-// candidate, and each candidate is tested once (in the first cell of the
-// overlap of its rectangle and the pixel's, as on the CPU). With the
-// shadow-map skip the cover triangle of the centre's cell is tested first,
-// and a pixel it alone fills skips the rest. Triangles reach the tile
-// through shared memory in batches of 64: the overflow list (the same for
-// every pixel), then the tile's elected cell (the lowest first cell among
-// its pixels); cells a pixel covers beyond the elected one are read from
-// global memory.
+// µQuad maps to a rectangle of cells on every level of its cascade's grid
+// pyramid; every triangle listed in those cells on the non-empty levels,
+// plus the overflow entries of its cascade, is a candidate, tested in the
+// first cell of the pixel's rectangle that lists it (CellEntry::tested_in,
+// as on the CPU). With the shadow-map skip the cover triangle of the
+// centre's cell is tested first, and a pixel it alone fills skips the
+// rest. Triangles reach the tile through shared memory in batches of 64:
+// the overflow list (the same for every pixel), then per level the tile's
+// elected cell (the lowest first cell among its pixels); cells a pixel
+// covers beyond the elected one are read from global memory.
 // Barriers are reached by every thread: finished or inactive pixels still
 // help load batches (seed 000's `live` flag).
 //
@@ -65,7 +65,7 @@ vec3 px_light;
 float px_size;
 uint px_receiver;
 uint px_cascade;
-uvec4 px_cells;   // x0, y0, x1, y1
+vec2 px_lo, px_hi; // the µQuad's level-0 grid box
 bool px_has_cells;
 uint px_cover;    // the centre cell's cover triangle, or NO_COVER
 
@@ -159,6 +159,7 @@ uint edge_mask(vec3 e, out bool cheap) {
 }
 
 uint tests_spawned = 0u, depth_passed = 0u, cells_visited = 0u, saturated_masks = 0u;
+uint levels_visited = 0u, masks_nonempty = 0u;
 bool stop_when_full;   // the full-mask skip
 bool covered = false;  // the cover triangle alone filled the mask
 
@@ -182,9 +183,11 @@ uint triangle_mask(Triangle tri) {
     bool flip = w < 0.0;
     bool cheap;
     if ((frame.skips & SKIP_SATURATED_EDGES) == 0u) {
-        return edge_mask(edge_function(t0, t1, light_rel, flip), cheap)
+        uint m = edge_mask(edge_function(t0, t1, light_rel, flip), cheap)
             & edge_mask(edge_function(t1, t2, light_rel, flip), cheap)
             & edge_mask(edge_function(t2, t0, light_rel, flip), cheap);
+        if (m != 0u) masks_nonempty += 1u;
+        return m;
     }
     // The cheap path: stop at the first edge that leaves no sample.
     uint mask = edge_mask(edge_function(t0, t1, light_rel, flip), cheap);
@@ -198,18 +201,25 @@ uint triangle_mask(Triangle tri) {
         all_cheap = all_cheap && cheap;
     }
     if (all_cheap) saturated_masks += 1u;
+    if (mask != 0u) masks_nonempty += 1u;
     return mask;
 }
 
-// Whether this pixel tests cell entry `entry` found in cell (x, y)
-// (CellEntry::tested_in): not its own receiver nor the cover triangle
-// (tested first), and (x, y) is the first cell of the overlap of the
-// triangle's rectangle and the pixel's.
-bool tests_in_cell(uint entry, uint x, uint y) {
+// Whether this pixel tests cell entry `entry` found in cell (x, y) of its
+// rectangle `r` at some level (CellEntry::tested_in): not its own receiver
+// nor the cover triangle (tested first), and the triangle is absent from
+// the cell to the left (or x is r's first column) and from the cell below
+// (or y is r's first row).
+bool tests_in_cell(uint entry, uint x, uint y, uvec4 r) {
     uint id = entry & ID_MASK;
     if (id == px_receiver || id == px_cover) return false;
-    return ((entry & ENTRY_FIRST_COLUMN) != 0u || x == px_cells.x)
-        && ((entry & ENTRY_FIRST_ROW) != 0u || y == px_cells.y);
+    return ((entry & ENTRY_FIRST_COLUMN) != 0u || x == r.x)
+        && ((entry & ENTRY_FIRST_ROW) != 0u || y == r.y);
+}
+
+// Whether pyramid level l of the pixel's cascade holds a placement.
+bool level_used(uint l) {
+    return (counters[C_LEVELS + px_cascade] & (1u << l)) != 0u;
 }
 
 // Whether this pixel tests overflow entry `entry`: one for its cascade.
@@ -244,16 +254,28 @@ void pixel_frustum(uint i) {
     px_has_cells = false;
     px_cover = NO_COVER;
     if (light.grid_disabled != 0u) return;
-    vec2 lo, hi;
-    microquad_grid_box(px_cascade, p, ex, ey, lo, hi);
-    px_has_cells = cell_range(px_cascade, lo, hi, px_cells);
+    microquad_grid_box(px_cascade, p, ex, ey, px_lo, px_hi);
+    uvec4 cells;
+    px_has_cells = cell_range(px_cascade, px_lo, px_hi, cells);
     vec3 p_light_view = to_light_view(p);
     bool in_front = light.projection == 0u || p_light_view.z > 0.0;
     if (px_has_cells && in_front && (frame.skips & SKIP_SHADOW_MAP) != 0u) {
-        vec2 c = grid_coords(px_cascade, ndc_of(p_light_view));
-        uint x = clamp(uint(max(c.x, 0.0)), px_cells.x, px_cells.z);
-        uint y = clamp(uint(max(c.y, 0.0)), px_cells.y, px_cells.w);
-        px_cover = ~cell_cover[cell_index(px_cascade, x, y)].y;
+        // evaluate::cover_of: the cover of the centre's cell on the finest
+        // non-empty level that has one.
+        vec2 c0 = grid_coords(px_cascade, ndc_of(p_light_view));
+        uint level_start = light.cascade[px_cascade].cell_offset;
+        for (uint l = 0u; l < light.cascade[px_cascade].levels && spend_trip(); ++l) {
+            uvec2 d = level_dims(px_cascade, l);
+            uvec4 r;
+            if (level_used(l) && cell_range_at(px_cascade, l, px_lo, px_hi, r)) {
+                vec2 c = ldexp(c0, ivec2(-int(l)));
+                uint x = clamp(uint(max(c.x, 0.0)), r.x, r.z);
+                uint y = clamp(uint(max(c.y, 0.0)), r.y, r.w);
+                px_cover = ~cell_cover[cell_index_at(px_cascade, level_start, l, x, y)].y;
+                if (px_cover != NO_COVER) break;
+            }
+            level_start += d.x * d.y;
+        }
     }
 }
 
@@ -312,62 +334,81 @@ void main() {
         barrier();
     }
 
-    // 2. Elect the tile's cell: the lowest first cell of its live pixels.
-    bool wants_cells = live && px_has_cells && grid_usable && !done(mask);
-    if (lid == 0u) sm_cell = NO_CELL;
-    barrier();
-    if (wants_cells) atomicMin(sm_cell, cell_index(px_cascade, px_cells.x, px_cells.y));
-    barrier();
-    uint cell = sm_cell;
-    uint cx = 0u, cy = 0u;
-    bool in_elected = false;
-    if (cell != NO_CELL) {
-        // The elected cell's cascade: the one whose cells hold its index.
-        uint ck = 0u;
-        while (ck + 1u < light.cascade_count && cell >= light.cascade[ck + 1u].cell_offset) ++ck;
-        uint local = cell - light.cascade[ck].cell_offset;
-        cx = local % light.cascade[ck].cells_x;
-        cy = local / light.cascade[ck].cells_x;
-        in_elected = wants_cells && ck == px_cascade && cx >= px_cells.x && cx <= px_cells.z
-            && cy >= px_cells.y && cy <= px_cells.w;
-        if (in_elected) cells_visited += 1u;
-        uint start = cell_start[cell], end = cell_start[cell + 1u];
-        for (uint base = start; base < end; base += WORKGROUP_PIXELS) {
-            spend_trip();
-            uint count = min(uint(WORKGROUP_PIXELS), end - base);
-            if (lid < count) {
-                uint entry = cell_triangles[base + lid];
-                sm_id[lid] = entry;
-                sm_tri[lid] = triangles[entry & ID_MASK];
+    // 2. Every pyramid level, finest first (a uniform loop: barriers
+    // inside). Per level, elect the tile's cell — the lowest first cell of
+    // its live pixels there — and read it through shared memory; then each
+    // pixel's other cells at that level from global memory.
+    uint max_levels = 0u;
+    for (uint k = 0u; k < light.cascade_count; ++k) max_levels = max(max_levels, light.cascade[k].levels);
+    if (!grid_usable || light.grid_disabled != 0u) max_levels = 0u;
+    uint levels_any = 0u;   // levels used by any cascade: the others cost no barrier
+    for (uint k = 0u; k < light.cascade_count; ++k) levels_any |= counters[C_LEVELS + k];
+    uint level_start = live && px_has_cells ? light.cascade[px_cascade].cell_offset : 0u;
+    for (uint l = 0u; l < max_levels; ++l) {
+        spend_trip();
+        uvec2 dims = live && px_has_cells ? level_dims(px_cascade, l) : uvec2(0u);
+        if ((levels_any & (1u << l)) == 0u) {
+            level_start += dims.x * dims.y;
+            continue;
+        }
+        uvec4 r = uvec4(0u);
+        bool wants_cells = live && px_has_cells && !done(mask) && l < light.cascade[px_cascade].levels
+            && level_used(l) && cell_range_at(px_cascade, l, px_lo, px_hi, r);
+        if (wants_cells) levels_visited += 1u;
+        if (lid == 0u) sm_cell = NO_CELL;
+        barrier();
+        if (wants_cells) atomicMin(sm_cell, cell_index_at(px_cascade, level_start, l, r.x, r.y));
+        barrier();
+        uint cell = sm_cell;
+        uint cx = 0u, cy = 0u;
+        bool in_elected = false;
+        if (cell != NO_CELL) {
+            // Whether the elected cell is one of this pixel's at this level.
+            if (wants_cells && cell >= level_start && cell < level_start + dims.x * dims.y) {
+                uint local = cell - level_start;
+                cx = local % dims.x;
+                cy = local / dims.x;
+                in_elected = cx >= r.x && cx <= r.z && cy >= r.y && cy <= r.w;
             }
-            barrier();
-            if (in_elected && !done(mask)) {
-                for (uint k = 0u; k < count && !done(mask) && spend_trip(); ++k) {
-                    if (!tests_in_cell(sm_id[k], cx, cy)) continue;
-                    tests_spawned += 1u;
-                    mask |= triangle_mask(sm_tri[k]);
+            if (in_elected) cells_visited += 1u;
+            uint start = cell_start[cell], end = cell_start[cell + 1u];
+            for (uint base = start; base < end; base += WORKGROUP_PIXELS) {
+                spend_trip();
+                uint count = min(uint(WORKGROUP_PIXELS), end - base);
+                if (lid < count) {
+                    uint entry = cell_triangles[base + lid];
+                    sm_id[lid] = entry;
+                    sm_tri[lid] = triangles[entry & ID_MASK];
+                }
+                barrier();
+                if (in_elected && !done(mask)) {
+                    for (uint k = 0u; k < count && !done(mask) && spend_trip(); ++k) {
+                        if (!tests_in_cell(sm_id[k], cx, cy, r)) continue;
+                        tests_spawned += 1u;
+                        mask |= triangle_mask(sm_tri[k]);
+                    }
+                }
+                barrier();
+            }
+        }
+        // 3. The pixel's other cells at this level, from global memory.
+        if (wants_cells) {
+            for (uint y = r.y; y <= r.w && !done(mask) && spend_trip(); ++y) {
+                for (uint x = r.x; x <= r.z && !done(mask) && spend_trip(); ++x) {
+                    if (in_elected && x == cx && y == cy) continue;
+                    cells_visited += 1u;
+                    uint c = cell_index_at(px_cascade, level_start, l, x, y);
+                    uint end = cell_start[c + 1u];
+                    for (uint k = cell_start[c]; k < end && !done(mask) && spend_trip(); ++k) {
+                        uint entry = cell_triangles[k];
+                        if (!tests_in_cell(entry, x, y, r)) continue;
+                        tests_spawned += 1u;
+                        mask |= triangle_mask(triangles[entry & ID_MASK]);
+                    }
                 }
             }
-            barrier();
         }
-    }
-
-    // 3. The pixel's other cells, from global memory.
-    if (wants_cells) {
-        for (uint y = px_cells.y; y <= px_cells.w && !done(mask) && spend_trip(); ++y) {
-            for (uint x = px_cells.x; x <= px_cells.z && !done(mask) && spend_trip(); ++x) {
-                if (in_elected && x == cx && y == cy) continue;
-                cells_visited += 1u;
-                uint c = cell_index(px_cascade, x, y);
-                uint end = cell_start[c + 1u];
-                for (uint k = cell_start[c]; k < end && !done(mask) && spend_trip(); ++k) {
-                    uint entry = cell_triangles[k];
-                    if (!tests_in_cell(entry, x, y)) continue;
-                    tests_spawned += 1u;
-                    mask |= triangle_mask(triangles[entry & ID_MASK]);
-                }
-            }
-        }
+        level_start += dims.x * dims.y;
     }
 
     if (!inside) return;
@@ -385,4 +426,6 @@ void main() {
     add_counter64(C_TESTS_SPAWNED, tests_spawned);
     add_counter64(C_DEPTH_PASSED, depth_passed);
     add_counter64(C_CELLS_VISITED, cells_visited);
+    add_counter64(C_LEVELS_VISITED, levels_visited);
+    add_counter64(C_MASKS_NONEMPTY, masks_nonempty);
 }

@@ -232,7 +232,8 @@ void main() {
     light.cascade[0].cells_x = 1u;
     light.cascade[0].cells_y = 1u;
     light.cascade[0].cell_offset = 0u;
-    light.cascade[0].overflow_cells = frame.overflow_cells != 0u ? frame.overflow_cells : 64u;
+    light.cascade[0].levels = 1u;
+    light.cascade[0].level_cells = frame.level_cells != 0u ? frame.level_cells : DEFAULT_LEVEL_CELLS;
     uint n = light.receivers;
     if (n == 0u) {
         light.cascade_count = 1u;
@@ -258,7 +259,8 @@ void main() {
         light.cascade[k].cells_y = 0u;
         light.cascade[k].ndc_min = vec2(0.0);
         light.cascade[k].ndc_max = vec2(0.0);
-        light.cascade[k].overflow_cells = 0u;
+        light.cascade[k].level_cells = 0u;
+        light.cascade[k].levels = 0u;
         if (nk == 0u) continue;   // an empty cascade: no cells, nothing binned
         vec2 nmin = vec2(from_ordered_bits(light.cascade[k].ndc_lo[0]), from_ordered_bits(light.cascade[k].ndc_lo[1]));
         vec2 nmax = vec2(from_ordered_bits(light.cascade[k].ndc_hi[0]), from_ordered_bits(light.cascade[k].ndc_hi[1]));
@@ -285,9 +287,15 @@ void main() {
         }
         light.cascade[k].cells_x = cells.x;
         light.cascade[k].cells_y = cells.y;
-        // cascades::cascade_overflow_cells.
-        light.cascade[k].overflow_cells = frame.overflow_cells != 0u ? frame.overflow_cells : clamp(nk / 16u, 64u, 4096u);
-        offset += light.cascade[k].cells_x * light.cascade[k].cells_y;
+        light.cascade[k].level_cells = frame.level_cells != 0u ? frame.level_cells : DEFAULT_LEVEL_CELLS;
+        // light_setup::pyramid_levels: halve down to 1×1; the pyramid's
+        // cells follow level 0 (CascadeGrid::cell_count).
+        uint side_max = max(cells.x, cells.y);
+        uint levels = 1u + uint(findMSB(side_max - 1u) + 1);   // 1 + ceil(log2(side_max))
+        light.cascade[k].levels = levels;
+        for (uint l = 0u; l < levels; ++l) {
+            offset += level_side(cells.x, l) * level_side(cells.y, l);
+        }
     }
     light.total_cells = offset;
     // The host sized the cell arrays for cascades::max_total_cells; should

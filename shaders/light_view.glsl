@@ -47,6 +47,30 @@ vec2 ndc_of_grid(uint k, vec2 g) {
     return light.cascade[k].ndc_min + g / grid_size(k) * (light.cascade[k].ndc_max - light.cascade[k].ndc_min);
 }
 
+// light_setup::level_side: cells along one side of pyramid level l.
+uint level_side(uint side, uint l) {
+    return side == 0u ? 0u : ((side - 1u) >> l) + 1u;
+}
+
+uvec2 level_dims(uint k, uint l) {
+    return uvec2(level_side(light.cascade[k].cells_x, l), level_side(light.cascade[k].cells_y, l));
+}
+
+// CascadeGrid::level_offset: the levels lie back to back, finest first.
+uint level_offset(uint k, uint l) {
+    uint offset = light.cascade[k].cell_offset;
+    for (uint j = 0u; j < l; ++j) {
+        uvec2 d = level_dims(k, j);
+        offset += d.x * d.y;
+    }
+    return offset;
+}
+
+// CascadeGrid::cell_index_at (level_start = level_offset(k, l)).
+uint cell_index_at(uint k, uint level_start, uint l, uint x, uint y) {
+    return level_start + y * level_side(light.cascade[k].cells_x, l) + x;
+}
+
 uint cell_index(uint k, uint x, uint y) {
     return light.cascade[k].cell_offset + y * light.cascade[k].cells_x + x;
 }
@@ -68,15 +92,28 @@ void microquad_grid_box(uint k, vec3 p, vec3 ex, vec3 ey, out vec2 lo, out vec2 
     }
 }
 
-// bin::cell_range: inclusive cells (x0, y0, x1, y1) of the padded box, or
-// false when it misses the grid (or is NaN, or the grid has no cells).
-bool cell_range(uint k, vec2 lo, vec2 hi, out uvec4 cells) {
+// footprint::cell_range_in: inclusive cells (x0, y0, x1, y1) of the
+// padded box in a dims grid, or false when it misses the grid (or is NaN,
+// or the grid has no cells).
+bool cell_range_in(uvec2 dims, vec2 lo, vec2 hi, out uvec4 cells) {
     lo -= CELL_PADDING;
     hi += CELL_PADDING;
-    float w = float(light.cascade[k].cells_x), h = float(light.cascade[k].cells_y);
+    float w = float(dims.x), h = float(dims.y);
     cells = uvec4(0u);
     if (hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || isnan(lo.x) || isnan(hi.x)) return false;
     uint x0 = uint(max(lo.x, 0.0)), y0 = uint(max(lo.y, 0.0));
     cells = uvec4(x0, y0, max(uint(min(hi.x, w - 1.0)), x0), max(uint(min(hi.y, h - 1.0)), y0));
     return true;
+}
+
+// footprint::cell_range: level 0 of cascade k.
+bool cell_range(uint k, vec2 lo, vec2 hi, out uvec4 cells) {
+    return cell_range_in(uvec2(light.cascade[k].cells_x, light.cascade[k].cells_y), lo, hi, cells);
+}
+
+// footprint::cell_range_at: the range at level l of a level-0 box (scaled
+// by 2^-l with ldexp, exact like the CPU's multiplication).
+bool cell_range_at(uint k, uint l, vec2 lo, vec2 hi, out uvec4 cells) {
+    ivec2 e = ivec2(-int(l));
+    return cell_range_in(level_dims(k, l), ldexp(lo, e), ldexp(hi, e), cells);
 }

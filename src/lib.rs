@@ -18,6 +18,7 @@ pub mod izb;
 pub mod lut;
 pub mod metrics;
 pub mod output;
+pub mod peer;
 pub mod reference;
 pub mod report;
 pub mod scene;

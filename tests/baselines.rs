@@ -73,7 +73,7 @@ fn rasteriser_matches_brute_force_at_every_texel() {
             &g,
             GridRequest {
                 cells: Some(8),
-                overflow_cells: None,
+                level_cells: None,
                 cascades: izb::izb::CascadeCount::Fixed(2),
                 split_lambda: 1.0,
             },

@@ -279,7 +279,7 @@ fn grid_capacity_overrun_reruns_with_room() {
     let s = IzbSettings {
         mode: SampleMode::Exact32,
         cells: Some(200),
-        overflow_cells: Some(200 * 200),
+        level_cells: Some(200 * 200),
         ..Default::default()
     };
     let cpu = render_cpu(&scene, &bvh, s);

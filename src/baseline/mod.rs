@@ -124,7 +124,7 @@ pub fn render_shadow_map(
         g,
         GridRequest {
             cells: Some(8),
-            overflow_cells: None,
+            level_cells: None,
             cascades: CascadeCount::Fixed(settings.cascades),
             split_lambda: 1.0,
         },

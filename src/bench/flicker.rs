@@ -149,6 +149,12 @@ pub fn flicker(
                     &same_sample_masks(&frame, bvh, crate::lut::sample_pattern()),
                     &g,
                 ),
+                // Embree traces the same samples as rt32 up to f32
+                // rounding: its flicker is rt32's, not measured again.
+                MethodKind::Embree32 => {
+                    *d = None;
+                    continue;
+                }
                 MethodKind::ShadowMap(s) => match render_shadow_map(&frame, &g, *s) {
                     Ok(r) => r.visibility,
                     Err(_) => {

@@ -7,6 +7,10 @@
 //! - `izb1`, `izb32`, `izb32-exact`: the irregular z-buffer;
 //! - `rt32`: brute-force ray tracing of the same 32 µQuad samples (CPU BVH,
 //!   [`crate::reference::same_samples`]): what the IZB must equal;
+//! - `rt32-embree` (cargo feature `embree`): Intel Embree tracing those
+//!   samples' shadow rays ([`crate::peer::embree`]): what a user would run
+//!   instead; its shadow seconds are the tracing, its BVH build is in
+//!   `details`;
 //! - shadow maps, [`crate::baseline`] (`sm-R`, `pcf3-R`, `pcf5-R`,
 //!   `csmN-pcfK-R`).
 //!
@@ -36,6 +40,8 @@ pub enum MethodKind {
     Izb(IzbSettings),
     /// The 32 µQuad samples traced exactly.
     RayTraced32,
+    /// The 32 µQuad samples' shadow rays traced by Embree.
+    Embree32,
     ShadowMap(ShadowMapSettings),
 }
 
@@ -44,7 +50,7 @@ impl MethodKind {
     pub fn family(&self) -> &'static str {
         match self {
             MethodKind::Izb(_) => "izb",
-            MethodKind::RayTraced32 => "ray-traced",
+            MethodKind::RayTraced32 | MethodKind::Embree32 => "ray-traced",
             MethodKind::ShadowMap(_) => "shadow-map",
         }
     }
@@ -54,7 +60,7 @@ impl MethodKind {
     fn masks_32(&self) -> bool {
         match self {
             MethodKind::Izb(s) => s.mode != SampleMode::One,
-            MethodKind::RayTraced32 => true,
+            MethodKind::RayTraced32 | MethodKind::Embree32 => true,
             MethodKind::ShadowMap(_) => false,
         }
     }
@@ -88,6 +94,14 @@ pub fn parse_methods(
             "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
             "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
             "rt32" => out.push((name.to_string(), MethodKind::RayTraced32)),
+            "rt32-embree" if cfg!(feature = "embree") => {
+                out.push((name.to_string(), MethodKind::Embree32))
+            }
+            "rt32-embree" => {
+                return Err("rt32-embree needs izb built with `--features embree` \
+                            (and Debian's libembree-dev)"
+                    .into())
+            }
             "shadow-maps" => {
                 for &side in map_sides {
                     for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3"] {
@@ -223,6 +237,7 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
             r.visibility = resolve(&masks, &shared.gbuffer);
             r.masks = Some(masks);
         }
+        MethodKind::Embree32 => embree_once(scene, shared, &mut r)?,
         MethodKind::ShadowMap(settings) => {
             let out = render_shadow_map(scene, &shared.gbuffer, *settings)?;
             r.shadow.push(out.report.seconds.shadow);
@@ -234,6 +249,35 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
         }
     }
     Ok(r)
+}
+
+/// `rt32-embree` once: Embree's BVH over the eye-relative triangles, then
+/// the shared G-buffer's sample rays (shadow seconds: the tracing alone).
+#[cfg(feature = "embree")]
+fn embree_once(scene: &Scene, shared: &SceneTruth, r: &mut Runs) -> Result<(), String> {
+    use crate::peer::embree::{rt32_embree_masks, EmbreeScene};
+    let embree = EmbreeScene::new(&crate::izb::eye_relative_f32(scene))?;
+    let t = Instant::now();
+    let masks = rt32_embree_masks(
+        scene,
+        &embree,
+        &shared.gbuffer,
+        crate::lut::sample_pattern(),
+    );
+    let s = t.elapsed().as_secs_f64();
+    r.shadow.push(s);
+    r.total.push(s + shared.gbuffer_seconds);
+    r.seconds
+        .push(json!({ "trace": s, "bvh_build": embree.build_seconds }));
+    r.details = json!({ "bvh_build_seconds": embree.build_seconds, "threads": rayon::current_num_threads() });
+    r.visibility = resolve(&masks, &shared.gbuffer);
+    r.masks = Some(masks);
+    Ok(())
+}
+
+#[cfg(not(feature = "embree"))]
+fn embree_once(_: &Scene, _: &SceneTruth, _: &mut Runs) -> Result<(), String> {
+    Err("rt32-embree needs izb built with `--features embree`".into())
 }
 
 /// Everything measured of one method on one scene.
@@ -489,7 +533,7 @@ pub fn bench_scene_vulkan(
                         });
                         (out.gpu_milliseconds, out.visibility, details)
                     }),
-                MethodKind::RayTraced32 => continue,
+                MethodKind::RayTraced32 | MethodKind::Embree32 => continue,
             };
             let entry = runs[k].get_or_insert(GpuRuns {
                 millis: Vec::new(),

@@ -120,11 +120,10 @@ struct GridArgs {
     /// from the pixel and triangle counts).
     #[arg(long)]
     cells: Option<u32>,
-    /// Triangles whose cell rectangle holds more cells than this go to the
-    /// overflow list (default: per cascade, its pixels / 16 within
-    /// 64..=4096).
+    /// A triangle is binned at the finest grid-pyramid level where its
+    /// cell rectangle holds at most this many cells (default 64).
     #[arg(long)]
-    overflow_cells: Option<u32>,
+    level_cells: Option<u32>,
     /// Sample-distribution cascades: auto (as few as the view-depth range
     /// needs) or 1..4.
     #[arg(long, default_value = "auto", value_parser = CascadeCount::parse)]
@@ -142,12 +141,12 @@ impl GridArgs {
             self.split_lambda
         );
         anyhow::ensure!(
-            self.overflow_cells != Some(0) && self.cells != Some(0),
-            "--overflow-cells and --cells must be at least 1"
+            self.level_cells != Some(0) && self.cells != Some(0),
+            "--level-cells and --cells must be at least 1"
         );
         Ok(IzbSettings {
             cells: self.cells,
-            overflow_cells: self.overflow_cells,
+            level_cells: self.level_cells,
             cascades: self.cascades,
             split_lambda: self.split_lambda,
             ..settings
@@ -775,7 +774,7 @@ fn print_render_summary(
     let [w, h] = scene.resolution;
     let grids: Vec<String> = grids
         .iter()
-        .map(|([x, y], cap)| format!("{x}x{y} (overflow above {cap} cells)"))
+        .map(|([x, y], cap)| format!("{x}x{y} pyramid (≤ {cap} cells per triangle)"))
         .collect();
     println!(
         "render {} ({mode:?}, {backend}): {w}x{h}, {} triangles ({binned} placements binned, \
@@ -834,7 +833,7 @@ fn render_on_gpu(
         &r.light
             .cascades
             .iter()
-            .map(|g| (g.cells, g.overflow_cells))
+            .map(|g| (g.cells, g.level_cells))
             .collect::<Vec<_>>(),
         &r.light.cascade_choice.reason,
         c.tests_spawned,
@@ -881,7 +880,7 @@ fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) -> Res
         &r.light
             .cascades
             .iter()
-            .map(|g| (g.cells, g.overflow_cells))
+            .map(|g| (g.cells, g.level_cells))
             .collect::<Vec<_>>(),
         &r.light.cascade_choice.reason,
         r.evaluate.tests_spawned,

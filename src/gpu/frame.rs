@@ -47,7 +47,8 @@ pub struct GpuCascadeSummary {
     pub receivers: u32,
     pub cells: [u32; 2],
     pub cell_offset: u32,
-    pub overflow_cells: u32,
+    pub levels: u32,
+    pub level_cells: u32,
     pub ndc_min: [f32; 2],
     pub ndc_max: [f32; 2],
 }
@@ -91,6 +92,13 @@ pub struct GpuCounters {
     pub tests_spawned: u64,
     pub depth_passed: u64,
     pub cells_visited: u64,
+    pub levels_visited: u64,
+    /// Rectangle cells a binned triangle's projection misses (not listed).
+    pub cells_untouched: u32,
+    /// Tests whose mask was not empty.
+    pub masks_nonempty: u64,
+    /// Per cascade, bit l set when pyramid level l holds a placement.
+    pub levels: Vec<u32>,
 }
 
 /// Settings, timings, counters and memory of one GPU frame.
@@ -752,6 +760,12 @@ impl GpuRenderer {
             tests_spawned: wide(counter::TESTS_SPAWNED),
             depth_passed: wide(counter::DEPTH_PASSED),
             cells_visited: wide(counter::CELLS_VISITED),
+            levels_visited: wide(counter::LEVELS_VISITED),
+            cells_untouched: c[counter::CELLS_UNTOUCHED],
+            masks_nonempty: wide(counter::MASKS_NONEMPTY),
+            levels: (0..out.light.cascade_count as usize)
+                .map(|k| c[counter::LEVELS + k])
+                .collect(),
         };
         let [w, h] = scene.resolution;
         let frame = scene.camera.frame(scene.resolution);
@@ -844,7 +858,8 @@ impl GpuRenderer {
                         receivers: c.receivers,
                         cells: [c.cells_x, c.cells_y],
                         cell_offset: c.cell_offset,
-                        overflow_cells: c.overflow_cells,
+                        levels: c.levels,
+                        level_cells: c.level_cells,
                         ndc_min: c.ndc_min,
                         ndc_max: c.ndc_max,
                     })
@@ -1056,7 +1071,7 @@ fn frame_params(
         triangle_count: triangles as u32,
         mode: mode_code(settings.mode),
         cells_hint: settings.cells.unwrap_or(0),
-        overflow_cells: settings.overflow_cells.unwrap_or(0),
+        level_cells: settings.level_cells.unwrap_or(0),
         cell_capacity: cell_capacity.min(u64::from(u32::MAX)) as u32,
         lut_angle_scale: lut.angle_scale_f32(),
         lut_distance_scale: lut.distance_scale_f32(),

@@ -69,8 +69,14 @@ pub mod counter {
     pub const ENTRIES_BEHIND: usize = 19;
     pub const TRIANGLES_BEHIND: usize = 20;
     pub const SHADOW_MAP_EARLY_OUTS: usize = 21;
+    /// Per cascade k, word `LEVELS + k`: bit l set when pyramid level l
+    /// holds a placement (atomicOr in the bin count).
+    pub const LEVELS: usize = 22;
+    pub const LEVELS_VISITED: usize = 26;
+    pub const CELLS_UNTOUCHED: usize = 28;
+    pub const MASKS_NONEMPTY: usize = 29;
     /// Words in the counters buffer.
-    pub const WORDS: usize = 22;
+    pub const WORDS: usize = 31;
 }
 
 /// Local sizes of the pixel passes (8×8 tiles) and the linear passes.
@@ -104,7 +110,7 @@ pub struct FrameParams {
     pub triangle_count: u32,
     pub mode: u32,
     pub cells_hint: u32,
-    pub overflow_cells: u32,
+    pub level_cells: u32,
     pub cell_capacity: u32,
     pub lut_angle_scale: f32,
     pub lut_distance_scale: f32,
@@ -146,12 +152,13 @@ pub struct CascadeGrid {
     pub cells_x: u32,
     pub cells_y: u32,
     pub cell_offset: u32,
-    pub overflow_cells: u32,
+    pub level_cells: u32,
     pub receivers: u32,
     pub ndc_lo: [u32; 2],
     pub ndc_hi: [u32; 2],
+    pub levels: u32,
 }
-const _: () = assert!(size_of::<CascadeGrid>() == 52);
+const _: () = assert!(size_of::<CascadeGrid>() == 56);
 
 /// `LightState`: light view, cascades and grids, written on the GPU by
 /// `light_setup`.
@@ -179,7 +186,7 @@ pub struct LightState {
     pub z_hi: u32,
     pub cascade: [CascadeGrid; MAX_CASCADES],
 }
-const _: () = assert!(size_of::<LightState>() == 144 + 4 * 52);
+const _: () = assert!(size_of::<LightState>() == 144 + 4 * 56);
 const _: () = assert!(offset_of!(LightState, receiver_z) == 64);
 const _: () = assert!(offset_of!(LightState, pos_lo) == 104);
 const _: () = assert!(offset_of!(LightState, cascade) == 144);

@@ -1,22 +1,19 @@
-//! Pass 2, `bin`: triangles into the light-space grids by counting sort
-//! (seed 000): count per cell, exclusive prefix sum, scatter of triangle
-//! ids. Each triangle is
-//! placed in every cascade's grid its shadow reaches; one whose rectangle
-//! holds more than the cascade's `overflow_cells` cells goes to the
-//! overflow list that every pixel of that cascade tests, so one huge ground
-//! triangle does not fill thousands of cells.
+//! Pass 2, `bin`: triangles into the light-space grid pyramids by
+//! counting sort (seed 000): count per cell, exclusive prefix sum, scatter
+//! of triangle ids. Each triangle is placed in every cascade its shadow
+//! reaches, at the pyramid level where its rectangle holds at most
+//! `level_cells` cells, and listed only in the cells of that rectangle its
+//! projection touches ([`super::footprint`]). The overflow list remains
+//! for what has no footprint: triangles crossing a point light's image
+//! plane, and every triangle when the grid is disabled.
 
-use super::light_setup::{CascadeGrid, LightSetup, Projection};
+pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
+use super::footprint::{footprint, Footprint};
+use super::light_setup::{level_scale, CascadeGrid, LightSetup, Projection};
 use super::{is_receiver, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-
-/// Cell rectangles are grown by this fraction of a cell on every side,
-/// far above the `f32` rounding of a light NDC coordinate (~1e-4 cell on a
-/// 1024-cell grid), so rounding never drops a triangle from a cell its
-/// shadow touches.
-pub const CELL_PADDING: f32 = 1.0 / 64.0;
 
 /// Where one triangle went in one cascade's grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -25,18 +22,28 @@ pub enum Placement {
     Culled,
     /// In the overflow list.
     Overflow,
-    /// In the cells `[x0, x1] × [y0, y1]` (inclusive).
-    Cells { x0: u32, y0: u32, x1: u32, y1: u32 },
+    /// At pyramid level `level`, in the cells of `[x0, x1] × [y0, y1]`
+    /// (inclusive) that its projection touches.
+    Cells {
+        level: u32,
+        x0: u32,
+        y0: u32,
+        x1: u32,
+        y1: u32,
+    },
 }
 
-/// One entry of a cell's list: the triangle and whether the cell is in the
-/// first column / first row of the triangle's rectangle. A pixel whose
-/// rectangle overlaps the triangle's in several cells tests it only in the
-/// first cell of the overlap, `(max(tx0, px0), max(ty0, py0))`: for a cell
-/// that lists the triangle, `x = max(tx0, px0)` holds exactly when
-/// `x = tx0` or `x = px0` (x ≥ both there), so these two bits are all the
-/// pixel needs of the triangle's rectangle — no per-triangle placement is
-/// stored (the GPU packs them above the 28-bit id).
+/// One entry of a cell's list: the triangle and whether it does *not*
+/// touch the cell to the left / below (at the same level). A pixel tests
+/// the entry in cell (`x`, `y`) of its range `[px0, px1] × [py0, py1]`
+/// when it is at the range's left column or the left cell lacks the
+/// triangle, and likewise below. At least once: in the lowest row of the
+/// range where the triangle touches a cell, take the leftmost such cell;
+/// its left and lower neighbours within the range lack the triangle. At
+/// most once for a triangle whose touched cells within the range form a
+/// rectangle; a thin diagonal can be tested twice (a staircase of cells),
+/// which ORs the same mask again. The GPU packs both bits above the 28-bit
+/// id.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CellEntry {
     pub id: u32,
@@ -45,11 +52,21 @@ pub struct CellEntry {
 }
 
 impl CellEntry {
-    /// Whether a pixel whose cell rectangle starts at (`px0`, `py0`) tests
-    /// this entry in cell (`x`, `y`).
+    /// Whether a pixel whose cell range at this level starts at (`px0`,
+    /// `py0`) tests this entry in cell (`x`, `y`).
     #[inline]
     pub fn tested_in(&self, x: u32, y: u32, px0: u32, py0: u32) -> bool {
         (self.first_column || x == px0) && (self.first_row || y == py0)
+    }
+
+    /// The entry of triangle `id` in cell (`x`, `y`) of its footprint.
+    pub fn new(id: u32, f: &Footprint, x: u32, y: u32) -> CellEntry {
+        let (x, y) = (i64::from(x), i64::from(y));
+        CellEntry {
+            id,
+            first_column: !f.touches(x - 1, y),
+            first_row: !f.touches(x, y - 1),
+        }
     }
 }
 
@@ -73,6 +90,11 @@ pub struct BinStats {
     pub culled: usize,
     /// Total (cell, triangle) entries written by the scatter.
     pub cell_entries: usize,
+    /// Cells of binned triangles' rectangles their projection does not
+    /// touch (not listed: the exact overlap test).
+    pub cells_untouched: usize,
+    /// Binned placements per pyramid level (index = level).
+    pub per_level: Vec<usize>,
     /// (cell, triangle) entries the `behind_receivers` skip dropped.
     pub entries_behind_receivers: usize,
     /// Binned placements dropped from every cell they cover.
@@ -95,6 +117,9 @@ pub struct Bins {
     /// Cell entries, cell after cell.
     pub cell_triangles: Vec<CellEntry>,
     pub overflow: Vec<OverflowEntry>,
+    /// Per cascade, bit l set when pyramid level l holds a placement: the
+    /// levels a pixel visits.
+    pub levels: Vec<u32>,
     /// Per cell, the conservative shadow map: the triangle whose shadow
     /// covers the whole cell with the highest floor ([`cover_floor`]), or
     /// [`NO_COVER`]. Only filled with the `shadow_map` skip.
@@ -106,28 +131,12 @@ pub struct Bins {
 pub const NO_COVER: u32 = u32::MAX;
 
 impl Bins {
-    /// Entries of cell (x, y) of `grid`.
+    /// Entries of cell (x, y) of pyramid level `level` of `grid`.
     #[inline]
-    pub fn cell(&self, grid: &CascadeGrid, x: u32, y: u32) -> &[CellEntry] {
-        let c = grid.cell_index(x, y);
+    pub fn cell(&self, grid: &CascadeGrid, level: u32, x: u32, y: u32) -> &[CellEntry] {
+        let c = grid.cell_index_at(level, x, y);
         &self.cell_triangles[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
     }
-}
-
-/// Inclusive integer cell range of `grid` covered by the continuous
-/// grid-space box `[lo, hi]`, grown by [`CELL_PADDING`], or `None` if it
-/// misses the grid (always for a grid without cells).
-pub fn cell_range(grid: &CascadeGrid, lo: Vec2, hi: Vec2) -> Option<[u32; 4]> {
-    let (w, h) = (grid.cells[0] as f32, grid.cells[1] as f32);
-    let (lo, hi) = (lo - CELL_PADDING, hi + CELL_PADDING);
-    if hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || lo.x.is_nan() || hi.x.is_nan() {
-        return None;
-    }
-    let x0 = lo.x.max(0.0) as u32;
-    let y0 = lo.y.max(0.0) as u32;
-    let x1 = (hi.x.min(w - 1.0)) as u32;
-    let y1 = (hi.y.min(h - 1.0)) as u32;
-    Some([x0, y0, x1.max(x0), y1.max(y0)])
 }
 
 /// Light NDC of a light-view triangle's vertices: `Err` with its placement
@@ -144,27 +153,36 @@ fn triangle_ndc(setup: &LightSetup, tri: &[Vec3; 3]) -> Result<[Vec2; 3], Placem
     }
 }
 
-/// Where triangle `tri` (light view) goes in `grid`.
-pub fn place(setup: &LightSetup, grid: &CascadeGrid, tri: &[Vec3; 3]) -> Placement {
+/// Where triangle `tri` (light view) goes in `grid`, and its footprint
+/// there when it is binned in cells.
+pub fn place(
+    setup: &LightSetup,
+    grid: &CascadeGrid,
+    tri: &[Vec3; 3],
+) -> (Placement, Option<Footprint>) {
     if setup.grid_disabled {
-        return Placement::Overflow;
+        return (Placement::Overflow, None);
     }
     let ndc = match triangle_ndc(setup, tri) {
         Ok(n) => n,
-        Err(p) => return p,
+        Err(p) => return (p, None),
     };
-    let g = ndc.map(|n| grid.grid_coords(n));
-    let lo = g[0].min(g[1]).min(g[2]);
-    let hi = g[0].max(g[1]).max(g[2]);
-    match cell_range(grid, lo, hi) {
-        None => Placement::Culled,
-        Some([x0, y0, x1, y1])
-            if u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1)
-                <= u64::from(grid.overflow_cells) =>
-        {
-            Placement::Cells { x0, y0, x1, y1 }
+    match footprint(grid, ndc.map(|n| grid.grid_coords(n))) {
+        None => (Placement::Culled, None),
+        Some(f) => {
+            let [x0, y0, x1, y1] = f.rect;
+            let level = f.level;
+            (
+                Placement::Cells {
+                    level,
+                    x0,
+                    y0,
+                    x1,
+                    y1,
+                },
+                Some(f),
+            )
         }
-        Some(_) => Placement::Overflow,
     }
 }
 
@@ -178,38 +196,64 @@ pub struct CellReceivers {
     pub reach: Vec<u32>,
 }
 
+impl CellReceivers {
+    fn empty(cells: usize) -> CellReceivers {
+        CellReceivers {
+            z_min: vec![f32::INFINITY; cells],
+            reach: vec![0; cells],
+        }
+    }
+
+    fn merge(mut self, other: CellReceivers) -> CellReceivers {
+        for (c, (z, r)) in other.z_min.into_iter().zip(other.reach).enumerate() {
+            self.z_min[c] = self.z_min[c].min(z);
+            self.reach[c] = self.reach[c].max(r);
+        }
+        self
+    }
+}
+
 /// [`CellReceivers`] of the receivers of `g` (directional lights only:
-/// `None` for a point light or a disabled grid). Each receiver counts in
-/// its own cascade's grid.
+/// `None` for a point light or a disabled grid), on every level of each
+/// receiver's own cascade's pyramid: at level l a receiver's µQuad box and
+/// reach are those of level 0 scaled by 2⁻ˡ.
 pub fn cell_receivers(setup: &LightSetup, g: &GBuffer, skips: Skips) -> Option<CellReceivers> {
     if setup.grid_disabled || setup.projection != Projection::Orthographic {
         return None;
     }
     let cells = setup.total_cells();
-    let mut out = CellReceivers {
-        z_min: vec![f32::INFINITY; cells],
-        reach: vec![0; cells],
-    };
-    for i in 0..g.flags.len() {
-        if !is_receiver(g.flags[i], skips) {
-            continue;
-        }
-        let grid = &setup.cascades[setup.cascade_of(g.position[i])];
-        let (lo, hi) = setup.microquad_grid_box(grid, g.position[i], g.axis_x[i], g.axis_y[i]);
-        let Some([x0, y0, x1, y1]) = cell_range(grid, lo, hi) else {
-            continue;
-        };
-        let z = setup.to_light_view(g.position[i]).z;
-        let reach = receiver_reach(lo, hi);
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let c = grid.cell_index(x, y);
-                out.z_min[c] = out.z_min[c].min(z);
-                out.reach[c] = out.reach[c].max(reach);
-            }
-        }
-    }
-    Some(out)
+    let receivers = (0..g.flags.len())
+        .into_par_iter()
+        .with_min_len(1 << 16)
+        .fold(
+            || CellReceivers::empty(cells),
+            |mut out, i| {
+                if !is_receiver(g.flags[i], skips) {
+                    return out;
+                }
+                let grid = &setup.cascades[setup.cascade_of(g.position[i])];
+                let (lo, hi) =
+                    setup.microquad_grid_box(grid, g.position[i], g.axis_x[i], g.axis_y[i]);
+                let z = setup.to_light_view(g.position[i]).z;
+                for level in 0..grid.levels {
+                    let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
+                        break;
+                    };
+                    let s = level_scale(level);
+                    let reach = receiver_reach(lo * s, hi * s);
+                    for y in y0..=y1 {
+                        for x in x0..=x1 {
+                            let c = grid.cell_index_at(level, x, y);
+                            out.z_min[c] = out.z_min[c].min(z);
+                            out.reach[c] = out.reach[c].max(reach);
+                        }
+                    }
+                }
+                out
+            },
+        )
+        .reduce(|| CellReceivers::empty(cells), CellReceivers::merge);
+    Some(receivers)
 }
 
 /// How many cells the µQuad centre may lie from a cell its grid box
@@ -246,10 +290,11 @@ pub fn behind_receivers(
     grid: &CascadeGrid,
     receivers: &CellReceivers,
     tri: &[Vec3; 3],
+    level: u32,
     x: u32,
     y: u32,
 ) -> bool {
-    let c = grid.cell_index(x, y);
+    let c = grid.cell_index_at(level, x, y);
     let z_min = receivers.z_min[c];
     if z_min == f32::INFINITY {
         return true;
@@ -258,9 +303,11 @@ pub fn behind_receivers(
         return false;
     };
     let r = receivers.reach[c] as f32 + CELL_PADDING;
+    // Level-l grid coordinates to level 0: times 2^l, exact.
+    let up = (1u32 << level) as f32;
     let (g_lo, g_hi) = (
-        Vec2::new(x as f32 - r, y as f32 - r),
-        Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r),
+        Vec2::new(x as f32 - r, y as f32 - r) * up,
+        Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r) * up,
     );
     let (lo, hi) = (grid.ndc_of_grid(g_lo), grid.ndc_of_grid(g_hi));
     let a = tri[0];
@@ -287,21 +334,23 @@ pub fn behind_receivers(
 
 /// The conservative shadow map's test (Tokuyoshi 2018, seed 000, made a
 /// candidate filter instead of a verdict): when triangle `tri` (light view,
-/// directional light) covers all of cell (`x`, `y`) of `grid` — the cell's
+/// directional light) covers all of cell (`x`, `y`) of level `level` of
+/// `grid` — the cell's
 /// four corners inside its light-space projection — the lowest height of
 /// its plane over the cell; else `None`. A receiver in that cell below
 /// this floor is likely to lie wholly in the triangle's shadow. Nothing
 /// here has to be exact: `evaluate` only tests the best cover triangle
 /// first with the ordinary test and stops when that alone fills the mask.
-pub fn cover_floor(grid: &CascadeGrid, tri: &[Vec3; 3], x: u32, y: u32) -> Option<f32> {
+pub fn cover_floor(grid: &CascadeGrid, tri: &[Vec3; 3], level: u32, x: u32, y: u32) -> Option<f32> {
     let n = upward_normal(tri)?;
+    let up = (1u32 << level) as f32;
     let corners = [
         Vec2::new(x as f32, y as f32),
         Vec2::new(x as f32 + 1.0, y as f32),
         Vec2::new(x as f32 + 1.0, y as f32 + 1.0),
         Vec2::new(x as f32, y as f32 + 1.0),
     ]
-    .map(|g| grid.ndc_of_grid(g));
+    .map(|g| grid.ndc_of_grid(g * up));
     let v = tri.map(|p| p.truncate());
     // Inside: on the same side of every edge as the third vertex.
     let winding = (v[1] - v[0]).perp_dot(v[2] - v[0]);
@@ -321,9 +370,9 @@ pub fn cover_floor(grid: &CascadeGrid, tri: &[Vec3; 3], x: u32, y: u32) -> Optio
 }
 
 /// Bins eye-relative `f32` triangles (`triangles[id]`) into every
-/// cascade's grid. With the `outside_bounds` skip off, triangles that miss
-/// a grid go to that cascade's overflow list instead of being culled; with
-/// `receivers` (the `behind_receivers` skip) a cell does not list
+/// cascade's pyramid. With the `outside_bounds` skip off, triangles that
+/// miss a grid go to that cascade's overflow list instead of being culled;
+/// with `receivers` (the `behind_receivers` skip) a cell does not list
 /// triangles that are behind all of its receivers; with the `shadow_map`
 /// skip (directional lights) each cell records its cover triangle.
 pub fn bin(
@@ -338,22 +387,22 @@ pub fn bin(
         .par_iter()
         .map(|t| t.map(|v| setup.to_light_view(v)))
         .collect();
-    let placement: Vec<Vec<Placement>> = setup
+    let placed: Vec<Vec<(Placement, Option<Footprint>)>> = setup
         .cascades
         .iter()
         .map(|grid| {
             light_view
                 .par_iter()
                 .map(|t| match place(setup, grid, t) {
-                    Placement::Culled if !skips.outside_bounds => Placement::Overflow,
+                    (Placement::Culled, _) if !skips.outside_bounds => (Placement::Overflow, None),
                     p => p,
                 })
                 .collect()
         })
         .collect();
     let cells = setup.total_cells();
-    let lists = |grid: &CascadeGrid, id: usize, x: u32, y: u32| match receivers {
-        Some(r) => !behind_receivers(grid, r, &light_view[id], x, y),
+    let lists = |grid: &CascadeGrid, id: usize, level: u32, x: u32, y: u32| match receivers {
+        Some(r) => !behind_receivers(grid, r, &light_view[id], level, x, y),
         None => true,
     };
     let covers = skips.shadow_map && setup.projection == Projection::Orthographic;
@@ -365,29 +414,50 @@ pub fn bin(
         triangles: triangles.len(),
         ..Default::default()
     };
+    let mut levels = vec![0u32; setup.cascades.len()];
     let mut overflow = Vec::new();
     for id in 0..triangles.len() {
         let mut overflows = 0u8;
-        let mut placed = false;
+        let mut placed_anywhere = false;
         for (k, grid) in setup.cascades.iter().enumerate() {
-            match placement[k][id] {
-                Placement::Culled => {}
-                Placement::Overflow => overflows |= 1 << k,
-                Placement::Cells { x0, y0, x1, y1 } => {
-                    placed = true;
+            match placed[k][id] {
+                (Placement::Culled, _) => {}
+                (Placement::Overflow, _) => overflows |= 1 << k,
+                (Placement::Cells { .. }, None) => unreachable!("cells without a footprint"),
+                (
+                    Placement::Cells {
+                        level,
+                        x0,
+                        y0,
+                        x1,
+                        y1,
+                    },
+                    Some(f),
+                ) => {
+                    placed_anywhere = true;
                     stats.binned += 1;
+                    levels[k] |= 1 << level;
+                    let l = level as usize;
+                    if stats.per_level.len() <= l {
+                        stats.per_level.resize(l + 1, 0);
+                    }
+                    stats.per_level[l] += 1;
                     let mut listed = false;
                     for y in y0..=y1 {
                         for x in x0..=x1 {
-                            if !lists(grid, id, x, y) {
+                            if !f.touches(i64::from(x), i64::from(y)) {
+                                stats.cells_untouched += 1;
+                                continue;
+                            }
+                            if !lists(grid, id, level, x, y) {
                                 stats.entries_behind_receivers += 1;
                                 continue;
                             }
-                            let c = grid.cell_index(x, y);
+                            let c = grid.cell_index_at(level, x, y);
                             counts[c] += 1;
                             listed = true;
                             if let Some(floor) = covers
-                                .then(|| cover_floor(grid, &light_view[id], x, y))
+                                .then(|| cover_floor(grid, &light_view[id], level, x, y))
                                 .flatten()
                             {
                                 // Highest floor wins; ties go to the lowest id
@@ -409,7 +479,7 @@ pub fn bin(
                 cascades: overflows,
             });
         }
-        stats.culled += (!placed && overflows == 0) as usize;
+        stats.culled += (!placed_anywhere && overflows == 0) as usize;
     }
     stats.overflow = overflow.len();
     stats.covered_cells = cover.iter().filter(|&&c| c != NO_COVER).count();
@@ -435,31 +505,42 @@ pub fn bin(
     ];
     // Cascade after cascade: their cells are disjoint, so each cell still
     // receives its ids in increasing order.
-    for (grid, placed) in setup.cascades.iter().zip(&placement) {
-        for (id, &p) in placed.iter().enumerate() {
-            if let Placement::Cells { x0, y0, x1, y1 } = p {
-                for y in y0..=y1 {
-                    for x in x0..=x1 {
-                        if !lists(grid, id, x, y) {
-                            continue;
-                        }
-                        let c = grid.cell_index(x, y);
-                        cell_triangles[cursor[c] as usize] = CellEntry {
-                            id: id as u32,
-                            first_column: x == x0,
-                            first_row: y == y0,
-                        };
-                        cursor[c] += 1;
+    for (grid, placed) in setup.cascades.iter().zip(&placed) {
+        for (id, p) in placed.iter().enumerate() {
+            let &(
+                Placement::Cells {
+                    level,
+                    x0,
+                    y0,
+                    x1,
+                    y1,
+                },
+                Some(ref f),
+            ) = p
+            else {
+                continue;
+            };
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    if !f.touches(i64::from(x), i64::from(y)) || !lists(grid, id, level, x, y) {
+                        continue;
                     }
+                    let c = grid.cell_index_at(level, x, y);
+                    cell_triangles[cursor[c] as usize] = CellEntry::new(id as u32, f, x, y);
+                    cursor[c] += 1;
                 }
             }
         }
     }
     Bins {
-        placement,
+        placement: placed
+            .into_iter()
+            .map(|v| v.into_iter().map(|(p, _)| p).collect())
+            .collect(),
         cell_start,
         cell_triangles,
         overflow,
+        levels,
         cover,
         stats,
     }

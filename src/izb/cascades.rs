@@ -182,29 +182,27 @@ pub fn cascade_cells(
     }
 }
 
-/// The most cells all cascades' grids may need for a frame whose single-cascade side is
-/// `side`: what the cell arrays are sized for.
+/// The most cells all cascades' pyramids may need for a frame whose
+/// single-cascade side is `side`: what the cell arrays are sized for.
+/// Level 0 of all grids holds at most `side² + 64 · cascades` cells
+/// ([`cascade_cells`]); the levels of a `w × h` grid add at most
+/// `Σ (w/2^l + 1)(h/2^l + 1) ≤ wh/3 + 2(w + h) + levels` more.
 pub fn max_total_cells(side: u32) -> u64 {
-    u64::from(side) * u64::from(side) + 64 * MAX_CASCADES as u64
+    let level0 = u64::from(side) * u64::from(side) + 64 * MAX_CASCADES as u64;
+    let per_grid_rim = 4 * u64::from(MAX_GRID_SIDE) + 2 * 32;
+    level0 + level0.div_ceil(3) + MAX_CASCADES as u64 * per_grid_rim
 }
 
-/// Overflow threshold of a cascade with `receivers` shadow-tested pixels
-/// (seed 002 §6.3): a triangle whose cell rectangle holds more cells than
-/// this goes to the overflow list. In the overflow list a triangle is
-/// tested by every pixel of the cascade; binned, it costs one entry per
-/// cell and is tested only by the pixels under it. So binning is cheaper
-/// until its entries approach the cascade's pixel count: the threshold is
-/// 1/16 of the receivers, at least 64 cells and at most 4096 (64², what
-/// one bin thread may loop over). An area, not a side: a wire 200 cells
-/// long and 1 wide costs 200 entries, far less than every pixel's test.
-/// Seed 000 found its fixed 32-cell side worth doubling from 16 for the
-/// same reason; a fixed value is wrong for a small far cascade, where a
-/// ground triangle spans much of the grid (measured on `default` at
-/// 320×180 with a side-based `side / 8`: 4.1 M tests with 2 cascades
-/// against 1.3 M with one, from 106 overflow triangles).
-pub fn cascade_overflow_cells(receivers: usize) -> u32 {
-    (receivers / 16).clamp(64, 4096) as u32
-}
+/// Cells a triangle's rectangle may hold at the pyramid level it is
+/// binned at (Wyman et al. 2016 and seed 000 bin each triangle into every
+/// cell it covers up to a threshold and list the rest globally; a pyramid
+/// has no global list: a triangle too large for one level goes to the next,
+/// coarser one, where it covers about a quarter as many cells). Its
+/// rectangle then holds at most this many cells, so binning costs at most
+/// this many entries per triangle, while a pixel visits one small cell
+/// range per level. Measured on the shared scenes at 960×540 and 1920×1080
+/// (`paper-notes/performance.md`).
+pub const DEFAULT_LEVEL_CELLS: u32 = 64;
 
 /// What the frame chose, for the report.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -299,8 +297,13 @@ mod tests {
                     let cells: u64 = shares
                         .iter()
                         .map(|&s| {
-                            let [x, y] = cascade_cells(side, s * 1000, all, 4, extent);
-                            u64::from(x) * u64::from(y)
+                            let cells = cascade_cells(side, s * 1000, all, 4, extent);
+                            let grid = crate::izb::light_setup::CascadeGrid {
+                                cells,
+                                levels: crate::izb::light_setup::pyramid_levels(cells),
+                                ..Default::default()
+                            };
+                            u64::from(grid.cell_count())
                         })
                         .sum();
                     assert!(cells <= max_total_cells(side), "side {side}: {cells} cells");
@@ -313,6 +316,29 @@ mod tests {
                 "side {side}: {x}x{y}"
             );
         }
+    }
+
+    #[test]
+    fn pyramid_levels_halve_down_to_one_cell() {
+        use crate::izb::light_setup::{level_side, pyramid_levels, CascadeGrid};
+        assert_eq!(pyramid_levels([1, 1]), 1);
+        assert_eq!(pyramid_levels([2, 1]), 2);
+        assert_eq!(pyramid_levels([1024, 3]), 11);
+        assert_eq!(pyramid_levels([1025, 700]), 12);
+        assert_eq!(pyramid_levels([0, 0]), 0);
+        assert_eq!(level_side(1025, 11), 1);
+        assert_eq!(level_side(1025, 10), 2);
+        let grid = CascadeGrid {
+            cells: [5, 3],
+            levels: pyramid_levels([5, 3]),
+            cell_offset: 7,
+            ..Default::default()
+        };
+        // 5×3, 3×2, 2×1, 1×1.
+        assert_eq!(grid.levels, 4);
+        assert_eq!(grid.cell_count(), 15 + 6 + 2 + 1);
+        assert_eq!(grid.cell_index_at(1, 2, 1), 7 + 15 + 5);
+        assert_eq!(grid.cell_index_at(3, 0, 0), 7 + 23);
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! Pass 3, `evaluate`: per shadow-tested pixel, gather the candidate
-//! triangles of every grid cell its µQuad touches (plus the overflow list),
+//! triangles of every grid cell its µQuad touches on every non-empty
+//! pyramid level (plus the overflow list),
 //! run the frustum-triangle test of each, and OR the occluded samples into
 //! the pixel's 32-bit mask, stopping once it is full (seed 002 §6.6).
 //!
@@ -7,17 +8,19 @@
 //! light-NDC projection contains S's projection, and S lies in its µQuad,
 //! whose projection lies in the bounding box of the projected corners (a
 //! planar quad in front of the light projects to the hull of its corners).
-//! So visiting every cell of that box, padded like the triangles' boxes,
-//! visits every triangle able to shadow any of the 32 samples.
+//! So visiting every cell of that box on every level, padded like the
+//! triangles' boxes, visits every triangle able to shadow any of the 32
+//! samples: each is listed on its level in every padded cell its
+//! projection touches.
 
-use super::bin::{cell_range, Bins, NO_COVER};
+use super::bin::{cell_range, cell_range_at, Bins, NO_COVER};
 use super::frustum::{
     edge_function, exact_edge_mask, may_shadow, saturated_edge, winding, LightRel,
 };
-use super::light_setup::LightSetup;
+use super::light_setup::{level_scale, LightSetup};
 use super::{is_receiver, Skips};
 use crate::gbuffer::{flags, GBuffer};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Samples per pixel and how each triangle's mask is formed.
@@ -53,6 +56,15 @@ pub struct EvaluateStats {
     pub saturated_masks: u64,
     /// Grid cells visited over all pixels.
     pub cells_visited: u64,
+    /// Pyramid levels visited over all pixels.
+    pub levels_visited: u64,
+    /// Triangles offered by the cells whose per-pixel test ran; with the
+    /// tests of the longest pixel in each 8×4 group of 32 pixels (a GPU
+    /// subgroup): `tests_spawned / (32 · Σ longest)` is the SIMD
+    /// efficiency of a one-pixel-per-lane evaluate.
+    pub group_longest_tests: u64,
+    /// Tests whose mask was not empty.
+    pub masks_nonempty: u64,
     /// Pixels whose cover triangle (the conservative shadow map) alone
     /// filled the mask: their triangle loop was skipped.
     pub shadow_map_early_outs: usize,
@@ -71,27 +83,27 @@ struct PixelFrustum {
     receiver: u32,
     /// The pixel's cascade.
     cascade: usize,
-    cells: Option<[u32; 4]>,
-    /// Cell-array index of the cell under the µQuad centre (the
-    /// conservative shadow map's texel).
-    centre_cell: Option<usize>,
+    /// The µQuad's level-0 grid box, when it touches the grid.
+    grid_box: Option<(Vec2, Vec2)>,
+    /// Level-0 grid coordinates of the µQuad centre (the conservative
+    /// shadow map's texel), when it has any.
+    centre: Option<Vec2>,
 }
 
 fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
     let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
     let cascade = setup.cascade_of(p);
     let grid = &setup.cascades[cascade];
-    let (mut cells, mut centre_cell) = (None, None);
+    let (mut grid_box, mut centre) = (None, None);
     if !setup.grid_disabled {
         // Every receiver corner is in front of the light (else the grid is
         // disabled), so the box is not NaN.
         let (lo, hi) = setup.microquad_grid_box(grid, p, ex, ey);
-        cells = cell_range(grid, lo, hi);
-        if let (Some([x0, y0, x1, y1]), Some(n)) = (cells, setup.ndc(setup.to_light_view(p))) {
-            let c = grid.grid_coords(n);
-            let x = (c.x.max(0.0) as u32).clamp(x0, x1);
-            let y = (c.y.max(0.0) as u32).clamp(y0, y1);
-            centre_cell = Some(grid.cell_index(x, y));
+        if cell_range(grid, lo, hi).is_some() {
+            grid_box = Some((lo, hi));
+            centre = setup
+                .ndc(setup.to_light_view(p))
+                .map(|n| grid.grid_coords(n));
         }
     }
     PixelFrustum {
@@ -102,9 +114,38 @@ fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
         light: setup.light_from(p),
         receiver: g.triangle_id[i],
         cascade,
-        cells,
-        centre_cell,
+        grid_box,
+        centre,
     }
+}
+
+/// The conservative shadow map's candidate for pixel `px`: the cover
+/// triangle of the cell under the µQuad centre on the finest non-empty
+/// level that has one (a cover at a coarse level covers the fine cells
+/// inside it too), or [`NO_COVER`].
+fn cover_of(setup: &LightSetup, bins: &Bins, px: &PixelFrustum) -> u32 {
+    let (Some((lo, hi)), Some(c)) = (px.grid_box, px.centre) else {
+        return NO_COVER;
+    };
+    let grid = &setup.cascades[px.cascade];
+    for level in levels_of(bins.levels[px.cascade]) {
+        let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
+            continue;
+        };
+        let c = c * level_scale(level);
+        let x = (c.x.max(0.0) as u32).clamp(x0, x1);
+        let y = (c.y.max(0.0) as u32).clamp(y0, y1);
+        let cover = bins.cover[grid.cell_index_at(level, x, y)];
+        if cover != NO_COVER {
+            return cover;
+        }
+    }
+    NO_COVER
+}
+
+/// The levels set in `mask`, finest first.
+fn levels_of(mask: u32) -> impl Iterator<Item = u32> {
+    (0..32).filter(move |l| mask & (1 << l) != 0)
 }
 
 /// How `evaluate` forms masks: the mode, the sample pattern, the LUT, and
@@ -157,6 +198,7 @@ impl<'a> MaskRule<'a> {
 struct TestCounters {
     depth_passed: u64,
     saturated_masks: u64,
+    masks_nonempty: u64,
 }
 
 /// Occluded samples of `tri` (eye-relative, not yet relative to P) for
@@ -195,7 +237,9 @@ fn triangle_mask(
     }
     let edge = |k| edge_function(&t, k, px.ex, px.ey, light, w < 0.0);
     if !rule.skips.saturated_edges {
-        return (0..3).fold(FULL, |m, k| m & rule.edge_mask(edge(k)).0);
+        let mask = (0..3).fold(FULL, |m, k| m & rule.edge_mask(edge(k)).0);
+        counters.masks_nonempty += (mask != 0) as u64;
+        return mask;
     }
     // The cheap path: stop at the first edge that leaves no sample, and
     // count the triangles no LUT read or sample loop was needed for.
@@ -210,20 +254,22 @@ fn triangle_mask(
         }
     }
     counters.saturated_masks += all_cheap as u64;
+    counters.masks_nonempty += (mask != 0) as u64;
     mask
 }
 
-/// Calls `visit(id)` once for every candidate triangle of shadow-tested
-/// pixel `i` — the overflow list of its cascade, then each triangle of the
-/// cells under the µQuad in its cascade's grid — until `visit` returns
-/// `true` (the mask is full). Returns the number of cells visited.
+/// Calls `visit(id)` for every candidate triangle of shadow-tested pixel
+/// `i` — the overflow list of its cascade, then each triangle listed in
+/// the cells under the µQuad on every non-empty pyramid level, finest
+/// first — until `visit` returns `true` (the mask is full). Returns the
+/// cells and levels visited.
 pub fn for_each_candidate(
     setup: &LightSetup,
     bins: &Bins,
     g: &GBuffer,
     i: usize,
     visit: impl FnMut(u32) -> bool,
-) -> u64 {
+) -> (u64, u64) {
     candidates_of(setup, bins, &pixel_frustum(setup, g, i), visit)
 }
 
@@ -232,34 +278,41 @@ fn candidates_of(
     bins: &Bins,
     px: &PixelFrustum,
     mut visit: impl FnMut(u32) -> bool,
-) -> u64 {
+) -> (u64, u64) {
     let bit = 1u8 << px.cascade;
     for e in &bins.overflow {
         if e.cascades & bit != 0 && visit(e.id) {
-            return 0;
+            return (0, 0);
         }
     }
-    let mut cells = 0;
+    let (mut cells, mut levels) = (0, 0);
+    let Some((lo, hi)) = px.grid_box else {
+        return (cells, levels);
+    };
     let grid = &setup.cascades[px.cascade];
-    if let Some([x0, y0, x1, y1]) = px.cells {
+    for level in levels_of(bins.levels[px.cascade]) {
+        let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
+            continue;
+        };
+        levels += 1;
         for y in y0..=y1 {
             for x in x0..=x1 {
                 cells += 1;
-                for e in bins.cell(grid, x, y) {
+                for e in bins.cell(grid, level, x, y) {
                     // A triangle in several of the visited cells is tested
-                    // once: in the first cell of the overlap of its
-                    // rectangle and the pixel's (see `CellEntry`).
+                    // in the first of them (see `CellEntry`).
                     if e.tested_in(x, y, x0, y0) && visit(e.id) {
-                        return cells;
+                        return (cells, levels);
                     }
                 }
             }
         }
     }
-    cells
+    (cells, levels)
 }
 
-/// The occlusion mask of receiver pixel `i` (and its counters).
+/// The occlusion mask of receiver pixel `i` and its tests (and its
+/// counters).
 fn evaluate_pixel(
     setup: &LightSetup,
     bins: &Bins,
@@ -268,7 +321,7 @@ fn evaluate_pixel(
     i: usize,
     rule: &MaskRule,
     stats: &mut EvaluateStats,
-) -> u32 {
+) -> (u32, u64) {
     let px = pixel_frustum(setup, g, i);
     let mut mask = 0u32;
     let mut tests = 0u64;
@@ -278,17 +331,18 @@ fn evaluate_pixel(
     // grid offers every triangle that can shadow a sample), so ORing it in
     // and skipping it in the loop leaves the mask as it was; when it fills
     // the mask alone, the loop is skipped.
-    let cover = match px.centre_cell {
-        Some(c) if rule.skips.shadow_map => bins.cover.get(c).copied().unwrap_or(NO_COVER),
-        _ => NO_COVER,
+    let cover = if rule.skips.shadow_map {
+        cover_of(setup, bins, &px)
+    } else {
+        NO_COVER
     };
     if cover != NO_COVER && cover != px.receiver {
         tests += 1;
         mask = triangle_mask(&px, &triangles[cover as usize], rule, &mut counters);
     }
-    let cells = if mask == FULL {
+    let (cells, levels) = if mask == FULL {
         stats.shadow_map_early_outs += 1;
-        0
+        (0, 0)
     } else {
         let stop_when_full = rule.skips.full_mask;
         let cells = candidates_of(setup, bins, &px, |id| {
@@ -304,8 +358,10 @@ fn evaluate_pixel(
     stats.tests_spawned += tests;
     stats.depth_passed += counters.depth_passed;
     stats.saturated_masks += counters.saturated_masks;
+    stats.masks_nonempty += counters.masks_nonempty;
     stats.cells_visited += cells;
-    mask
+    stats.levels_visited += levels;
+    (mask, tests)
 }
 
 /// The occluded samples of triangle `id` for shadow-tested pixel `i`,
@@ -331,6 +387,10 @@ pub fn triangle_mask_for_pixel(
     )
 }
 
+/// Pixel groups of the SIMD-efficiency counter: 8×4, a 32-lane subgroup
+/// of the GPU evaluate's 8×8 tiles.
+pub const GROUP: [usize; 2] = [8, 4];
+
 /// Occlusion masks of every pixel: 0 for pixels not shadow-tested (with the
 /// `facing_away` skip off those facing away from the light are evaluated
 /// all the same, and their masks then dropped).
@@ -342,17 +402,26 @@ pub fn evaluate(
     rule: &MaskRule,
 ) -> (Vec<u32>, EvaluateStats) {
     let w = g.width as usize;
-    let rows: Vec<(Vec<u32>, EvaluateStats)> = (0..g.height as usize)
+    // Bands of GROUP[1] rows, so each 8×4 group lies in one band.
+    let bands: Vec<(Vec<u32>, EvaluateStats)> = (0..g.height as usize)
+        .step_by(GROUP[1])
+        .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|y| {
+        .map(|y0| {
+            let rows = y0..(y0 + GROUP[1]).min(g.height as usize);
             let mut stats = EvaluateStats::default();
-            let masks = (y * w..(y + 1) * w)
+            let mut longest = vec![0u64; w.div_ceil(GROUP[0])];
+            let masks = rows
+                .flat_map(|y| y * w..(y + 1) * w)
                 .map(|i| {
                     if !is_receiver(g.flags[i], rule.skips) {
                         return 0;
                     }
                     stats.pixels_tested += 1;
-                    let mask = evaluate_pixel(setup, bins, triangles, g, i, rule, &mut stats);
+                    let (mask, tests) =
+                        evaluate_pixel(setup, bins, triangles, g, i, rule, &mut stats);
+                    let group = &mut longest[(i % w) / GROUP[0]];
+                    *group = (*group).max(tests);
                     if g.flags[i] & flags::SHADOW_TESTED == 0 {
                         0
                     } else {
@@ -360,20 +429,32 @@ pub fn evaluate(
                     }
                 })
                 .collect();
+            stats.group_longest_tests = longest.iter().sum();
             (masks, stats)
         })
         .collect();
     let mut masks = Vec::with_capacity(g.flags.len());
     let mut stats = EvaluateStats::default();
-    for (m, s) in rows {
+    for (m, s) in bands {
         masks.extend(m);
         stats.pixels_tested += s.pixels_tested;
         stats.tests_spawned += s.tests_spawned;
         stats.depth_passed += s.depth_passed;
         stats.saturated_masks += s.saturated_masks;
+        stats.masks_nonempty += s.masks_nonempty;
         stats.early_outs += s.early_outs;
         stats.cells_visited += s.cells_visited;
+        stats.levels_visited += s.levels_visited;
+        stats.group_longest_tests += s.group_longest_tests;
         stats.shadow_map_early_outs += s.shadow_map_early_outs;
     }
     (masks, stats)
+}
+
+impl EvaluateStats {
+    /// Tests over 32 × the longest pixel of each 8×4 group: the share of
+    /// SIMD lanes doing useful tests in a one-pixel-per-lane evaluate.
+    pub fn simd_efficiency(&self) -> f64 {
+        self.tests_spawned as f64 / (32.0 * self.group_longest_tests as f64).max(1.0)
+    }
 }

@@ -34,10 +34,15 @@ pub struct CascadeGrid {
     /// Cells along x and y; `[0, 0]` for a cascade without receivers.
     pub cells: [u32; 2],
     /// Index of this grid's first cell in the frame's cell arrays: the
-    /// cascades' grids lie back to back.
+    /// cascades' pyramids lie back to back.
     pub cell_offset: u32,
-    /// Triangles whose cell rectangle holds more cells than this overflow.
-    pub overflow_cells: u32,
+    /// Levels of the grid pyramid: level 0 has `cells`, each next level
+    /// halves both sides (rounded up), the last is 1×1; 0 for a cascade
+    /// without receivers.
+    pub levels: u32,
+    /// A triangle is binned at the finest level where its cell rectangle
+    /// holds at most this many cells.
+    pub level_cells: u32,
     /// Shadow-tested pixels in this cascade.
     pub receivers: usize,
 }
@@ -57,15 +62,69 @@ impl CascadeGrid {
         self.ndc_min + g / size * (self.ndc_max - self.ndc_min)
     }
 
-    /// Index of cell (x, y) in the frame's cell arrays.
+    /// Index of cell (x, y) of level 0 in the frame's cell arrays.
     #[inline]
     pub fn cell_index(&self, x: u32, y: u32) -> usize {
-        (self.cell_offset + y * self.cells[0] + x) as usize
+        self.cell_index_at(0, x, y)
     }
 
-    pub fn cell_count(&self) -> u32 {
-        self.cells[0] * self.cells[1]
+    /// Index of cell (x, y) of pyramid level `level` in the frame's cell
+    /// arrays: the levels lie back to back, finest first.
+    #[inline]
+    pub fn cell_index_at(&self, level: u32, x: u32, y: u32) -> usize {
+        (self.level_offset(level) + y * self.level_dims(level)[0] + x) as usize
     }
+
+    /// Cells along x and y of pyramid level `level`.
+    #[inline]
+    pub fn level_dims(&self, level: u32) -> [u32; 2] {
+        self.cells.map(|n| level_side(n, level))
+    }
+
+    /// Index of the first cell of pyramid level `level`.
+    #[inline]
+    pub fn level_offset(&self, level: u32) -> u32 {
+        self.cell_offset
+            + (0..level)
+                .map(|l| {
+                    let [w, h] = self.level_dims(l);
+                    w * h
+                })
+                .sum::<u32>()
+    }
+
+    /// Cells of the whole pyramid.
+    pub fn cell_count(&self) -> u32 {
+        self.level_offset(self.levels) - self.cell_offset
+    }
+}
+
+/// Cells along one side of pyramid level `level` over `side` level-0
+/// cells: halved per level, rounded up (0 stays 0).
+#[inline]
+pub fn level_side(side: u32, level: u32) -> u32 {
+    if side == 0 {
+        0
+    } else {
+        ((side - 1) >> level) + 1
+    }
+}
+
+/// Levels of a pyramid over a `cells` grid: down to 1×1 (0 without cells).
+pub fn pyramid_levels(cells: [u32; 2]) -> u32 {
+    let side = cells[0].max(cells[1]);
+    if side == 0 {
+        return 0;
+    }
+    // ceil(log2(side)) halvings reach one cell.
+    1 + (32 - (side - 1).leading_zeros())
+}
+
+/// Grid coordinates of level `level` from level-0 grid coordinates: a
+/// multiplication by 2^-level, exact in `f32` (the GPU uses `ldexp`).
+#[inline]
+pub fn level_scale(level: u32) -> f32 {
+    1.0 / (1u32 << level) as f32
 }
 
 /// Everything later passes need to map points into light space.
@@ -215,9 +274,9 @@ pub struct GridRequest {
     /// The cell budget as the side of a square (`None`: from the receiver
     /// and triangle counts, [`default_grid_side`]), shared between cascades.
     pub cells: Option<u32>,
-    /// Overflow threshold in cells per triangle (`None`: per cascade,
-    /// [`cascades::cascade_overflow_cells`]).
-    pub overflow_cells: Option<u32>,
+    /// Cells a triangle's rectangle may hold at the pyramid level it is
+    /// binned at (`None`: [`cascades::DEFAULT_LEVEL_CELLS`]).
+    pub level_cells: Option<u32>,
     pub cascades: CascadeCount,
     /// Blend of logarithmic (1) and uniform (0) splits.
     pub split_lambda: f32,
@@ -278,9 +337,8 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
         cascades: vec![CascadeGrid {
             ndc_max: Vec2::ONE,
             cells: [1, 1],
-            overflow_cells: request
-                .overflow_cells
-                .unwrap_or(cascades::cascade_overflow_cells(0)),
+            levels: 1,
+            level_cells: request.level_cells.unwrap_or(cascades::DEFAULT_LEVEL_CELLS),
             ..Default::default()
         }],
         receiver_z: [0.0, 0.0],
@@ -357,9 +415,8 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
                 count as u32,
                 grid.ndc_max - grid.ndc_min,
             );
-            grid.overflow_cells = request
-                .overflow_cells
-                .unwrap_or_else(|| cascades::cascade_overflow_cells(receivers[k]));
+            grid.levels = pyramid_levels(grid.cells);
+            grid.level_cells = request.level_cells.unwrap_or(cascades::DEFAULT_LEVEL_CELLS);
             offset += grid.cell_count();
             grid
         })

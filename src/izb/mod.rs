@@ -14,6 +14,7 @@
 pub mod bin;
 pub mod cascades;
 pub mod evaluate;
+pub mod footprint;
 pub mod frustum;
 pub mod light_setup;
 pub mod skips;
@@ -36,9 +37,10 @@ pub struct IzbSettings {
     /// cells), shared between the cascades (None: chosen from the receiver
     /// and triangle counts).
     pub cells: Option<u32>,
-    /// Triangles whose cell rectangle holds more cells than this overflow
-    /// (None: chosen per cascade from its pixel count).
-    pub overflow_cells: Option<u32>,
+    /// A triangle is binned at the finest pyramid level where its cell
+    /// rectangle holds at most this many cells (None:
+    /// [`cascades::DEFAULT_LEVEL_CELLS`]).
+    pub level_cells: Option<u32>,
     /// Sample-distribution cascades (seed 002 §6.4).
     pub cascades: CascadeCount,
     /// Split blend: 1 logarithmic, 0 uniform.
@@ -61,7 +63,7 @@ impl IzbSettings {
     pub fn grid_request(&self) -> GridRequest {
         GridRequest {
             cells: self.cells,
-            overflow_cells: self.overflow_cells,
+            level_cells: self.level_cells,
             cascades: self.cascades,
             split_lambda: self.split_lambda,
         }
@@ -73,7 +75,7 @@ impl Default for IzbSettings {
         IzbSettings {
             mode: SampleMode::Lut32,
             cells: None,
-            overflow_cells: None,
+            level_cells: None,
             cascades: CascadeCount::Auto,
             split_lambda: 1.0,
             skips: Skips::ALL,
