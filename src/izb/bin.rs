@@ -222,9 +222,12 @@ pub fn cell_receivers(setup: &LightSetup, g: &GBuffer, skips: Skips) -> Option<C
         return None;
     }
     let cells = setup.total_cells();
+    // One partial array per thread, merged once: a split per 64 k pixels
+    // would allocate and merge a whole pyramid's arrays each time.
+    let per_thread = g.flags.len().div_ceil(rayon::current_num_threads()).max(1);
     let receivers = (0..g.flags.len())
         .into_par_iter()
-        .with_min_len(1 << 16)
+        .with_min_len(per_thread)
         .fold(
             || CellReceivers::empty(cells),
             |mut out, i| {
