@@ -5,8 +5,9 @@
 // triangle at the finest level where its rectangle holds at most
 // level_cells cells, listed in the cells its projection touches:
 // izb::izb::footprint), in these dispatches:
-//   STEP_RECEIVERS  (per pixel, behind-receivers skip only) per cell the
-//                   lowest receiver z and reach (bin::cell_receivers);
+//   STEP_RECEIVERS  (per pixel, behind-receivers skip only) per cell of
+//                   every level the farthest receiver and its reach
+//                   (bin::cell_receivers);
 //   STEP_COUNT      (per triangle) per cascade its placement (from its
 //                   light-view vertices), an atomic count per covered cell
 //                   and the cover floor (the conservative shadow map); one
@@ -79,22 +80,42 @@ float plane_height(Triangle t, vec3 n, vec2 q) {
     return h;
 }
 
+// bin::plane_beyond_pyramid: the four corners at `depth` of the pyramid
+// from the point light (the origin) through NDC [lo, hi] lie on the
+// light's side of t's plane by a margin.
+bool plane_beyond_pyramid(Triangle t, vec2 lo, vec2 hi, float depth) {
+    precise vec3 n = cross(t.b - t.a, t.c - t.a);
+    precise float light_side = -dot(n, t.a);
+    if (!(light_side != 0.0)) return false;   // the light in the plane (or NaN)
+    float side = sign(light_side);
+    vec3 q0 = vec3(lo.x * depth, lo.y * depth, depth);
+    vec3 q1 = vec3(hi.x * depth, lo.y * depth, depth);
+    vec3 q2 = vec3(hi.x * depth, hi.y * depth, depth);
+    vec3 q3 = vec3(lo.x * depth, hi.y * depth, depth);
+    vec3 box_lo = min(min(min(vec3(0.0), q0), min(q1, q2)), min(min(q3, t.a), min(t.b, t.c)));
+    vec3 box_hi = max(max(max(vec3(0.0), q0), max(q1, q2)), max(max(q3, t.a), max(t.b, t.c)));
+    float margin = BEHIND_MARGIN * length(box_hi - box_lo) * length(n);
+    return side * dot(n, q0 - t.a) > margin && side * dot(n, q1 - t.a) > margin
+        && side * dot(n, q2 - t.a) > margin && side * dot(n, q3 - t.a) > margin;
+}
+
 // bin::behind_receivers: whether triangle t (light view) lies behind every
-// receiver that can test it in cell (x, y) of cascade k, so the cell need
-// not list it. Directional lights only (STEP_RECEIVERS gathers nothing for
-// a point light).
+// receiver that can test it in cell `cell` = (x, y) of level `level` of
+// cascade k, so the cell need not list it: a directional light's plane
+// below the receivers' box, a point light's plane beyond their pyramid.
 bool behind_receivers(Triangle t, uint k, uint level, uint cell, uint x, uint y) {
-    if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || light.projection != 0u) return false;
+    if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u) return false;
     uvec2 r = cell_receivers[cell];
     if (r.x == 0xFFFFFFFFu) return true;   // no receiver touches the cell
     float z_min = from_ordered_bits(r.x);
-    vec3 n;
-    if (!upward_normal(t, n)) return false;
     float reach = float(~r.y) + CELL_PADDING;
     // Level-l grid coordinates to level 0: times 2^l, exact.
     float up = float(1u << level);
     vec2 lo = ndc_of_grid(k, vec2(float(x) - reach, float(y) - reach) * up);
     vec2 hi = ndc_of_grid(k, vec2(float(x) + 1.0 + reach, float(y) + 1.0 + reach) * up);
+    if (light.projection != 0u) return plane_beyond_pyramid(t, lo, hi, -z_min);
+    vec3 n;
+    if (!upward_normal(t, n)) return false;
     // No loop (see strictly_inside).
     float plane_max = max(max(plane_height(t, n, lo), plane_height(t, n, vec2(hi.x, lo.y))),
                           max(plane_height(t, n, hi), plane_height(t, n, vec2(lo.x, hi.y))));
@@ -257,17 +278,19 @@ shared uint partial[WORKGROUP_LINEAR];
 void main() {
     loop_budget_reset();
 #ifdef STEP_RECEIVERS
-    // One thread per pixel: bin::cell_receivers, in the pixel's cascade.
-    // Directional lights only, as behind_receivers (the CPU twin returns
-    // no bounds for a point light).
+    // One thread per pixel: bin::cell_receivers, in the pixel's cascade,
+    // on every level of its pyramid.
     uint i = gl_GlobalInvocationID.x;
-    if (i >= frame.width * frame.height || light.grid_disabled != 0u || light.projection != 0u) return;
+    if (i >= frame.width * frame.height || light.grid_disabled != 0u) return;
     if (!is_receiver(gbuffer_flags(g_id_flags[i]), frame.skips)) return;
     uint k = pixel_cascade[i];
     vec3 p = g_position[i];
     vec2 lo, hi;
     microquad_grid_box(k, p, g_axis_x[i], g_axis_y[i], lo, hi);
-    uint z = ordered_bits(to_light_view(p).z);
+    // bin::receiver_key: z toward a directional light, −depth for a point
+    // light: the lowest is the farthest.
+    vec3 p_light = to_light_view(p);
+    uint z = ordered_bits(light.projection == 0u ? p_light.z : -p_light.z);
     // Every level of the pyramid: the level-0 box scaled by 2^-l.
     uint level_start = light.cascade[k].cell_offset;
     for (uint l = 0u; l < light.cascade[k].levels && spend_trip(); ++l) {

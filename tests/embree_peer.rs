@@ -36,7 +36,9 @@ fn embree_masks_match_the_same_sample_reference() {
             total += 32;
         }
         let rate = diff as f64 / total as f64;
-        println!("{name}: {diff} of {total} samples differ from rt32 ({rate:.2e}), {shadowed} shadowed");
+        println!(
+            "{name}: {diff} of {total} samples differ from rt32 ({rate:.2e}), {shadowed} shadowed"
+        );
         assert!(shadowed > 1000, "{name}: too little shadow to compare");
         // Measured 1e-4 to 1e-2 (contacts and convex edges); a wrong ray
         // direction or layout differs on most shadowed samples.

@@ -168,17 +168,21 @@ fn point_light_grid_offers_every_occluder() {
         return;
     }
     // The engine: a point light, 82 transformed nodes, self-shadowing. A
-    // coarse 32-cell grid and a small overflow threshold exercise both.
+    // coarse 32-cell grid and a 9-cell level threshold exercise every level;
+    // the cull runs with the point light's pyramid test.
     let scene = scene::load(&format!("{dir}/engine.scene.json"))
         .unwrap()
         .with_resolution([64, 36])
         .unwrap();
-    for cascades in [1, 2] {
-        let (pixels, pairs, twice) = check_grid(&scene, Some(32), 9, cascades, 5, false);
+    let mut checked = 0;
+    for (cascades, cull) in [(1, false), (1, true), (2, true)] {
+        let (pixels, pairs, twice) = check_grid(&scene, Some(32), 9, cascades, 5, cull);
         println!(
-            "engine ({cascades} cascade(s)): {pixels} pixels, {pairs} occluder/pixel pairs, all \
-             offered ({twice} twice)"
+            "engine ({cascades} cascade(s), behind-receivers cull {cull}): {pixels} pixels, \
+             {pairs} occluder/pixel pairs, all offered ({twice} twice)"
         );
         assert!(pixels > 50 && pairs > 50);
+        checked += 1;
     }
+    assert_eq!(checked, 3);
 }

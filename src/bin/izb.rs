@@ -232,9 +232,11 @@ struct BenchArgs {
     /// Sub-pixel samples per pixel of the ground truth (a square).
     #[arg(long, default_value_t = 16)]
     spp: u32,
-    /// Image size WxH (default: each scene's own).
-    #[arg(long, value_parser = parse_resolution)]
-    resolution: Option<[u32; 2]>,
+    /// Image sizes WxH, comma separated (default: each scene's own). With
+    /// several, every scene runs at each and is named `scene@WxH`, and the
+    /// bench prints how izb32's time scales between them.
+    #[arg(long, value_parser = parse_resolution, value_delimiter = ',')]
+    resolution: Vec<[u32; 2]>,
     /// Methods, comma separated: izb1, izb32, izb32-exact, rt32 (the 32
     /// µQuad samples ray traced), shadow maps `sm-R`, `pcf3-R`, `pcf5-R`,
     /// `csmN-pcfK-R` (R texels a side), or `shadow-maps` for all four
@@ -485,9 +487,13 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         }
     }
     let pool = thread_pool(args.threads)?;
-    let has_gpu_method = methods
-        .iter()
-        .any(|m| !matches!(m.kind, bench::MethodKind::RayTraced32));
+    let cpu_only = |m: &bench::Method| {
+        matches!(
+            m.kind,
+            bench::MethodKind::RayTraced32 | bench::MethodKind::Embree32
+        )
+    };
+    let has_gpu_method = methods.iter().any(|m| !cpu_only(m));
     let gpu = if args.backend == BenchBackend::Cpu || !has_gpu_method {
         None
     } else {
@@ -512,11 +518,23 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         reference: reference_settings,
     };
     let (mut rows, mut scene_rows, mut flicker_rows) = (Vec::new(), Vec::new(), Vec::new());
-    for name in &scenes {
-        let scene = load_scene(&SceneArgs {
+    let resolutions: Vec<Option<[u32; 2]>> = if args.resolution.is_empty() {
+        vec![None]
+    } else {
+        args.resolution.iter().copied().map(Some).collect()
+    };
+    let runs = scenes
+        .iter()
+        .flat_map(|name| resolutions.iter().map(move |&r| (name, r)));
+    for (name, resolution) in runs {
+        let mut scene = load_scene(&SceneArgs {
             scene: name.clone(),
-            resolution: args.resolution,
+            resolution,
         })?;
+        if resolutions.len() > 1 {
+            let [w, h] = scene.resolution;
+            scene.name = format!("{}@{w}x{h}", scene.name);
+        }
         let bar = progress_bar(scene.pixel_count() as u64, &format!("truth {}", scene.name));
         let shared =
             pool.install(|| bench::SceneTruth::new(&scene, reference_settings, &|n| bar.inc(n)));
@@ -535,13 +553,11 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         );
         let mut scene_results = Vec::new();
         let mut refused = Vec::new();
-        // rt32 has no Vulkan twin: it runs on the CPU whatever the backend.
+        // rt32 and rt32-embree have no Vulkan twin: they run on the CPU
+        // whatever the backend.
         let cpu_methods: Vec<bench::Method> = methods
             .iter()
-            .filter(|m| {
-                args.backend != BenchBackend::Vulkan
-                    || matches!(m.kind, bench::MethodKind::RayTraced32)
-            })
+            .filter(|m| args.backend != BenchBackend::Vulkan || cpu_only(m))
             .cloned()
             .collect();
         if !cpu_methods.is_empty() {
@@ -604,8 +620,23 @@ fn run_bench(args: BenchArgs) -> Result<()> {
             rows.push(v);
         }
     }
+    let scaling = izb32_scaling(&rows);
+    for s in &scaling {
+        let text = |k: &str| s[k].as_str().unwrap_or("?").to_string();
+        let number = |k: &str| s[k].as_f64().unwrap_or(f64::NAN);
+        println!(
+            "{} ({}): izb32 shadow time {:.2}x from {} to {} ({:.1}x the pixels)",
+            text("scene"),
+            text("backend"),
+            number("time_ratio"),
+            text("from"),
+            text("to"),
+            number("pixel_ratio")
+        );
+    }
     let report = serde_json::json!({
         "command": "bench",
+        "izb32_scaling": scaling,
         "device": gpu.as_ref().map(|g| g.context.info().clone()),
         "cpu": cpu_model(),
         "threads": pool.current_num_threads(),
@@ -624,6 +655,49 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         images_dir.display()
     );
     Ok(())
+}
+
+/// For every scene benchmarked at several resolutions: izb32's shadow
+/// time at the largest over the smallest, per backend.
+fn izb32_scaling(rows: &[serde_json::Value]) -> Vec<serde_json::Value> {
+    let mut by_scene: std::collections::BTreeMap<(String, String), Vec<(u64, String, f64)>> =
+        Default::default();
+    for r in rows.iter().filter(|r| r["method"] == "izb32") {
+        let (Some(full), Some(backend), Some(t)) = (
+            r["scene"].as_str(),
+            r["backend"].as_str(),
+            r["shadow_seconds"].as_f64(),
+        ) else {
+            continue;
+        };
+        let Some((scene, size)) = full.rsplit_once('@') else {
+            continue;
+        };
+        let pixels = size
+            .split_once('x')
+            .and_then(|(w, h)| Some(w.parse::<u64>().ok()? * h.parse::<u64>().ok()?))
+            .unwrap_or(0);
+        by_scene
+            .entry((scene.to_string(), backend.to_string()))
+            .or_default()
+            .push((pixels, size.to_string(), t));
+    }
+    by_scene
+        .into_iter()
+        .filter(|(_, v)| v.len() > 1)
+        .map(|((scene, backend), mut v)| {
+            v.sort_by_key(|e| e.0);
+            let (lo, hi) = (&v[0], &v[v.len() - 1]);
+            serde_json::json!({
+                "scene": scene,
+                "backend": backend,
+                "from": lo.1,
+                "to": hi.1,
+                "pixel_ratio": hi.0 as f64 / lo.0.max(1) as f64,
+                "time_ratio": hi.2 / lo.2,
+            })
+        })
+        .collect()
 }
 
 fn run_report(args: ReportArgs) -> Result<()> {

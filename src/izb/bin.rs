@@ -9,9 +9,10 @@
 
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
 use super::footprint::{footprint, Footprint};
-use super::light_setup::{level_scale, CascadeGrid, LightSetup, Projection};
-use super::{is_receiver, Skips};
-use crate::gbuffer::GBuffer;
+use super::light_setup::{CascadeGrid, LightSetup, Projection};
+use super::receivers::upward_normal;
+pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
+use super::Skips;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -184,155 +185,6 @@ pub fn place(
             )
         }
     }
-}
-
-/// What the `behind_receivers` skip knows of each cell (of every cascade,
-/// indexed like the cell arrays): the lowest light-view z (farthest from
-/// the light) of the µQuad centres P of the receivers whose µQuad touches
-/// the cell, and how many cells those centres may lie away from it.
-pub struct CellReceivers {
-    /// +∞ where no receiver touches the cell.
-    pub z_min: Vec<f32>,
-    pub reach: Vec<u32>,
-}
-
-impl CellReceivers {
-    fn empty(cells: usize) -> CellReceivers {
-        CellReceivers {
-            z_min: vec![f32::INFINITY; cells],
-            reach: vec![0; cells],
-        }
-    }
-
-    fn merge(mut self, other: CellReceivers) -> CellReceivers {
-        for (c, (z, r)) in other.z_min.into_iter().zip(other.reach).enumerate() {
-            self.z_min[c] = self.z_min[c].min(z);
-            self.reach[c] = self.reach[c].max(r);
-        }
-        self
-    }
-}
-
-/// [`CellReceivers`] of the receivers of `g` (directional lights only:
-/// `None` for a point light or a disabled grid), on every level of each
-/// receiver's own cascade's pyramid: at level l a receiver's µQuad box and
-/// reach are those of level 0 scaled by 2⁻ˡ.
-pub fn cell_receivers(setup: &LightSetup, g: &GBuffer, skips: Skips) -> Option<CellReceivers> {
-    if setup.grid_disabled || setup.projection != Projection::Orthographic {
-        return None;
-    }
-    let cells = setup.total_cells();
-    // One partial array per thread, merged once: a split per 64 k pixels
-    // would allocate and merge a whole pyramid's arrays each time.
-    let per_thread = g.flags.len().div_ceil(rayon::current_num_threads()).max(1);
-    let receivers = (0..g.flags.len())
-        .into_par_iter()
-        .with_min_len(per_thread)
-        .fold(
-            || CellReceivers::empty(cells),
-            |mut out, i| {
-                if !is_receiver(g.flags[i], skips) {
-                    return out;
-                }
-                let grid = &setup.cascades[setup.cascade_of(g.position[i])];
-                let (lo, hi) =
-                    setup.microquad_grid_box(grid, g.position[i], g.axis_x[i], g.axis_y[i]);
-                let z = setup.to_light_view(g.position[i]).z;
-                for level in 0..grid.levels {
-                    let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
-                        break;
-                    };
-                    let s = level_scale(level);
-                    let reach = receiver_reach(lo * s, hi * s);
-                    for y in y0..=y1 {
-                        for x in x0..=x1 {
-                            let c = grid.cell_index_at(level, x, y);
-                            out.z_min[c] = out.z_min[c].min(z);
-                            out.reach[c] = out.reach[c].max(reach);
-                        }
-                    }
-                }
-                out
-            },
-        )
-        .reduce(|| CellReceivers::empty(cells), CellReceivers::merge);
-    Some(receivers)
-}
-
-/// How many cells the µQuad centre may lie from a cell its grid box
-/// `[lo, hi]` touches: the box's larger side, rounded up, plus one for
-/// the cell itself and the padding.
-#[inline]
-pub fn receiver_reach(lo: Vec2, hi: Vec2) -> u32 {
-    ((hi - lo).max_element().ceil() as u32).saturating_add(1)
-}
-
-/// Relative margin of [`behind_receivers`] (2⁻¹⁰), about 10⁴ times the
-/// `f32` rounding of the depth test it must agree with.
-pub const BEHIND_MARGIN: f32 = 1.0 / 1024.0;
-
-/// The normal of light-view triangle `tri` turned toward the light (+z),
-/// or `None` when the light sees it edge-on (or it is NaN): then it has no
-/// height function z(x, y).
-fn upward_normal(tri: &[Vec3; 3]) -> Option<Vec3> {
-    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-    let n = if n.z < 0.0 { -n } else { n };
-    (n.z > 0.0).then_some(n)
-}
-
-/// Whether triangle `tri` (light view) is behind every receiver that can
-/// test it in cell (`x`, `y`) of `grid`: its plane, over every place a
-/// µQuad centre P of those receivers can be (the cell grown by their reach,
-/// z ≥ their lowest z), stays farther from the light than P by a margin.
-/// Then the per-pixel depth test ([`super::frustum::may_shadow`]: P beyond
-/// the plane, away from the light) fails for each of them and the cell need
-/// not list the triangle. The plane's height is linear in x, y, so its
-/// maximum over the box is at a corner. Directional lights only (+z toward
-/// the light); a cell no receiver touches never needs a list.
-pub fn behind_receivers(
-    grid: &CascadeGrid,
-    receivers: &CellReceivers,
-    tri: &[Vec3; 3],
-    level: u32,
-    x: u32,
-    y: u32,
-) -> bool {
-    let c = grid.cell_index_at(level, x, y);
-    let z_min = receivers.z_min[c];
-    if z_min == f32::INFINITY {
-        return true;
-    }
-    let Some(n) = upward_normal(tri) else {
-        return false;
-    };
-    let r = receivers.reach[c] as f32 + CELL_PADDING;
-    // Level-l grid coordinates to level 0: times 2^l, exact.
-    let up = (1u32 << level) as f32;
-    let (g_lo, g_hi) = (
-        Vec2::new(x as f32 - r, y as f32 - r) * up,
-        Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r) * up,
-    );
-    let (lo, hi) = (grid.ndc_of_grid(g_lo), grid.ndc_of_grid(g_hi));
-    let a = tri[0];
-    let height = |q: Vec2| a.z - (n.x * (q.x - a.x) + n.y * (q.y - a.y)) / n.z;
-    let plane_max = height(lo)
-        .max(height(Vec2::new(hi.x, lo.y)))
-        .max(height(hi))
-        .max(height(Vec2::new(lo.x, hi.y)));
-    // Size of the whole configuration, for the margin.
-    let box_lo = lo
-        .min(a.truncate())
-        .min(tri[1].truncate())
-        .min(tri[2].truncate());
-    let box_hi = hi
-        .max(a.truncate())
-        .max(tri[1].truncate())
-        .max(tri[2].truncate());
-    let z_lo = z_min.min(a.z).min(tri[1].z).min(tri[2].z);
-    let z_hi = z_min.max(a.z).max(tri[1].z).max(tri[2].z);
-    let size = (box_hi - box_lo).length() + (z_hi - z_lo);
-    let margin = BEHIND_MARGIN * size * (n.length() / n.z);
-    plane_max < z_min - margin
 }
 
 /// The conservative shadow map's test (Tokuyoshi 2018, seed 000, made a

@@ -17,6 +17,7 @@ pub mod evaluate;
 pub mod footprint;
 pub mod frustum;
 pub mod light_setup;
+pub mod receivers;
 pub mod skips;
 
 pub use cascades::CascadeCount;

@@ -29,7 +29,7 @@ pub struct Skips {
     /// A cell does not list a triangle that lies behind (farther from the
     /// light than) every receiver that can test it there, nor anything at
     /// all when no receiver touches it (seed 002 §5.4): see
-    /// [`super::bin::behind_receivers`]. Directional lights only.
+    /// [`super::receivers::behind_receivers`]; directional and point lights.
     pub behind_receivers: bool,
     /// The conservative shadow-map early-out (Tokuyoshi 2018, seed 000),
     /// exact by construction: the bin pass records per cell the triangle
