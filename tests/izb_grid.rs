@@ -6,7 +6,7 @@
 //! grid and with several cascades.
 
 use izb::gbuffer::{flags, gbuffer};
-use izb::izb::bin::{bin, cell_receivers, place, CellEntry, Placement};
+use izb::izb::bin::{bin, place, CellEntry, Placement};
 use izb::izb::evaluate::{for_each_candidate, triangle_mask_for_pixel};
 use izb::izb::{
     eye_relative_f32, light_setup, CascadeCount, GridRequest, MaskRule, SampleMode, Skips,
@@ -35,13 +35,8 @@ fn check_grid(
     };
     let setup = light_setup(scene, &g, request);
     assert_eq!(setup.cascades.len(), cascades as usize);
-    let receivers = if cull {
-        cell_receivers(&setup, &g, Skips::ALL)
-    } else {
-        None
-    };
     let triangles = eye_relative_f32(scene);
-    let bins = bin(&setup, &triangles, Skips::ALL, receivers.as_ref());
+    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some(&g));
 
     // Scatter against the placements, cell by cell, level by level and
     // cascade by cascade (with the cull, a subset of them), neighbour bits

@@ -13,6 +13,7 @@ use super::light_setup::{CascadeGrid, LightSetup, Projection};
 use super::receivers::upward_normal;
 pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
 use super::Skips;
+use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -227,14 +228,20 @@ pub fn cover_floor(grid: &CascadeGrid, tri: &[Vec3; 3], level: u32, x: u32, y: u
 /// Bins eye-relative `f32` triangles (`triangles[id]`) into every
 /// cascade's pyramid. With the `outside_bounds` skip off, triangles that
 /// miss a grid go to that cascade's overflow list instead of being culled;
-/// with `receivers` (the `behind_receivers` skip) a cell does not list
-/// triangles that are behind all of its receivers; with the `shadow_map`
-/// skip (directional lights) each cell records its cover triangle.
+/// with `cull_behind` (the `behind_receivers` skip: the G-buffer whose
+/// receivers to cull against) a cell does not list triangles that are
+/// behind all of its receivers; with the `shadow_map` skip (directional
+/// lights) each cell records its cover triangle.
+///
+/// Placement and the per-cell tests run in parallel over blocks of
+/// triangles; the counting sort itself (counts, prefix sum, scatter) runs
+/// over their entries in triangle order, so every cell lists its ids in
+/// increasing order, as a stable GPU scatter after a sort would.
 pub fn bin(
     setup: &LightSetup,
     triangles: &[[Vec3; 3]],
     skips: Skips,
-    receivers: Option<&CellReceivers>,
+    cull_behind: Option<&GBuffer>,
 ) -> Bins {
     // Light-view vertices, for placing triangles only (the GPU recomputes
     // them in the scatter with the same arithmetic).
@@ -255,86 +262,49 @@ pub fn bin(
                 .collect()
         })
         .collect();
-    let cells = setup.total_cells();
-    let lists = |grid: &CascadeGrid, id: usize, level: u32, x: u32, y: u32| match receivers {
-        Some(r) => !behind_receivers(grid, r, &light_view[id], level, x, y),
-        None => true,
-    };
+    // The levels that hold placements: the only ones a pixel visits, and
+    // the only ones whose receivers the cull needs.
+    let levels: Vec<u32> = placed
+        .iter()
+        .map(|p| {
+            p.iter().fold(0, |m, e| match e.0 {
+                Placement::Cells { level, .. } => m | 1 << level,
+                _ => m,
+            })
+        })
+        .collect();
+    let receivers = cull_behind.and_then(|g| cell_receivers(setup, g, skips, Some(&levels)));
     let covers = skips.shadow_map && setup.projection == Projection::Orthographic;
-    // Count (and the best cover floor per cell).
-    let mut counts = vec![0u32; cells + 1];
-    let mut cover = vec![NO_COVER; cells];
-    let mut best_floor = vec![f32::NEG_INFINITY; cells];
+    let blocks: Vec<BlockEntries> = (0..triangles.len())
+        .step_by(TRIANGLE_BLOCK)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|first| {
+            let ids = first..(first + TRIANGLE_BLOCK).min(triangles.len());
+            block_entries(setup, &placed, &light_view, receivers.as_ref(), covers, ids)
+        })
+        .collect();
+    let cells = setup.total_cells();
     let mut stats = BinStats {
         triangles: triangles.len(),
         ..Default::default()
     };
-    let mut levels = vec![0u32; setup.cascades.len()];
+    // Count (and the best cover floor per cell: highest wins, ties to the
+    // lowest id, as ids arrive in increasing order).
+    let mut counts = vec![0u32; cells + 1];
+    let mut cover = vec![NO_COVER; cells];
+    let mut best_floor = vec![f32::NEG_INFINITY; cells];
     let mut overflow = Vec::new();
-    for id in 0..triangles.len() {
-        let mut overflows = 0u8;
-        let mut placed_anywhere = false;
-        for (k, grid) in setup.cascades.iter().enumerate() {
-            match placed[k][id] {
-                (Placement::Culled, _) => {}
-                (Placement::Overflow, _) => overflows |= 1 << k,
-                (Placement::Cells { .. }, None) => unreachable!("cells without a footprint"),
-                (
-                    Placement::Cells {
-                        level,
-                        x0,
-                        y0,
-                        x1,
-                        y1,
-                    },
-                    Some(f),
-                ) => {
-                    placed_anywhere = true;
-                    stats.binned += 1;
-                    levels[k] |= 1 << level;
-                    let l = level as usize;
-                    if stats.per_level.len() <= l {
-                        stats.per_level.resize(l + 1, 0);
-                    }
-                    stats.per_level[l] += 1;
-                    let mut listed = false;
-                    for y in y0..=y1 {
-                        for x in x0..=x1 {
-                            if !f.touches(i64::from(x), i64::from(y)) {
-                                stats.cells_untouched += 1;
-                                continue;
-                            }
-                            if !lists(grid, id, level, x, y) {
-                                stats.entries_behind_receivers += 1;
-                                continue;
-                            }
-                            let c = grid.cell_index_at(level, x, y);
-                            counts[c] += 1;
-                            listed = true;
-                            if let Some(floor) = covers
-                                .then(|| cover_floor(grid, &light_view[id], level, x, y))
-                                .flatten()
-                            {
-                                // Highest floor wins; ties go to the lowest id
-                                // (ids arrive in increasing order).
-                                if floor > best_floor[c] {
-                                    best_floor[c] = floor;
-                                    cover[c] = id as u32;
-                                }
-                            }
-                        }
-                    }
-                    stats.triangles_behind_receivers += !listed as usize;
-                }
+    for b in &blocks {
+        for &(c, entry, floor) in &b.entries {
+            counts[c as usize] += 1;
+            if floor > best_floor[c as usize] {
+                best_floor[c as usize] = floor;
+                cover[c as usize] = entry.id;
             }
         }
-        if overflows != 0 {
-            overflow.push(OverflowEntry {
-                id: id as u32,
-                cascades: overflows,
-            });
-        }
-        stats.culled += (!placed_anywhere && overflows == 0) as usize;
+        overflow.extend_from_slice(&b.overflow);
+        b.stats.add_to(&mut stats);
     }
     stats.overflow = overflow.len();
     stats.covered_cells = cover.iter().filter(|&&c| c != NO_COVER).count();
@@ -347,8 +317,7 @@ pub fn bin(
     }
     cell_start.push(sum);
     stats.cell_entries = sum as usize;
-    // Scatter (ids in increasing order within a cell, as a stable GPU
-    // scatter after a sort would give).
+    // Scatter.
     let mut cursor = cell_start.clone();
     let mut cell_triangles = vec![
         CellEntry {
@@ -358,33 +327,10 @@ pub fn bin(
         };
         sum as usize
     ];
-    // Cascade after cascade: their cells are disjoint, so each cell still
-    // receives its ids in increasing order.
-    for (grid, placed) in setup.cascades.iter().zip(&placed) {
-        for (id, p) in placed.iter().enumerate() {
-            let &(
-                Placement::Cells {
-                    level,
-                    x0,
-                    y0,
-                    x1,
-                    y1,
-                },
-                Some(ref f),
-            ) = p
-            else {
-                continue;
-            };
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    if !f.touches(i64::from(x), i64::from(y)) || !lists(grid, id, level, x, y) {
-                        continue;
-                    }
-                    let c = grid.cell_index_at(level, x, y);
-                    cell_triangles[cursor[c] as usize] = CellEntry::new(id as u32, f, x, y);
-                    cursor[c] += 1;
-                }
-            }
+    for b in &blocks {
+        for &(c, entry, _) in &b.entries {
+            cell_triangles[cursor[c as usize] as usize] = entry;
+            cursor[c as usize] += 1;
         }
     }
     Bins {
@@ -399,4 +345,107 @@ pub fn bin(
         cover,
         stats,
     }
+}
+
+/// Triangles per parallel block of the bin.
+const TRIANGLE_BLOCK: usize = 1024;
+
+/// What one block of triangles contributes to the bin, in triangle order:
+/// (cell, entry, cover floor or −∞) per listed cell, overflow entries and
+/// counters.
+struct BlockEntries {
+    entries: Vec<(u32, CellEntry, f32)>,
+    overflow: Vec<OverflowEntry>,
+    stats: BinStats,
+}
+
+impl BinStats {
+    /// Adds a block's counters (not its cell or cover totals, which the
+    /// whole bin counts).
+    fn add_to(&self, total: &mut BinStats) {
+        total.binned += self.binned;
+        total.culled += self.culled;
+        total.cells_untouched += self.cells_untouched;
+        total.entries_behind_receivers += self.entries_behind_receivers;
+        total.triangles_behind_receivers += self.triangles_behind_receivers;
+        if total.per_level.len() < self.per_level.len() {
+            total.per_level.resize(self.per_level.len(), 0);
+        }
+        for (t, s) in total.per_level.iter_mut().zip(&self.per_level) {
+            *t += s;
+        }
+    }
+}
+
+/// The entries of triangles `ids` in every cascade: each cell of its
+/// rectangle its projection touches and the cull keeps.
+fn block_entries(
+    setup: &LightSetup,
+    placed: &[Vec<(Placement, Option<Footprint>)>],
+    light_view: &[[Vec3; 3]],
+    receivers: Option<&CellReceivers>,
+    covers: bool,
+    ids: std::ops::Range<usize>,
+) -> BlockEntries {
+    let mut out = BlockEntries {
+        entries: Vec::new(),
+        overflow: Vec::new(),
+        stats: BinStats::default(),
+    };
+    let stats = &mut out.stats;
+    for id in ids {
+        let mut overflows = 0u8;
+        let mut placed_anywhere = false;
+        for (k, grid) in setup.cascades.iter().enumerate() {
+            let f = match placed[k][id] {
+                (Placement::Culled, _) => continue,
+                (Placement::Overflow, _) => {
+                    overflows |= 1 << k;
+                    continue;
+                }
+                (Placement::Cells { .. }, None) => unreachable!("cells without a footprint"),
+                (Placement::Cells { .. }, Some(f)) => f,
+            };
+            placed_anywhere = true;
+            stats.binned += 1;
+            let level = f.level;
+            if stats.per_level.len() <= level as usize {
+                stats.per_level.resize(level as usize + 1, 0);
+            }
+            stats.per_level[level as usize] += 1;
+            let [x0, y0, x1, y1] = f.rect;
+            let mut listed = false;
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    if !f.touches(i64::from(x), i64::from(y)) {
+                        stats.cells_untouched += 1;
+                        continue;
+                    }
+                    if receivers
+                        .is_some_and(|r| behind_receivers(grid, r, &light_view[id], level, x, y))
+                    {
+                        stats.entries_behind_receivers += 1;
+                        continue;
+                    }
+                    listed = true;
+                    let floor = covers
+                        .then(|| cover_floor(grid, &light_view[id], level, x, y))
+                        .flatten()
+                        .unwrap_or(f32::NEG_INFINITY);
+                    let c = grid.cell_index_at(level, x, y) as u32;
+                    out.entries
+                        .push((c, CellEntry::new(id as u32, &f, x, y), floor));
+                }
+            }
+            stats.triangles_behind_receivers += !listed as usize;
+        }
+        if overflows != 0 {
+            out.overflow.push(OverflowEntry {
+                id: id as u32,
+                cascades: overflows,
+            });
+        }
+        stats.culled += (!placed_anywhere && overflows == 0) as usize;
+    }
+    out
 }

@@ -187,12 +187,8 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let setup = light_setup(scene, &g, settings.grid_request());
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
-    let receivers = settings
-        .skips
-        .behind_receivers
-        .then(|| bin::cell_receivers(&setup, &g, settings.skips))
-        .flatten();
-    let bins = bin::bin(&setup, &triangles, settings.skips, receivers.as_ref());
+    let cull_behind = settings.skips.behind_receivers.then_some(&g);
+    let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::new(settings.mode, settings.skips);
     let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &rule);

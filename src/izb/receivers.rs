@@ -55,9 +55,16 @@ impl CellReceivers {
 }
 
 /// [`CellReceivers`] of the receivers of `g` (`None` for a disabled
-/// grid), on every level of each receiver's own cascade's pyramid: at level
-/// l a receiver's µQuad box and reach are those of level 0 scaled by 2⁻ˡ.
-pub fn cell_receivers(setup: &LightSetup, g: &GBuffer, skips: Skips) -> Option<CellReceivers> {
+/// grid), on each level of each receiver's own cascade's pyramid that
+/// `levels` (per cascade, bit l = level l) names, every level with `None`:
+/// at level l a receiver's µQuad box and reach are those of level 0 scaled
+/// by 2⁻ˡ. Cells of other levels stay empty (the bin never reads them).
+pub fn cell_receivers(
+    setup: &LightSetup,
+    g: &GBuffer,
+    skips: Skips,
+    levels: Option<&[u32]>,
+) -> Option<CellReceivers> {
     if setup.grid_disabled {
         return None;
     }
@@ -75,11 +82,13 @@ pub fn cell_receivers(setup: &LightSetup, g: &GBuffer, skips: Skips) -> Option<C
                 if !is_receiver(g.flags[i], skips) {
                     return out;
                 }
-                let grid = &setup.cascades[setup.cascade_of(g.position[i])];
+                let k = setup.cascade_of(g.position[i]);
+                let grid = &setup.cascades[k];
+                let wanted = levels.map_or(u32::MAX, |l| l[k]);
                 let (lo, hi) =
                     setup.microquad_grid_box(grid, g.position[i], g.axis_x[i], g.axis_y[i]);
                 let z = receiver_key(projection, setup.to_light_view(g.position[i]));
-                for level in 0..grid.levels {
+                for level in (0..grid.levels).filter(|l| wanted & (1 << l) != 0) {
                     let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
                         break;
                     };
