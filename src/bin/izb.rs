@@ -660,8 +660,9 @@ fn run_bench(args: BenchArgs) -> Result<()> {
 /// For every scene benchmarked at several resolutions: izb32's shadow
 /// time at the largest over the smallest, per backend.
 fn izb32_scaling(rows: &[serde_json::Value]) -> Vec<serde_json::Value> {
-    let mut by_scene: std::collections::BTreeMap<(String, String), Vec<(u64, String, f64)>> =
-        Default::default();
+    // (scene, backend) -> (pixels, "WxH", shadow seconds) per resolution.
+    type Runs = Vec<(u64, String, f64)>;
+    let mut by_scene: std::collections::BTreeMap<(String, String), Runs> = Default::default();
     for r in rows.iter().filter(|r| r["method"] == "izb32") {
         let (Some(full), Some(backend), Some(t)) = (
             r["scene"].as_str(),
