@@ -115,7 +115,7 @@ bool is_receiver(uint flags, uint skips) {
 #define MAX_CASCADES 4
 #define AUTO_MAX_DEPTH_RATIO 16.0
 #define MAX_GRID_SIDE 16384
-#define DEFAULT_LEVEL_CELLS 64u
+#define DEFAULT_LEVEL_CELLS 1024u
 // bin::NO_COVER
 #define NO_COVER 0xFFFFFFFFu
 

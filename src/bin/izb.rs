@@ -121,7 +121,7 @@ struct GridArgs {
     #[arg(long)]
     cells: Option<u32>,
     /// A triangle is binned at the finest grid-pyramid level where its
-    /// cell rectangle holds at most this many cells (default 64).
+    /// cell rectangle holds at most this many cells (default 1024).
     #[arg(long)]
     level_cells: Option<u32>,
     /// Sample-distribution cascades: auto (as few as the view-depth range

@@ -136,7 +136,12 @@ impl Bins {
     /// Entries of cell (x, y) of pyramid level `level` of `grid`.
     #[inline]
     pub fn cell(&self, grid: &CascadeGrid, level: u32, x: u32, y: u32) -> &[CellEntry] {
-        let c = grid.cell_index_at(level, x, y);
+        self.cell_at(grid.cell_index_at(level, x, y))
+    }
+
+    /// Entries of the cell with index `c` in the cell arrays.
+    #[inline]
+    pub fn cell_at(&self, c: usize) -> &[CellEntry] {
         &self.cell_triangles[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
     }
 }
@@ -414,6 +419,7 @@ fn block_entries(
             }
             stats.per_level[level as usize] += 1;
             let [x0, y0, x1, y1] = f.rect;
+            let cells = grid.level(level);
             let mut listed = false;
             for y in y0..=y1 {
                 for x in x0..=x1 {
@@ -421,8 +427,9 @@ fn block_entries(
                         stats.cells_untouched += 1;
                         continue;
                     }
+                    let c = cells.index(x, y);
                     if receivers
-                        .is_some_and(|r| behind_receivers(grid, r, &light_view[id], level, x, y))
+                        .is_some_and(|r| behind_receivers(grid, r, &light_view[id], level, c, x, y))
                     {
                         stats.entries_behind_receivers += 1;
                         continue;
@@ -432,9 +439,8 @@ fn block_entries(
                         .then(|| cover_floor(grid, &light_view[id], level, x, y))
                         .flatten()
                         .unwrap_or(f32::NEG_INFINITY);
-                    let c = grid.cell_index_at(level, x, y) as u32;
                     out.entries
-                        .push((c, CellEntry::new(id as u32, &f, x, y), floor));
+                        .push((c as u32, CellEntry::new(id as u32, &f, x, y), floor));
                 }
             }
             stats.triangles_behind_receivers += !listed as usize;

@@ -135,7 +135,7 @@ fn cover_of(setup: &LightSetup, bins: &Bins, px: &PixelFrustum) -> u32 {
         let c = c * level_scale(level);
         let x = (c.x.max(0.0) as u32).clamp(x0, x1);
         let y = (c.y.max(0.0) as u32).clamp(y0, y1);
-        let cover = bins.cover[grid.cell_index_at(level, x, y)];
+        let cover = bins.cover[grid.level(level).index(x, y)];
         if cover != NO_COVER {
             return cover;
         }
@@ -295,10 +295,11 @@ fn candidates_of(
             continue;
         };
         levels += 1;
+        let level_cells = grid.level(level);
         for y in y0..=y1 {
             for x in x0..=x1 {
                 cells += 1;
-                for e in bins.cell(grid, level, x, y) {
+                for e in bins.cell_at(level_cells.index(x, y)) {
                     // A triangle in several of the visited cells is tested
                     // in the first of them (see `CellEntry`).
                     if e.tested_in(x, y, x0, y0) && visit(e.id) {

@@ -75,6 +75,17 @@ impl CascadeGrid {
         (self.level_offset(level) + y * self.level_dims(level)[0] + x) as usize
     }
 
+    /// Where pyramid level `level` lies in the cell arrays: hot loops take
+    /// this once per level rather than [`Self::cell_index_at`] per cell
+    /// (which sums the sizes of the finer levels).
+    #[inline]
+    pub fn level(&self, level: u32) -> LevelCells {
+        LevelCells {
+            start: self.level_offset(level) as usize,
+            dims: self.level_dims(level),
+        }
+    }
+
     /// Cells along x and y of pyramid level `level`.
     #[inline]
     pub fn level_dims(&self, level: u32) -> [u32; 2] {
@@ -96,6 +107,23 @@ impl CascadeGrid {
     /// Cells of the whole pyramid.
     pub fn cell_count(&self) -> u32 {
         self.level_offset(self.levels) - self.cell_offset
+    }
+}
+
+/// One pyramid level's place in the cell arrays ([`CascadeGrid::level`]).
+#[derive(Clone, Copy, Debug)]
+pub struct LevelCells {
+    /// Index of the level's first cell.
+    pub start: usize,
+    /// Cells along x and y.
+    pub dims: [u32; 2],
+}
+
+impl LevelCells {
+    /// Index of cell (x, y) of this level in the frame's cell arrays.
+    #[inline]
+    pub fn index(&self, x: u32, y: u32) -> usize {
+        self.start + (y * self.dims[0] + x) as usize
     }
 }
 

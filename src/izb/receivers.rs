@@ -94,9 +94,10 @@ pub fn cell_receivers(
                     };
                     let s = level_scale(level);
                     let reach = receiver_reach(lo * s, hi * s);
+                    let cells = grid.level(level);
                     for y in y0..=y1 {
                         for x in x0..=x1 {
-                            let c = grid.cell_index_at(level, x, y);
+                            let c = cells.index(x, y);
                             out.z_min[c] = out.z_min[c].min(z);
                             out.reach[c] = out.reach[c].max(reach);
                         }
@@ -125,7 +126,8 @@ pub fn receiver_reach(lo: Vec2, hi: Vec2) -> u32 {
 pub const BEHIND_MARGIN: f32 = 1.0 / 1024.0;
 
 /// Whether triangle `tri` (light view) is behind every receiver that can
-/// test it in cell (`x`, `y`) of level `level` of `grid`: no µQuad centre P
+/// test it in cell (`x`, `y`) of level `level` of `grid` (index `c` in the
+/// cell arrays): no µQuad centre P
 /// of those receivers can lie beyond its plane, seen from the light. Then
 /// the per-pixel depth test ([`super::frustum::may_shadow`]: P beyond the
 /// plane, away from the light, by more than a tolerance) fails for each of
@@ -144,10 +146,10 @@ pub fn behind_receivers(
     receivers: &CellReceivers,
     tri: &[Vec3; 3],
     level: u32,
+    c: usize,
     x: u32,
     y: u32,
 ) -> bool {
-    let c = grid.cell_index_at(level, x, y);
     let z_min = receivers.z_min[c];
     if z_min == f32::INFINITY {
         return true;
