@@ -86,6 +86,7 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ("resolve", "resolve.comp", &[]),
     ("shadow_map", "shadow_map.comp", &[]),
     ("shadow_lookup", "shadow_lookup.comp", &[]),
+    ("shadow_rays", "shadow_rays.comp", &[]),
 ];
 
 /// Resolves `#include "x"` against `shaders/`.

@@ -149,9 +149,9 @@ pub fn flicker(
                     &same_sample_masks(&frame, bvh, crate::lut::sample_pattern()),
                     &g,
                 ),
-                // Embree traces the same samples as rt32 up to f32
-                // rounding: its flicker is rt32's, not measured again.
-                MethodKind::Embree32 => {
+                // Plain shadow rays of the same samples: their flicker is
+                // rt32's up to the rule's contacts, not measured again.
+                MethodKind::Embree32 | MethodKind::ShadowRays32 => {
                     *d = None;
                     continue;
                 }

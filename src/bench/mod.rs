@@ -7,6 +7,9 @@
 //! - `izb1`, `izb32`, `izb32-exact`: the irregular z-buffer;
 //! - `rt32`: brute-force ray tracing of the same 32 µQuad samples (CPU BVH,
 //!   [`crate::reference::same_samples`]): what the IZB must equal;
+//! - `rt32-rays`: those samples' plain shadow rays through a BVH, on
+//!   Vulkan a compute pass (what a GPU without ray-tracing cores runs), on
+//!   the CPU its twin ([`crate::peer::shadow_rays`]);
 //! - `rt32-embree` (cargo feature `embree`): Intel Embree tracing those
 //!   samples' shadow rays ([`crate::peer::embree`]): what a user would run
 //!   instead; its shadow seconds are the tracing, its BVH build is in
@@ -42,6 +45,9 @@ pub enum MethodKind {
     RayTraced32,
     /// The 32 µQuad samples' shadow rays traced by Embree.
     Embree32,
+    /// The 32 µQuad samples' shadow rays through a BVH (Vulkan pass or its
+    /// CPU twin).
+    ShadowRays32,
     ShadowMap(ShadowMapSettings),
 }
 
@@ -50,7 +56,9 @@ impl MethodKind {
     pub fn family(&self) -> &'static str {
         match self {
             MethodKind::Izb(_) => "izb",
-            MethodKind::RayTraced32 | MethodKind::Embree32 => "ray-traced",
+            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => {
+                "ray-traced"
+            }
             MethodKind::ShadowMap(_) => "shadow-map",
         }
     }
@@ -60,7 +68,7 @@ impl MethodKind {
     fn masks_32(&self) -> bool {
         match self {
             MethodKind::Izb(s) => s.mode != SampleMode::One,
-            MethodKind::RayTraced32 | MethodKind::Embree32 => true,
+            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
             MethodKind::ShadowMap(_) => false,
         }
     }
@@ -94,6 +102,7 @@ pub fn parse_methods(
             "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
             "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
             "rt32" => out.push((name.to_string(), MethodKind::RayTraced32)),
+            "rt32-rays" => out.push((name.to_string(), MethodKind::ShadowRays32)),
             "rt32-embree" if cfg!(feature = "embree") => {
                 out.push((name.to_string(), MethodKind::Embree32))
             }
@@ -116,7 +125,10 @@ pub fn parse_methods(
             other => out.push((
                 other.to_string(),
                 MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
-                    format!("{e}; or one of reference, izb1, izb32, izb32-exact, rt32, shadow-maps")
+                    format!(
+                        "{e}; or one of reference, izb1, izb32, izb32-exact, rt32, rt32-rays, \
+                         rt32-embree, shadow-maps"
+                    )
                 })?),
             )),
         }
@@ -238,6 +250,21 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
             r.masks = Some(masks);
         }
         MethodKind::Embree32 => embree_once(scene, shared, &mut r)?,
+        MethodKind::ShadowRays32 => {
+            let t = Instant::now();
+            let masks = crate::peer::shadow_rays::shadow_rays(
+                scene,
+                &shared.bvh,
+                &shared.gbuffer,
+                crate::lut::sample_pattern(),
+            );
+            let s = t.elapsed().as_secs_f64();
+            r.shadow.push(s);
+            r.total.push(s + shared.gbuffer_seconds);
+            r.seconds.push(json!({ "trace": s }));
+            r.visibility = resolve(&masks, &shared.gbuffer);
+            r.masks = Some(masks);
+        }
         MethodKind::ShadowMap(settings) => {
             let out = render_shadow_map(scene, &shared.gbuffer, *settings)?;
             r.shadow.push(out.report.seconds.shadow);
@@ -533,6 +560,17 @@ pub fn bench_scene_vulkan(
                         });
                         (out.gpu_milliseconds, out.visibility, details)
                     }),
+                MethodKind::ShadowRays32 => {
+                    gpu.render_shadow_rays(scene, GBufferSource::Gpu)
+                        .map(|out| {
+                            let details = json!({
+                                "device": device,
+                                "memory_total_bytes": out.memory_total_bytes,
+                                "passes": "evaluate = shadow_rays (32 rays per pixel, BVH any-hit)",
+                            });
+                            (out.gpu_milliseconds, out.visibility, details)
+                        })
+                }
                 MethodKind::RayTraced32 | MethodKind::Embree32 => continue,
             };
             let entry = runs[k].get_or_insert(GpuRuns {

@@ -147,13 +147,13 @@ pub struct GpuRenderer {
 /// The scene as the GPU receives it, built once per render (a capacity
 /// rerun reuses it): eye-relative `f32` vertices and the unit normals the
 /// CPU twin computes from the `f64` vertices, rounded.
-struct SceneUpload {
-    triangles: Vec<GpuTriangle>,
+pub(super) struct SceneUpload {
+    pub(super) triangles: Vec<GpuTriangle>,
     normals: Vec<[f32; 3]>,
 }
 
 impl SceneUpload {
-    fn new(scene: &Scene) -> Self {
+    pub(super) fn new(scene: &Scene) -> Self {
         let eye_relative = scene.eye_relative_triangles();
         SceneUpload {
             triangles: eye_relative
@@ -269,7 +269,7 @@ impl GpuRenderer {
         })
     }
 
-    fn shared(&self) -> &Arc<DeviceShared> {
+    pub(super) fn shared(&self) -> &Arc<DeviceShared> {
         &self.context.shared
     }
 
@@ -481,7 +481,7 @@ impl GpuRenderer {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn run_frame(
+    pub(super) fn run_frame(
         &self,
         scene: &Scene,
         settings: IzbSettings,
@@ -666,6 +666,12 @@ impl GpuRenderer {
                     timestamps.write(cmd, 3);
                     super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
                     timestamps.write(cmd, 4);
+                }
+                FramePasses::ShadowRays => {
+                    timestamps.write(cmd, 3);
+                    super::shadow_rays::shadow_rays(&rec, &self.kernels, [w, h]);
+                    timestamps.write(cmd, 4);
+                    super::resolve::resolve(&rec, &self.kernels, [w, h]);
                 }
             }
             timestamps.write(cmd, 5);
@@ -895,17 +901,19 @@ impl GpuRenderer {
 
 /// Which passes follow the G-buffer and light setup in a frame.
 #[derive(Clone, Copy, Debug)]
-enum FramePasses {
+pub(super) enum FramePasses {
     /// bin, evaluate, resolve.
     Izb,
     /// The shadow-map baseline: raster, lookup.
     ShadowMap(ShadowMapSettings),
+    /// The `rt32-rays` peer: shadow rays in the evaluate slot, resolve.
+    ShadowRays,
 }
 
 impl FramePasses {
     fn shadow_map_texels(&self) -> u64 {
         match self {
-            FramePasses::Izb => 0,
+            FramePasses::Izb | FramePasses::ShadowRays => 0,
             FramePasses::ShadowMap(s) => u64::from(s.cascades) * u64::from(s.side).pow(2),
         }
     }
@@ -924,18 +932,18 @@ pub struct GpuShadowMapRender {
 }
 
 /// What one frame read back.
-struct FrameOutput {
-    counters: Vec<u32>,
-    light: LightState,
-    masks: Vec<u32>,
-    shaded: Vec<u32>,
+pub(super) struct FrameOutput {
+    pub(super) counters: Vec<u32>,
+    pub(super) light: LightState,
+    pub(super) masks: Vec<u32>,
+    pub(super) shaded: Vec<u32>,
     position: Vec<Vec3>,
     axis_x: Vec<Vec3>,
     axis_y: Vec<Vec3>,
-    id_flags: Vec<u32>,
-    millis: Option<GpuPassMillis>,
-    wall_seconds: f64,
-    memory: Vec<PassMemory>,
+    pub(super) id_flags: Vec<u32>,
+    pub(super) millis: Option<GpuPassMillis>,
+    pub(super) wall_seconds: f64,
+    pub(super) memory: Vec<PassMemory>,
 }
 
 /// The sizes that decide a frame's buffers.

@@ -25,6 +25,7 @@ pub mod pipeline;
 pub mod resolve;
 pub mod resources;
 pub mod shadow_map;
+pub mod shadow_rays;
 pub mod shared;
 
 pub use context::{list_devices, DeviceInfo, GpuContext, GpuOptions};
@@ -108,6 +109,7 @@ pub struct Kernels {
     pub resolve: ComputeKernel,
     pub shadow_map: ComputeKernel,
     pub shadow_lookup: ComputeKernel,
+    pub shadow_rays: ComputeKernel,
 }
 
 impl Kernels {
@@ -130,6 +132,7 @@ impl Kernels {
             resolve: k("resolve", spirv!("resolve"))?,
             shadow_map: k("shadow_map", spirv!("shadow_map"))?,
             shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,
+            shadow_rays: k("shadow_rays", spirv!("shadow_rays"))?,
         })
     }
 }

@@ -3,22 +3,20 @@
 //! CPU ray tracer a user would run instead of the IZB for the same
 //! samples.
 //!
-//! Rays: from each sample S = P + (u − ½)·Ex + (v − ½)·Ey of the shared
-//! G-buffer's µQuad (eye-relative `f32`, the very samples the IZB tests)
-//! toward the light, two packets of 16 per pixel with `rtcOccluded16` (the
-//! samples of a pixel are coherent: one origin neighbourhood, one light),
-//! on every rayon thread. The ray starts 2⁻⁸ µQuad beyond S — the scale of
-//! the IZB's own depth tolerance — and, for a point light, stops as far
-//! before it. That is a plain shadow ray: unlike `rt32` it does not apply
-//! the IZB's per-pixel depth rule, so the two differ where a neighbour
-//! meets the receiver (reported as the sample mismatch against `rt32`).
+//! Rays: [`sample_rays`] of the shared G-buffer's µQuads (eye-relative
+//! `f32`, the very samples the IZB tests), two packets of 16 per pixel
+//! with `rtcOccluded16` (the samples of a pixel are coherent: one origin
+//! neighbourhood, one light), on every rayon thread. Plain shadow rays:
+//! unlike `rt32` they do not apply the IZB's per-pixel depth rule, so the
+//! two differ where a neighbour meets the receiver (reported as the sample
+//! mismatch against `rt32`).
 //!
 //! Only the handful of Embree 3 entry points used are declared here
 //! (`rtcore.h` of Embree 3.13, the version Debian ships).
 
+use super::shadow_rays::sample_rays;
 use crate::gbuffer::{flags, GBuffer};
-use crate::izb::frustum::DEPTH_TOLERANCE_MICROQUAD;
-use crate::scene::{Light, Scene};
+use crate::scene::Scene;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ffi::c_void;
@@ -260,30 +258,11 @@ pub fn rt32_embree_masks(
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 return 0;
             }
-            let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
-            let offset = DEPTH_TOLERANCE_MICROQUAD as f32 * ex.length().max(ey.length());
-            let mut org = [Vec3::ZERO; 32];
-            let mut dir = [Vec3::ZERO; 32];
-            let mut tnear = [0.0f32; 32];
-            let mut tfar = [f32::INFINITY; 32];
-            for (k, s) in pattern.iter().enumerate() {
-                let sample = p + (s[0] - 0.5) * ex + (s[1] - 0.5) * ey;
-                org[k] = sample;
-                match light {
-                    Light::Directional { direction } => {
-                        dir[k] = -direction.as_vec3();
-                        tnear[k] = offset;
-                    }
-                    Light::Point { position } => {
-                        // t in units of the sample-to-light vector.
-                        let to_light = position.as_vec3() - sample;
-                        let reach = offset / to_light.length().max(f32::MIN_POSITIVE);
-                        dir[k] = to_light;
-                        tnear[k] = reach;
-                        tfar[k] = 1.0 - reach;
-                    }
-                }
-            }
+            let rays = sample_rays(&light, g.position[i], g.axis_x[i], g.axis_y[i], pattern);
+            let org = rays.map(|r| r.origin);
+            let dir = rays.map(|r| r.direction);
+            let tnear = rays.map(|r| r.t_near);
+            let tfar = rays.map(|r| r.t_far);
             embree.occluded16(&org[..16], &dir[..16], &tnear[..16], &tfar[..16])
                 | embree.occluded16(&org[16..], &dir[16..], &tnear[16..], &tfar[16..]) << 16
         })

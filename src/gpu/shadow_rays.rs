@@ -1,0 +1,118 @@
+//! The `rt32-rays` peer on the GPU (`shaders/shadow_rays.comp`): the 32
+//! µQuad sample rays of every shadow-tested pixel traced through the
+//! G-buffer pass's BVH, the twin of
+//! [`crate::peer::shadow_rays::shadow_rays`]. It runs after the IZB's own
+//! G-buffer and light-setup passes in a frame of its own, in the evaluate
+//! slot, followed by resolve
+//! ([`GpuRenderer::render_shadow_rays`]).
+
+use super::frame::{FramePasses, GBufferSource, GpuPassMillis, GpuRenderer, SceneUpload};
+use super::shared::{self, counter};
+use super::{GpuError, Kernels, Recorder};
+use crate::gbuffer::flags;
+use crate::izb::IzbSettings;
+use crate::scene::Scene;
+
+/// Records the pass: one invocation per pixel.
+pub fn shadow_rays(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+    rec.begin_label("shadow_rays");
+    rec.dispatch_pixels(&kernels.shadow_rays, size);
+    rec.barrier();
+    rec.end_label();
+}
+
+/// What a GPU shadow-ray frame returns.
+pub struct GpuShadowRaysRender {
+    /// Occlusion mask per pixel (0 where not shadow-tested).
+    pub masks: Vec<u32>,
+    /// Lit fraction, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    /// GPU milliseconds: `evaluate` holds the ray tracing, `resolve` the
+    /// shading; `bin` is 0.
+    pub gpu_milliseconds: Option<GpuPassMillis>,
+    pub wall_seconds: f64,
+    pub memory_total_bytes: u64,
+}
+
+impl GpuRenderer {
+    /// Traces the 32 sample rays of every shadow-tested pixel of `scene`
+    /// (`rt32-rays`). The BVH is built whatever the G-buffer source: the
+    /// rays need it.
+    pub fn render_shadow_rays(
+        &self,
+        scene: &Scene,
+        source: GBufferSource,
+    ) -> Result<GpuShadowRaysRender, GpuError> {
+        let [w, h] = scene.resolution;
+        let limits = &self.shared().limits;
+        if w.div_ceil(8) > limits.max_compute_work_group_count[0]
+            || h.div_ceil(8) > limits.max_compute_work_group_count[1]
+        {
+            return Err(GpuError::Unsupported(format!(
+                "{w}x{h} needs more workgroups than this device allows"
+            )));
+        }
+        if let GBufferSource::Upload(g) = source {
+            if g.width != w || g.height != h {
+                return Err(GpuError::Unsupported(format!(
+                    "uploaded G-buffer is {}x{}, the scene renders at {w}x{h}",
+                    g.width, g.height
+                )));
+            }
+        }
+        let upload = SceneUpload::new(scene);
+        if upload.triangles.len() >= shared::ID_MASK as usize {
+            return Err(GpuError::Unsupported(format!(
+                "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
+                upload.triangles.len(),
+                shared::ID_BITS
+            )));
+        }
+        let bvh = super::gbuffer::build_bvh(&upload.triangles)?;
+        // The smallest light setup: one 8×8 grid nobody reads.
+        let settings = IzbSettings {
+            cells: Some(8),
+            cascades: crate::izb::CascadeCount::Fixed(1),
+            ..Default::default()
+        };
+        let max_cells = crate::izb::cascades::max_total_cells(8);
+        let out = self.run_frame(
+            scene,
+            settings,
+            source,
+            &upload,
+            &bvh,
+            max_cells,
+            1,
+            FramePasses::ShadowRays,
+        )?;
+        let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
+        if trips != 0 {
+            return Err(GpuError::LoopCap {
+                device: self.context.info().name.clone(),
+                cap: super::frame::LLVMPIPE_LOOP_CAP,
+                trips,
+            });
+        }
+        let visibility = out
+            .shaded
+            .iter()
+            .zip(&out.id_flags)
+            .map(|(&p, &word)| {
+                let (_, f) = shared::unpack_id_flags(word);
+                if f & flags::SHADOW_TESTED != 0 {
+                    shared::lit_fraction_of_alpha((p >> 24) as u8)
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect();
+        Ok(GpuShadowRaysRender {
+            masks: out.masks,
+            visibility,
+            gpu_milliseconds: out.millis,
+            wall_seconds: out.wall_seconds,
+            memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
+        })
+    }
+}
