@@ -10,14 +10,17 @@
 //                   (bin::cell_receivers);
 //   STEP_COUNT      (per triangle) per cascade its placement (from its
 //                   light-view vertices), an atomic count per covered cell
-//                   and the cover floor (the conservative shadow map); one
-//                   overflow entry tagged with the cascades it overflows in;
-//   STEP_PREFIX_SUM (1 workgroup)  exclusive prefix sum of the counts into
-//                   cell_start (and a copy as the scatter cursor), total
-//                   checked against the cell list's capacity;
+//                   (in cell_start) and the cover floor (the conservative
+//                   shadow map); one overflow entry tagged with the
+//                   cascades it overflows in;
+//   STEP_PREFIX_SUM (1 workgroup)  inclusive prefix sum of the counts in
+//                   place: each cell's entry in cell_start becomes its end,
+//                   total checked against the cell list's capacity;
 //   STEP_SCATTER    (per triangle) entries into their cells (light view and
 //                   rectangle recomputed with the count's `precise`
-//                   arithmetic, so the same cells),
+//                   arithmetic, so the same cells), each taking the slot
+//                   below its cell's cursor (atomic decrement: cell_start
+//                   ends at each cell's first entry, with no cursor array),
 //                   and each cell's cover triangle among the best floors.
 // When the total exceeds the capacity nothing is scattered past it and
 // C_CAPACITY_EXCEEDED is raised: the host grows the list and runs the frame
@@ -35,7 +38,6 @@ layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 // cover floor (atomicMax; 0 = none), .y = ~id of the lowest-id triangle
 // with that floor (atomicMax; 0 = bin::NO_COVER). Filled with 0.
 layout(scalar, binding = B_CELL_COVER) buffer CellCoverBuf { uvec2 cell_cover[]; };
-layout(scalar, binding = B_CELL_CURSOR) buffer CursorBuf { uint cell_cursor[]; };
 layout(scalar, binding = B_CELL_START) buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) writeonly buffer CellTriBuf { uint cell_triangles[]; };
 layout(scalar, binding = B_OVERFLOW) writeonly buffer OverflowBuf { uint overflow_list[]; };
@@ -190,7 +192,7 @@ bool footprint(uint k, vec2 g0, vec2 g1, vec2 g2, out Footprint f) {
     bool found = false;
     for (uint l = 0u; l < levels && spend_trip(); ++l) {
         if (!cell_range_at(k, l, lo, hi, r)) continue;
-        // Sides are at most MAX_GRID_SIDE (2^14), so the area fits a uint.
+        // Sides are at most MAX_GRID_SIDE (2^12), so the area fits a uint.
         if (l == top || (r.z - r.x + 1u) * (r.w - r.y + 1u) <= limit) {
             f.level = l;
             f.rect = r;
@@ -343,7 +345,7 @@ void main() {
                     dropped += 1u;
                     continue;
                 }
-                atomicAdd(cell_cursor[c], 1u);
+                atomicAdd(cell_start[c], 1u);
                 listed = true;
                 uint fl = cover_floor(t, k, f.level, x, y);
                 if (fl != 0u) atomicMax(cell_cover[c].x, fl);
@@ -371,7 +373,7 @@ void main() {
     uint chunk = (cells + WORKGROUP_LINEAR - 1u) / WORKGROUP_LINEAR;
     uint begin = min(k * chunk, cells), end = min(begin + chunk, cells);
     uint sum = 0u;
-    for (uint c = begin; c < end && spend_trip(); ++c) sum += cell_cursor[c];
+    for (uint c = begin; c < end && spend_trip(); ++c) sum += cell_start[c];
     partial[k] = sum;
     barrier();
     // Hillis–Steele inclusive scan of the chunk sums.
@@ -381,12 +383,12 @@ void main() {
         partial[k] += add;
         barrier();
     }
+    // In place: each cell's count becomes its inclusive end, which the
+    // scatter decrements down to the cell's first entry.
     uint running = partial[k] - sum;
     for (uint c = begin; c < end && spend_trip(); ++c) {
-        uint count = cell_cursor[c];
+        running += cell_start[c];
         cell_start[c] = running;
-        cell_cursor[c] = running;
-        running += count;
     }
     if (k == WORKGROUP_LINEAR - 1u) {
         uint total = partial[k];
@@ -412,7 +414,7 @@ void main() {
                 if (!touches(f, int(x), int(y))) continue;
                 uint c = cell_index_at(k, level_start, f.level, x, y);
                 if (behind_receivers(t, k, f.level, c, x, y)) continue;
-                uint slot = atomicAdd(cell_cursor[c], 1u);
+                uint slot = atomicAdd(cell_start[c], 0xFFFFFFFFu) - 1u;
                 // CellEntry::new: whether the cells to the left / below lack it.
                 uint entry = id | (touches(f, int(x) - 1, int(y)) ? 0u : ENTRY_FIRST_COLUMN)
                     | (touches(f, int(x), int(y) - 1) ? 0u : ENTRY_FIRST_ROW);

@@ -30,16 +30,15 @@
 #define B_LIGHT 8
 #define B_COUNTERS 9
 #define B_CELL_COVER 10
-#define B_CELL_CURSOR 11
-#define B_CELL_START 12
-#define B_CELL_TRIANGLES 13
-#define B_OVERFLOW 14
-#define B_EDGE_LUT 15
-#define B_MASKS 16
-#define B_SHADED 17
-#define B_TRIANGLE_NORMALS 18
-#define B_CELL_RECEIVERS 19
-#define B_SHADOW_MAP 20
+#define B_CELL_START 11
+#define B_CELL_TRIANGLES 12
+#define B_OVERFLOW 13
+#define B_EDGE_LUT 14
+#define B_MASKS 15
+#define B_SHADED 16
+#define B_TRIANGLE_NORMALS 17
+#define B_CELL_RECEIVERS 18
+#define B_SHADOW_MAP 19
 
 // ---- G-buffer flags (src/gbuffer: `flags`) ----
 #define FLAG_HIT 1u
@@ -114,7 +113,7 @@ bool is_receiver(uint flags, uint skips) {
 // ---- cascades (src/izb/cascades.rs) ----
 #define MAX_CASCADES 4
 #define AUTO_MAX_DEPTH_RATIO 16.0
-#define MAX_GRID_SIDE 16384
+#define MAX_GRID_SIDE 4096
 #define DEFAULT_LEVEL_CELLS 1024u
 // bin::NO_COVER
 #define NO_COVER 0xFFFFFFFFu
@@ -168,7 +167,7 @@ struct FrameParams {
     float lut_distance_scale;
     uint lut_angles;
     uint lut_distances;
-    uint max_cells;       // cell_cursor / cell_start capacity (all cascades)
+    uint max_cells;       // cell_start capacity (all cascades' pyramids)
     uint loop_budget;     // evaluate's loop iterations per pixel (lavapipe's cap), else ~0u
     uint skips;           // SKIP_* bits (src/izb/skips.rs)
     float pattern_radius; // frustum::pattern_radius: largest sample distance from the µQuad centre

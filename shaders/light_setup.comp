@@ -80,7 +80,8 @@ bool receiver_pixel(out uint i) {
 
 // light_setup::default_grid_side.
 uint default_grid_side(uint receivers) {
-    return clamp(uint(ceil(sqrt(max(float(receivers) / 4.0, float(frame.triangle_count) / 16.0)))), 8u, 1024u);
+    // RECEIVERS_PER_CELL, TRIANGLES_PER_CELL.
+    return clamp(uint(ceil(sqrt(max(float(receivers) / 6.0, float(frame.triangle_count) / 16.0)))), 8u, 1024u);
 }
 
 void main() {

@@ -613,7 +613,7 @@ impl GpuRenderer {
                 device.cmd_fill_buffer(cmd, fb.get(binding::COUNTERS).buffer, 0, vk::WHOLE_SIZE, 0);
                 device.cmd_fill_buffer(
                     cmd,
-                    fb.get(binding::CELL_CURSOR).buffer,
+                    fb.get(binding::CELL_START).buffer,
                     0,
                     vk::WHOLE_SIZE,
                     0,
@@ -975,7 +975,6 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usiz
         BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
         BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
         BufferDesc::device("bin", "cell_cover", z.max_cells * 8),
-        BufferDesc::device("bin", "cell_cursor", z.max_cells * 4),
         BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
         BufferDesc::device("bin", "cell_triangles", z.cell_capacity * 4),
         BufferDesc::device("bin", "overflow", t * 4),

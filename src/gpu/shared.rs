@@ -24,28 +24,29 @@ pub mod binding {
     /// Per cell: the conservative shadow map's cover floor (ordered bits)
     /// and !id of its cover triangle ([`crate::izb::bin::Bins::cover`]).
     pub const CELL_COVER: u32 = 10;
-    pub const CELL_CURSOR: u32 = 11;
-    pub const CELL_START: u32 = 12;
-    pub const CELL_TRIANGLES: u32 = 13;
-    pub const OVERFLOW: u32 = 14;
-    pub const EDGE_LUT: u32 = 15;
-    pub const MASKS: u32 = 16;
+    /// Per cell: the count, then (the scan's inclusive end, the scatter's
+    /// decrementing cursor) the first entry ([`crate::izb::bin::Bins::cell_start`]).
+    pub const CELL_START: u32 = 11;
+    pub const CELL_TRIANGLES: u32 = 12;
+    pub const OVERFLOW: u32 = 13;
+    pub const EDGE_LUT: u32 = 14;
+    pub const MASKS: u32 = 15;
     /// Shaded RGB8 with the lit sample count in alpha ([`ALPHA_NOT_TESTED`]).
-    pub const SHADED: u32 = 17;
+    pub const SHADED: u32 = 16;
     /// Unit normal per triangle, computed on the host in `f64` exactly as
     /// the CPU twin computes it, then rounded. A receiver's normal is its
     /// triangle's, negated when its G-buffer word has
     /// [`super::FLAG_NORMAL_FLIPPED`].
-    pub const TRIANGLE_NORMALS: u32 = 18;
+    pub const TRIANGLE_NORMALS: u32 = 17;
     /// Per cell: lowest receiver z (ordered bits) and !reach
     /// ([`crate::izb::bin::CellReceivers`]).
-    pub const CELL_RECEIVERS: u32 = 19;
+    pub const CELL_RECEIVERS: u32 = 18;
     /// The shadow-map baseline's maps, cascade after cascade, one
     /// order-preserving distance word per texel ([`ordered_bits`]; empty
     /// texels `u32::MAX`); 4 bytes in an IZB frame.
-    pub const SHADOW_MAP: u32 = 20;
+    pub const SHADOW_MAP: u32 = 19;
     /// Number of bindings.
-    pub const COUNT: u32 = 21;
+    pub const COUNT: u32 = 20;
 }
 
 /// Word indices into the counters buffer (`C_*`); 64-bit counters take two

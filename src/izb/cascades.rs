@@ -131,8 +131,11 @@ pub fn cascade_of_depth(upper: &[f32; MAX_CASCADES], depth: f32) -> usize {
         .unwrap_or(MAX_CASCADES - 1)
 }
 
-/// Longest side a grid may have (cells), far below the GPU's 2^16 limit.
-pub const MAX_GRID_SIDE: u32 = 16384;
+/// Longest side a grid may have (cells): a 4096-cell side is finer than a
+/// pixel's µQuad up to 4K images, and it bounds the pyramid's rim of
+/// rounded-up cells that the GPU cell arrays are sized for
+/// ([`max_total_cells`]).
+pub const MAX_GRID_SIDE: u32 = 4096;
 
 /// Cells along x and y of a cascade's grid over a light-NDC `extent`: the
 /// frame's cell budget `side²` (`side` from all receivers and triangles,

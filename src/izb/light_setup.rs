@@ -284,15 +284,29 @@ pub fn microquad_corners(p: Vec3, ex: Vec3, ey: Vec3) -> [Vec3; 4] {
     [p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy]
 }
 
+/// Receivers per level-0 cell the default grid aims at.
+pub const RECEIVERS_PER_CELL: f32 = 6.0;
+
+/// Triangles per level-0 cell the default grid aims at when the scene has
+/// more triangles than receivers per cell allow.
+pub const TRIANGLES_PER_CELL: f32 = 16.0;
+
 /// The frame's cell budget, as the side of a square of cells, when none is
-/// asked for: about 4 receivers per cell, or about 16 triangles per cell
-/// where the scene has more than 4 triangles per receiver (a dense scene at
-/// a low resolution would otherwise put thousands of triangles in every
-/// cell), clamped to 8..=1024. [`cascades::cascade_cells`] spends the
-/// budget on the cascades' grids with square cells whatever their aspect.
-/// The GPU `light_setup` computes the same expression in `f32`.
+/// asked for: about [`RECEIVERS_PER_CELL`] receivers per cell, or about
+/// [`TRIANGLES_PER_CELL`] triangles per cell where the scene has more
+/// triangles than that (a dense scene at a low resolution would otherwise
+/// put thousands of triangles in every cell), clamped to 8..=1024.
+/// [`cascades::cascade_cells`] spends the budget on the cascades' grids
+/// with square cells whatever their aspect. The GPU `light_setup` computes
+/// the same expression in `f32`. Measured with the pyramid at 1920×1080
+/// (CPU shadow seconds, six scenes): 6 receivers per cell is as fast as 4
+/// (default, wires and engine 10–18 % faster, courtyard 3 % slower, the
+/// rest within noise) with two thirds of the cell arrays; 8 pushed
+/// courtyard to 42 tests per pixel and 15 % more time
+/// (`paper-notes/performance.md`).
 pub fn default_grid_side(receivers: usize, triangles: usize) -> u32 {
-    let per_cell = (receivers as f32 / 4.0).max(triangles as f32 / 16.0);
+    let per_cell =
+        (receivers as f32 / RECEIVERS_PER_CELL).max(triangles as f32 / TRIANGLES_PER_CELL);
     (per_cell.sqrt().ceil() as u32).clamp(8, 1024)
 }
 
