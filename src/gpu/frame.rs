@@ -278,15 +278,16 @@ impl GpuRenderer {
         self.shared().take_messages()
     }
 
-    /// Renders `scene`'s shadow mask.
-    pub fn render(
+    /// What every frame checks before it allocates — the image's
+    /// workgroups within the device's limits, an uploaded G-buffer of the
+    /// scene's size, triangle ids that fit the G-buffer word — and then the
+    /// scene as the GPU receives it.
+    pub(super) fn prepare_frame(
         &self,
         scene: &Scene,
-        settings: IzbSettings,
         source: GBufferSource,
-    ) -> Result<GpuRender, GpuError> {
+    ) -> Result<SceneUpload, GpuError> {
         let [w, h] = scene.resolution;
-        let pixels = scene.pixel_count();
         let limits = &self.shared().limits;
         let groups = [w.div_ceil(8), h.div_ceil(8)];
         if groups[0] > limits.max_compute_work_group_count[0]
@@ -309,17 +310,26 @@ impl GpuRenderer {
             }
         }
         let upload = SceneUpload::new(scene);
+        if upload.triangles.len() >= shared::ID_MASK as usize {
+            return Err(GpuError::Unsupported(format!(
+                "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
+                upload.triangles.len(),
+                shared::ID_BITS
+            )));
+        }
+        Ok(upload)
+    }
+
+    /// Renders `scene`'s shadow mask.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        settings: IzbSettings,
+        source: GBufferSource,
+    ) -> Result<GpuRender, GpuError> {
+        let pixels = scene.pixel_count();
+        let upload = self.prepare_frame(scene, source)?;
         let triangles = &upload.triangles;
-        u32::try_from(triangles.len())
-            .ok()
-            .filter(|&n| n < shared::ID_MASK)
-            .ok_or_else(|| {
-                GpuError::Unsupported(format!(
-                    "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
-                    triangles.len(),
-                    shared::ID_BITS
-                ))
-            })?;
         let bvh_start = Instant::now();
         let bvh = match source {
             GBufferSource::Gpu => super::gbuffer::build_bvh(triangles)?,
@@ -392,23 +402,7 @@ impl GpuRenderer {
         map: ShadowMapSettings,
         source: GBufferSource,
     ) -> Result<GpuShadowMapRender, GpuError> {
-        let [w, h] = scene.resolution;
         let limits = &self.shared().limits;
-        if w.div_ceil(8) > limits.max_compute_work_group_count[0]
-            || h.div_ceil(8) > limits.max_compute_work_group_count[1]
-        {
-            return Err(GpuError::Unsupported(format!(
-                "{w}x{h} needs more workgroups than this device allows"
-            )));
-        }
-        if let GBufferSource::Upload(g) = source {
-            if g.width != w || g.height != h {
-                return Err(GpuError::Unsupported(format!(
-                    "uploaded G-buffer is {}x{}, the scene renders at {w}x{h}",
-                    g.width, g.height
-                )));
-            }
-        }
         let passes = FramePasses::ShadowMap(map);
         let map_bytes = passes.shadow_map_texels() * 4;
         let range = u64::from(limits.max_storage_buffer_range);
@@ -419,14 +413,7 @@ impl GpuRenderer {
                 range >> 20
             )));
         }
-        let upload = SceneUpload::new(scene);
-        if upload.triangles.len() >= shared::ID_MASK as usize {
-            return Err(GpuError::Unsupported(format!(
-                "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
-                upload.triangles.len(),
-                shared::ID_BITS
-            )));
-        }
+        let upload = self.prepare_frame(scene, source)?;
         let bvh = match source {
             GBufferSource::Gpu => super::gbuffer::build_bvh(&upload.triangles)?,
             GBufferSource::Upload(_) => super::gbuffer::GpuBvh {

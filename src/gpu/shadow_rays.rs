@@ -6,7 +6,7 @@
 //! slot, followed by resolve
 //! ([`GpuRenderer::render_shadow_rays`]).
 
-use super::frame::{FramePasses, GBufferSource, GpuPassMillis, GpuRenderer, SceneUpload};
+use super::frame::{FramePasses, GBufferSource, GpuPassMillis, GpuRenderer};
 use super::shared::{self, counter};
 use super::{GpuError, Kernels, Recorder};
 use crate::gbuffer::flags;
@@ -43,31 +43,7 @@ impl GpuRenderer {
         scene: &Scene,
         source: GBufferSource,
     ) -> Result<GpuShadowRaysRender, GpuError> {
-        let [w, h] = scene.resolution;
-        let limits = &self.shared().limits;
-        if w.div_ceil(8) > limits.max_compute_work_group_count[0]
-            || h.div_ceil(8) > limits.max_compute_work_group_count[1]
-        {
-            return Err(GpuError::Unsupported(format!(
-                "{w}x{h} needs more workgroups than this device allows"
-            )));
-        }
-        if let GBufferSource::Upload(g) = source {
-            if g.width != w || g.height != h {
-                return Err(GpuError::Unsupported(format!(
-                    "uploaded G-buffer is {}x{}, the scene renders at {w}x{h}",
-                    g.width, g.height
-                )));
-            }
-        }
-        let upload = SceneUpload::new(scene);
-        if upload.triangles.len() >= shared::ID_MASK as usize {
-            return Err(GpuError::Unsupported(format!(
-                "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
-                upload.triangles.len(),
-                shared::ID_BITS
-            )));
-        }
+        let upload = self.prepare_frame(scene, source)?;
         let bvh = super::gbuffer::build_bvh(&upload.triangles)?;
         // The smallest light setup: one 8×8 grid nobody reads.
         let settings = IzbSettings {

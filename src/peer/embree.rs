@@ -3,7 +3,7 @@
 //! CPU ray tracer a user would run instead of the IZB for the same
 //! samples.
 //!
-//! Rays: [`sample_rays`] of the shared G-buffer's µQuads (eye-relative
+//! Rays: [`super::shadow_rays::sample_rays`] of the shared G-buffer's µQuads (eye-relative
 //! `f32`, the very samples the IZB tests), two packets of 16 per pixel
 //! with `rtcOccluded16` (the samples of a pixel are coherent: one origin
 //! neighbourhood, one light), on every rayon thread. Plain shadow rays:
@@ -14,11 +14,10 @@
 //! Only the handful of Embree 3 entry points used are declared here
 //! (`rtcore.h` of Embree 3.13, the version Debian ships).
 
-use super::shadow_rays::sample_rays;
-use crate::gbuffer::{flags, GBuffer};
+use super::shadow_rays::trace_pixels;
+use crate::gbuffer::GBuffer;
 use crate::scene::Scene;
 use glam::Vec3;
-use rayon::prelude::*;
 use std::ffi::c_void;
 use std::os::raw::{c_char, c_int, c_uint};
 
@@ -250,21 +249,12 @@ pub fn rt32_embree_masks(
     g: &GBuffer,
     pattern: &[[f32; 2]; 32],
 ) -> Vec<u32> {
-    let light = scene.light.relative_to(scene.camera.eye);
-    (0..g.flags.len())
-        .into_par_iter()
-        .with_min_len(256)
-        .map(|i| {
-            if g.flags[i] & flags::SHADOW_TESTED == 0 {
-                return 0;
-            }
-            let rays = sample_rays(&light, g.position[i], g.axis_x[i], g.axis_y[i], pattern);
-            let org = rays.map(|r| r.origin);
-            let dir = rays.map(|r| r.direction);
-            let tnear = rays.map(|r| r.t_near);
-            let tfar = rays.map(|r| r.t_far);
-            embree.occluded16(&org[..16], &dir[..16], &tnear[..16], &tfar[..16])
-                | embree.occluded16(&org[16..], &dir[16..], &tnear[16..], &tfar[16..]) << 16
-        })
-        .collect()
+    trace_pixels(scene, g, pattern, |rays| {
+        let org = rays.map(|r| r.origin);
+        let dir = rays.map(|r| r.direction);
+        let tnear = rays.map(|r| r.t_near);
+        let tfar = rays.map(|r| r.t_far);
+        embree.occluded16(&org[..16], &dir[..16], &tnear[..16], &tfar[..16])
+            | embree.occluded16(&org[16..], &dir[16..], &tnear[16..], &tfar[16..]) << 16
+    })
 }

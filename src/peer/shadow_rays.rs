@@ -65,14 +65,14 @@ pub fn sample_rays(
     })
 }
 
-/// The 32-sample masks of every pixel of `g` from plain shadow rays traced
-/// with `bvh` (0 where not shadow-tested): the CPU twin of
-/// `shaders/shadow_rays.comp`.
-pub fn shadow_rays(
+/// The 32-sample masks of every pixel of `g` (0 where not shadow-tested),
+/// `trace` turning one pixel's [`sample_rays`] into its mask, pixels in
+/// parallel.
+pub fn trace_pixels(
     scene: &Scene,
-    bvh: &SceneBvh,
     g: &GBuffer,
     pattern: &[[f32; 2]; 32],
+    trace: impl Fn(&[ShadowRay; 32]) -> u32 + Sync,
 ) -> Vec<u32> {
     let light = scene.light.relative_to(scene.camera.eye);
     (0..g.flags.len())
@@ -82,17 +82,36 @@ pub fn shadow_rays(
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 return 0;
             }
-            let rays = sample_rays(&light, g.position[i], g.axis_x[i], g.axis_y[i], pattern);
-            rays.iter().enumerate().fold(0, |mask, (k, r)| {
-                let hit = bvh.any_hit(
-                    r.origin.as_dvec3(),
-                    r.direction.as_dvec3(),
-                    f64::from(r.t_near),
-                    f64::from(r.t_far),
-                    |_| true,
-                );
-                mask | (u32::from(hit) << k)
-            })
+            trace(&sample_rays(
+                &light,
+                g.position[i],
+                g.axis_x[i],
+                g.axis_y[i],
+                pattern,
+            ))
         })
         .collect()
+}
+
+/// The 32-sample masks of every pixel of `g` from plain shadow rays traced
+/// with `bvh` (0 where not shadow-tested): the CPU twin of
+/// `shaders/shadow_rays.comp`.
+pub fn shadow_rays(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    g: &GBuffer,
+    pattern: &[[f32; 2]; 32],
+) -> Vec<u32> {
+    trace_pixels(scene, g, pattern, |rays| {
+        rays.iter().enumerate().fold(0, |mask, (k, r)| {
+            let hit = bvh.any_hit(
+                r.origin.as_dvec3(),
+                r.direction.as_dvec3(),
+                f64::from(r.t_near),
+                f64::from(r.t_far),
+                |_| true,
+            );
+            mask | (u32::from(hit) << k)
+        })
+    })
 }
