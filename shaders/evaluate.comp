@@ -71,10 +71,13 @@ uint px_cover;    // the centre cell's cover triangle, or NO_COVER
 
 // frustum::may_shadow: the per-pixel depth test at P (t = vertices − P).
 bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
-    precise float reach = max_of3(length(t0), length(t1), length(t2));
-    precise float tolerance = float(DEPTH_TOLERANCE_MICROQUAD) * px_size
-        + float(DEPTH_TOLERANCE_ROUNDING) * reach;
     precise float height = max_of3(dot(px_normal, t0), dot(px_normal, t1), dot(px_normal, t2));
+    // The tolerance is this plus a non-negative term (no fused ops:
+    // rounding is monotone), so the lengths wait until the height passes it.
+    precise float microquad_part = float(DEPTH_TOLERANCE_MICROQUAD) * px_size;
+    if (!(height > microquad_part)) return false;
+    precise float reach = max_of3(length(t0), length(t1), length(t2));
+    precise float tolerance = microquad_part + float(DEPTH_TOLERANCE_ROUNDING) * reach;
     if (!(height > tolerance)) return false;   // wholly below the tangent plane
     precise vec3 n = cross(t1 - t0, t2 - t0);
     precise float facing = light.projection == 0u ? dot(n, light_rel) : dot(n, light_rel - t0);

@@ -113,10 +113,19 @@ pub fn may_shadow<V: Vector>(
     microquad_size: V::Scalar,
     light: LightRel<V>,
 ) -> bool {
-    let reach = max3(t[0].length(), t[1].length(), t[2].length());
-    let tolerance = V::from_f64(DEPTH_TOLERANCE_MICROQUAD) * microquad_size
-        + V::from_f64(DEPTH_TOLERANCE_ROUNDING) * reach;
     let height = max3(normal.dot(t[0]), normal.dot(t[1]), normal.dot(t[2]));
+    // The tolerance below is this plus a non-negative term, and rounding is
+    // monotone, so a height at or under it fails the same comparison: the
+    // three lengths are only computed for triangles that may pass.
+    let microquad_part = V::from_f64(DEPTH_TOLERANCE_MICROQUAD) * microquad_size;
+    if !matches!(
+        height.partial_cmp(&microquad_part),
+        Some(std::cmp::Ordering::Greater)
+    ) {
+        return false;
+    }
+    let reach = max3(t[0].length(), t[1].length(), t[2].length());
+    let tolerance = microquad_part + V::from_f64(DEPTH_TOLERANCE_ROUNDING) * reach;
     if !matches!(
         height.partial_cmp(&tolerance),
         Some(std::cmp::Ordering::Greater)
