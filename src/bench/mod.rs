@@ -233,6 +233,8 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
             r.details = json!({
                 "bin": out.report.bin,
                 "evaluate": out.report.evaluate,
+                "work_per_pixel": out.report.work_per_pixel,
+                "evaluate_ns_per_test_per_thread": out.report.evaluate_ns_per_test_per_thread,
                 "cascades": out.report.light.cascade_choice,
                 "grids": out.report.light.cascades,
             });

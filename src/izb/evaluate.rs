@@ -458,4 +458,36 @@ impl EvaluateStats {
     pub fn simd_efficiency(&self) -> f64 {
         self.tests_spawned as f64 / (32.0 * self.group_longest_tests as f64).max(1.0)
     }
+
+    /// The counters per tested pixel, as `report.json` and `bench.json`
+    /// show them.
+    pub fn per_pixel(&self) -> WorkPerPixel {
+        let px = self.pixels_tested.max(1) as f64;
+        WorkPerPixel {
+            tests: self.tests_spawned as f64 / px,
+            depth_passed: self.depth_passed as f64 / px,
+            masks_nonempty: self.masks_nonempty as f64 / px,
+            cells: self.cells_visited as f64 / px,
+            levels: self.levels_visited as f64 / px,
+            simd_efficiency: self.simd_efficiency(),
+        }
+    }
+}
+
+/// The evaluate pass's work per tested pixel (issue 13's counters): stable
+/// where times are noisy.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct WorkPerPixel {
+    /// Frustum-triangle tests started.
+    pub tests: f64,
+    /// Tests passing the depth test at P.
+    pub depth_passed: f64,
+    /// Tests whose mask was not empty.
+    pub masks_nonempty: f64,
+    /// Grid cells visited, over all pyramid levels.
+    pub cells: f64,
+    /// Pyramid levels visited.
+    pub levels: f64,
+    /// [`EvaluateStats::simd_efficiency`].
+    pub simd_efficiency: f64,
 }

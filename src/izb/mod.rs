@@ -133,6 +133,9 @@ pub struct RenderReport {
     pub light: LightSetup,
     pub bin: bin::BinStats,
     pub evaluate: evaluate::EvaluateStats,
+    /// `evaluate` per tested pixel, and its seconds × threads per test.
+    pub work_per_pixel: evaluate::WorkPerPixel,
+    pub evaluate_ns_per_test_per_thread: f64,
 }
 
 /// A rendered shadow mask.
@@ -196,6 +199,9 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let visibility = resolve(&masks, &g);
     seconds.resolve = lap();
     seconds.total = start.elapsed().as_secs_f64();
+    let evaluate_ns_per_test_per_thread =
+        seconds.evaluate * rayon::current_num_threads() as f64 * 1e9
+            / eval_stats.tests_spawned.max(1) as f64;
     ShadowRender {
         report: RenderReport {
             settings,
@@ -203,6 +209,8 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
             gbuffer: g.stats.clone(),
             light: setup,
             bin: bins.stats,
+            work_per_pixel: eval_stats.per_pixel(),
+            evaluate_ns_per_test_per_thread,
             evaluate: eval_stats,
         },
         gbuffer: g,
