@@ -23,10 +23,13 @@
 //! run. `total_seconds` adds the G-buffer.
 
 pub mod flicker;
+mod methods;
 
-use crate::baseline::{render_shadow_map, ShadowMapSettings};
+pub use methods::{parse_methods, Method, MethodKind, DEFAULT_MAP_SIDES};
+
+use crate::baseline::render_shadow_map;
 use crate::gbuffer::{gbuffer, GBuffer};
-use crate::izb::{render_cpu, resolve, IzbSettings, PassTimes, SampleMode};
+use crate::izb::{render_cpu, resolve, PassTimes};
 use crate::metrics::{metrics, sample_mismatches, Metrics};
 use crate::output::write_exr;
 use crate::reference::bvh::SceneBvh;
@@ -36,108 +39,6 @@ use crate::scene::Scene;
 use serde_json::{json, Value};
 use std::path::Path;
 use std::time::Instant;
-
-/// What a benchmarked method is.
-#[derive(Clone, Copy, Debug)]
-pub enum MethodKind {
-    Izb(IzbSettings),
-    /// The 32 µQuad samples traced exactly.
-    RayTraced32,
-    /// The 32 µQuad samples' shadow rays traced by Embree.
-    Embree32,
-    /// The 32 µQuad samples' shadow rays through a BVH (Vulkan pass or its
-    /// CPU twin).
-    ShadowRays32,
-    ShadowMap(ShadowMapSettings),
-}
-
-impl MethodKind {
-    /// The family a report groups by.
-    pub fn family(&self) -> &'static str {
-        match self {
-            MethodKind::Izb(_) => "izb",
-            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => {
-                "ray-traced"
-            }
-            MethodKind::ShadowMap(_) => "shadow-map",
-        }
-    }
-
-    /// Whether the method produces 32-sample masks (compared sample by
-    /// sample with `rt32`).
-    fn masks_32(&self) -> bool {
-        match self {
-            MethodKind::Izb(s) => s.mode != SampleMode::One,
-            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
-            MethodKind::ShadowMap(_) => false,
-        }
-    }
-}
-
-/// A named method to measure.
-#[derive(Clone, Debug)]
-pub struct Method {
-    pub name: String,
-    pub kind: MethodKind,
-}
-
-/// The default shadow-map sides `shadow-maps` expands over.
-pub const DEFAULT_MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
-
-/// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5` and
-/// `csm4-pcf3` at every side of `map_sides`; `reference` (the ground
-/// truth's own timing) is always measured and skipped here.
-pub fn parse_methods(
-    names: &[String],
-    map_sides: &[u32],
-    izb: IzbSettings,
-) -> Result<Vec<Method>, String> {
-    let mut out = Vec::new();
-    for name in names {
-        let name = name.trim();
-        let izb_mode = |mode| MethodKind::Izb(IzbSettings { mode, ..izb });
-        match name {
-            "reference" => {}
-            "izb1" => out.push((name.to_string(), izb_mode(SampleMode::One))),
-            "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
-            "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
-            "rt32" => out.push((name.to_string(), MethodKind::RayTraced32)),
-            "rt32-rays" => out.push((name.to_string(), MethodKind::ShadowRays32)),
-            "rt32-embree" if cfg!(feature = "embree") => {
-                out.push((name.to_string(), MethodKind::Embree32))
-            }
-            "rt32-embree" => {
-                return Err("rt32-embree needs izb built with `--features embree` \
-                            (and Debian's libembree-dev)"
-                    .into())
-            }
-            "shadow-maps" => {
-                for &side in map_sides {
-                    for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3"] {
-                        let n = format!("{prefix}-{side}");
-                        out.push((
-                            n.clone(),
-                            MethodKind::ShadowMap(ShadowMapSettings::parse(&n)?),
-                        ));
-                    }
-                }
-            }
-            other => out.push((
-                other.to_string(),
-                MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
-                    format!(
-                        "{e}; or one of reference, izb1, izb32, izb32-exact, rt32, rt32-rays, \
-                         rt32-embree, shadow-maps"
-                    )
-                })?),
-            )),
-        }
-    }
-    Ok(out
-        .into_iter()
-        .map(|(name, kind)| Method { name, kind })
-        .collect())
-}
 
 /// How to measure.
 #[derive(Clone, Debug)]
@@ -244,12 +145,8 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
         MethodKind::RayTraced32 => {
             let t = Instant::now();
             let masks = same_sample_masks(scene, &shared.bvh, crate::lut::sample_pattern());
-            let s = t.elapsed().as_secs_f64();
-            r.shadow.push(s);
-            r.total.push(s);
-            r.seconds.push(json!({ "trace": s }));
-            r.visibility = resolve(&masks, &shared.gbuffer);
-            r.masks = Some(masks);
+            // rt32 casts its own primary rays: its whole run is its time.
+            r.record_trace(masks, t.elapsed().as_secs_f64(), 0.0, shared);
         }
         MethodKind::Embree32 => embree_once(scene, shared, &mut r)?,
         MethodKind::ShadowRays32 => {
@@ -260,12 +157,12 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
                 &shared.gbuffer,
                 crate::lut::sample_pattern(),
             );
-            let s = t.elapsed().as_secs_f64();
-            r.shadow.push(s);
-            r.total.push(s + shared.gbuffer_seconds);
-            r.seconds.push(json!({ "trace": s }));
-            r.visibility = resolve(&masks, &shared.gbuffer);
-            r.masks = Some(masks);
+            r.record_trace(
+                masks,
+                t.elapsed().as_secs_f64(),
+                shared.gbuffer_seconds,
+                shared,
+            );
         }
         MethodKind::ShadowMap(settings) => {
             let out = render_shadow_map(scene, &shared.gbuffer, *settings)?;
@@ -293,14 +190,13 @@ fn embree_once(scene: &Scene, shared: &SceneTruth, r: &mut Runs) -> Result<(), S
         &shared.gbuffer,
         crate::lut::sample_pattern(),
     );
-    let s = t.elapsed().as_secs_f64();
-    r.shadow.push(s);
-    r.total.push(s + shared.gbuffer_seconds);
-    r.seconds
-        .push(json!({ "trace": s, "bvh_build": embree.build_seconds }));
+    r.record_trace(
+        masks,
+        t.elapsed().as_secs_f64(),
+        shared.gbuffer_seconds,
+        shared,
+    );
     r.details = json!({ "bvh_build_seconds": embree.build_seconds, "threads": rayon::current_num_threads() });
-    r.visibility = resolve(&masks, &shared.gbuffer);
-    r.masks = Some(masks);
     Ok(())
 }
 
@@ -447,6 +343,19 @@ pub fn bench_scene_cpu(
     }
     set_izb32_ratios(&mut rows);
     Ok((rows, refused))
+}
+
+impl Runs {
+    /// One run of a ray-traced method: its masks and `trace` seconds (the
+    /// shadow seconds), `before` seconds of shared work it relies on added
+    /// to its total.
+    fn record_trace(&mut self, masks: Vec<u32>, trace: f64, before: f64, shared: &SceneTruth) {
+        self.shadow.push(trace);
+        self.total.push(trace + before);
+        self.seconds.push(json!({ "trace": trace }));
+        self.visibility = resolve(&masks, &shared.gbuffer);
+        self.masks = Some(masks);
+    }
 }
 
 fn run_placeholder() -> Runs {

@@ -1,0 +1,106 @@
+//! The methods `izb bench` measures, and how a list of names becomes them.
+
+use crate::baseline::ShadowMapSettings;
+use crate::izb::{IzbSettings, SampleMode};
+
+/// What a benchmarked method is.
+#[derive(Clone, Copy, Debug)]
+pub enum MethodKind {
+    Izb(IzbSettings),
+    /// The 32 µQuad samples traced exactly.
+    RayTraced32,
+    /// The 32 µQuad samples' shadow rays traced by Embree.
+    Embree32,
+    /// The 32 µQuad samples' shadow rays through a BVH (Vulkan pass or its
+    /// CPU twin).
+    ShadowRays32,
+    ShadowMap(ShadowMapSettings),
+}
+
+impl MethodKind {
+    /// The family a report groups by.
+    pub fn family(&self) -> &'static str {
+        match self {
+            MethodKind::Izb(_) => "izb",
+            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => {
+                "ray-traced"
+            }
+            MethodKind::ShadowMap(_) => "shadow-map",
+        }
+    }
+
+    /// Whether the method produces 32-sample masks (compared sample by
+    /// sample with `rt32`).
+    pub(super) fn masks_32(&self) -> bool {
+        match self {
+            MethodKind::Izb(s) => s.mode != SampleMode::One,
+            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
+            MethodKind::ShadowMap(_) => false,
+        }
+    }
+}
+
+/// A named method to measure.
+#[derive(Clone, Debug)]
+pub struct Method {
+    pub name: String,
+    pub kind: MethodKind,
+}
+
+/// The default shadow-map sides `shadow-maps` expands over.
+pub const DEFAULT_MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
+
+/// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5` and
+/// `csm4-pcf3` at every side of `map_sides`; `reference` (the ground
+/// truth's own timing) is always measured and skipped here.
+pub fn parse_methods(
+    names: &[String],
+    map_sides: &[u32],
+    izb: IzbSettings,
+) -> Result<Vec<Method>, String> {
+    let mut out = Vec::new();
+    for name in names {
+        let name = name.trim();
+        let izb_mode = |mode| MethodKind::Izb(IzbSettings { mode, ..izb });
+        match name {
+            "reference" => {}
+            "izb1" => out.push((name.to_string(), izb_mode(SampleMode::One))),
+            "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
+            "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
+            "rt32" => out.push((name.to_string(), MethodKind::RayTraced32)),
+            "rt32-rays" => out.push((name.to_string(), MethodKind::ShadowRays32)),
+            "rt32-embree" if cfg!(feature = "embree") => {
+                out.push((name.to_string(), MethodKind::Embree32))
+            }
+            "rt32-embree" => {
+                return Err("rt32-embree needs izb built with `--features embree` \
+                            (and Debian's libembree-dev)"
+                    .into())
+            }
+            "shadow-maps" => {
+                for &side in map_sides {
+                    for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3"] {
+                        let n = format!("{prefix}-{side}");
+                        out.push((
+                            n.clone(),
+                            MethodKind::ShadowMap(ShadowMapSettings::parse(&n)?),
+                        ));
+                    }
+                }
+            }
+            other => out.push((
+                other.to_string(),
+                MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
+                    format!(
+                        "{e}; or one of reference, izb1, izb32, izb32-exact, rt32, rt32-rays, \
+                         rt32-embree, shadow-maps"
+                    )
+                })?),
+            )),
+        }
+    }
+    Ok(out
+        .into_iter()
+        .map(|(name, kind)| Method { name, kind })
+        .collect())
+}
