@@ -38,49 +38,7 @@ float box_entry(vec3 lo, vec3 hi, vec3 inv_dir, float t_max) {
     return enter <= leave ? enter : 1.0 / 0.0;
 }
 
-// Watertight ray/triangle test (Woop, Benthin, Wald, JCGT 2013), the CPU
-// twin's `WatertightRay` in f32: the ray is sheared so that it runs along
-// +z through the origin (the eye), and the 2D edge functions of the
-// sheared vertices decide the hit. A shared edge's function is the same
-// products of the same floats in both triangles (`precise`: no fused
-// multiply-add may differ between them), so a ray through a seam hits one
-// of the two triangles or both, never neither (Möller–Trumbore can miss
-// both and report whatever lies behind the seam).
-struct ShearedRay {
-    int kx, ky, kz;
-    vec3 shear;
-};
-
-ShearedRay sheared_ray(vec3 d) {
-    vec3 a = abs(d);
-    int kz = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
-    int kx = (kz + 1) % 3;
-    int ky = (kx + 1) % 3;
-    if (d[kz] < 0.0) {
-        int swap = kx;
-        kx = ky;
-        ky = swap;
-    }
-    return ShearedRay(kx, ky, kz, vec3(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]));
-}
-
-// Ray parameter along the unnormalised direction (the view depth), or −1.
-float hit_triangle(Triangle t, ShearedRay r) {
-    precise float ax = t.a[r.kx] - r.shear.x * t.a[r.kz];
-    precise float ay = t.a[r.ky] - r.shear.y * t.a[r.kz];
-    precise float bx = t.b[r.kx] - r.shear.x * t.b[r.kz];
-    precise float by = t.b[r.ky] - r.shear.y * t.b[r.kz];
-    precise float cx = t.c[r.kx] - r.shear.x * t.c[r.kz];
-    precise float cy = t.c[r.ky] - r.shear.y * t.c[r.kz];
-    precise float u = cx * by - cy * bx;
-    precise float v = ax * cy - ay * cx;
-    precise float w = bx * ay - by * ax;
-    if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) return -1.0;
-    precise float det = u + v + w;
-    if (det == 0.0) return -1.0;   // the ray runs in the triangle's plane
-    precise float t_scaled = r.shear.z * (u * t.a[r.kz] + v * t.b[r.kz] + w * t.c[r.kz]);
-    return t_scaled / det;
-}
+#include "watertight_ray.glsl"
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
@@ -102,7 +60,7 @@ void main() {
         if (n.prim_count > 0u) {
             for (uint k = 0u; k < n.prim_count; ++k) {
                 uint id = prims[n.first + k];
-                float t = hit_triangle(triangles[id], ray);
+                float t = hit_triangle(triangles[id], vec3(0.0), ray);
                 if (t > frame.near && t < best_t) {
                     best_t = t;
                     best = id;

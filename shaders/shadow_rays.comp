@@ -46,44 +46,7 @@ bool box_hit(vec3 lo, vec3 hi, vec3 inv_dir, float t_far) {
     return enter <= leave;
 }
 
-// The watertight test of gbuffer.comp (Woop et al. 2013) with the ray's
-// origin moved to `org`: the ray is sheared to run along +z.
-struct ShearedRay {
-    int kx, ky, kz;
-    vec3 shear;
-};
-
-ShearedRay sheared_ray(vec3 d) {
-    vec3 a = abs(d);
-    int kz = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
-    int kx = (kz + 1) % 3;
-    int ky = (kx + 1) % 3;
-    if (d[kz] < 0.0) {
-        int swap = kx;
-        kx = ky;
-        ky = swap;
-    }
-    return ShearedRay(kx, ky, kz, vec3(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]));
-}
-
-// Ray parameter of the hit along d, or −1.
-float hit_triangle(Triangle t, vec3 org, ShearedRay r) {
-    precise vec3 a = t.a - org, b = t.b - org, c = t.c - org;
-    precise float ax = a[r.kx] - r.shear.x * a[r.kz];
-    precise float ay = a[r.ky] - r.shear.y * a[r.kz];
-    precise float bx = b[r.kx] - r.shear.x * b[r.kz];
-    precise float by = b[r.ky] - r.shear.y * b[r.kz];
-    precise float cx = c[r.kx] - r.shear.x * c[r.kz];
-    precise float cy = c[r.ky] - r.shear.y * c[r.kz];
-    precise float u = cx * by - cy * bx;
-    precise float v = ax * cy - ay * cx;
-    precise float w = bx * ay - by * ax;
-    if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) return -1.0;
-    precise float det = u + v + w;
-    if (det == 0.0) return -1.0;   // the ray runs in the triangle's plane
-    precise float t_scaled = r.shear.z * (u * a[r.kz] + v * b[r.kz] + w * c[r.kz]);
-    return t_scaled / det;
-}
+#include "watertight_ray.glsl"
 
 // Whether anything meets the ray with t in (t_near, t_far): depth-first,
 // stopping at the first hit (an occlusion query needs no nearest one).
