@@ -36,7 +36,8 @@ fn check_grid(
     let setup = light_setup(scene, &g, request);
     assert_eq!(setup.cascades.len(), cascades as usize);
     let triangles = eye_relative_f32(scene);
-    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some(&g));
+    let boxes = setup.microquad_boxes(&g, Skips::ALL);
+    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some((&g, &boxes)));
 
     // Scatter against the placements, cell by cell, level by level and
     // cascade by cascade (with the cull, a subset of them), neighbour bits

@@ -9,7 +9,7 @@
 
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
 use super::footprint::{footprint, Footprint};
-use super::light_setup::{CascadeGrid, LightSetup, Projection};
+use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 use super::receivers::upward_normal;
 pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
 use super::Skips;
@@ -122,6 +122,9 @@ pub struct Bins {
     /// Per cascade, bit l set when pyramid level l holds a placement: the
     /// levels a pixel visits.
     pub levels: Vec<u32>,
+    /// Per cascade, each level's place in the cell arrays
+    /// ([`CascadeGrid::level_table`]).
+    pub level_cells: Vec<Vec<LevelCells>>,
     /// Per cell, the conservative shadow map: the triangle whose shadow
     /// covers the whole cell with the highest floor ([`cover_floor`]), or
     /// [`NO_COVER`]. Only filled with the `shadow_map` skip.
@@ -246,7 +249,7 @@ pub fn bin(
     setup: &LightSetup,
     triangles: &[[Vec3; 3]],
     skips: Skips,
-    cull_behind: Option<&GBuffer>,
+    cull_behind: Option<(&GBuffer, &MicroquadBoxes)>,
 ) -> Bins {
     // Light-view vertices, for placing triangles only (the GPU recomputes
     // them in the scatter with the same arithmetic).
@@ -278,7 +281,8 @@ pub fn bin(
             })
         })
         .collect();
-    let receivers = cull_behind.and_then(|g| cell_receivers(setup, g, skips, Some(&levels)));
+    let receivers =
+        cull_behind.and_then(|(g, boxes)| cell_receivers(setup, g, boxes, skips, Some(&levels)));
     let covers = skips.shadow_map && setup.projection == Projection::Orthographic;
     let blocks: Vec<BlockEntries> = (0..triangles.len())
         .step_by(TRIANGLE_BLOCK)
@@ -347,6 +351,11 @@ pub fn bin(
         cell_triangles,
         overflow,
         levels,
+        level_cells: setup
+            .cascades
+            .iter()
+            .map(CascadeGrid::level_table)
+            .collect(),
         cover,
         stats,
     }

@@ -15,9 +15,10 @@
 
 use super::bin::{cell_range, cell_range_at, Bins, NO_COVER};
 use super::frustum::{
-    edge_function, exact_edge_mask, may_shadow, saturated_edge, winding, LightRel,
+    above_tangent_plane, beyond_triangle_plane, edge_function, exact_edge_mask,
+    microquad_tolerance, saturated_edge, winding, LightRel,
 };
-use super::light_setup::{level_scale, LightSetup};
+use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
 use super::{is_receiver, Skips};
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
@@ -78,6 +79,8 @@ struct PixelFrustum {
     normal: Vec3,
     ex: Vec3,
     ey: Vec3,
+    /// The µQuad part of the depth tolerance (the same for every triangle).
+    microquad_part: f32,
     /// Where the light is, seen from P.
     light: LightRel<Vec3>,
     receiver: u32,
@@ -90,7 +93,9 @@ struct PixelFrustum {
     centre: Option<Vec2>,
 }
 
-fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
+/// Pixel `i`'s frustum; `ndc_box` its µQuad's light-NDC box
+/// ([`LightSetup::microquad_ndc_box`]).
+fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize, ndc_box: (Vec2, Vec2)) -> PixelFrustum {
     let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
     let cascade = setup.cascade_of(p);
     let grid = &setup.cascades[cascade];
@@ -98,7 +103,7 @@ fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
     if !setup.grid_disabled {
         // Every receiver corner is in front of the light (else the grid is
         // disabled), so the box is not NaN.
-        let (lo, hi) = setup.microquad_grid_box(grid, p, ex, ey);
+        let (lo, hi) = (grid.grid_coords(ndc_box.0), grid.grid_coords(ndc_box.1));
         if cell_range(grid, lo, hi).is_some() {
             grid_box = Some((lo, hi));
             centre = setup
@@ -111,6 +116,7 @@ fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize) -> PixelFrustum {
         normal: g.normal[i],
         ex,
         ey,
+        microquad_part: microquad_tolerance::<Vec3>(ex.length().max(ey.length())),
         light: setup.light_from(p),
         receiver: g.triangle_id[i],
         cascade,
@@ -135,7 +141,7 @@ fn cover_of(setup: &LightSetup, bins: &Bins, px: &PixelFrustum) -> u32 {
         let c = c * level_scale(level);
         let x = (c.x.max(0.0) as u32).clamp(x0, x1);
         let y = (c.y.max(0.0) as u32).clamp(y0, y1);
-        let cover = bins.cover[grid.level(level).index(x, y)];
+        let cover = bins.cover[bins.level_cells[px.cascade][level as usize].index(x, y)];
         if cover != NO_COVER {
             return cover;
         }
@@ -225,17 +231,33 @@ fn triangle_mask(
     counters: &mut TestCounters,
 ) -> u32 {
     let t = tri.map(|v| v - px.p);
+    // Most candidates are below the tangent plane: that check stays inline
+    // in the candidate loop, the rest of the test is called.
+    match above_tangent_plane(&t, px.normal, px.microquad_part) {
+        None => 0,
+        Some(height) => occluded_samples(px, &t, height, rule, counters),
+    }
+}
+
+/// [`triangle_mask`] for a triangle above the tangent plane by `height`.
+#[inline(never)]
+fn occluded_samples(
+    px: &PixelFrustum,
+    t: &[Vec3; 3],
+    height: f32,
+    rule: &MaskRule,
+    counters: &mut TestCounters,
+) -> u32 {
     let light = px.light;
-    let size = px.ex.length().max(px.ey.length());
-    if !may_shadow(&t, px.normal, size, light) {
+    if !beyond_triangle_plane(t, height, px.microquad_part, light) {
         return 0;
     }
     counters.depth_passed += 1;
-    let w = winding(&t, light);
+    let w = winding(t, light);
     if !(w != 0.0) {
         return 0; // edge-on from the light (or NaN): no shadow area
     }
-    let edge = |k| edge_function(&t, k, px.ex, px.ey, light, w < 0.0);
+    let edge = |k| edge_function(t, k, px.ex, px.ey, light, w < 0.0);
     if !rule.skips.saturated_edges {
         let mask = (0..3).fold(FULL, |m, k| m & rule.edge_mask(edge(k)).0);
         counters.masks_nonempty += (mask != 0) as u64;
@@ -270,7 +292,8 @@ pub fn for_each_candidate(
     i: usize,
     visit: impl FnMut(u32) -> bool,
 ) -> (u64, u64) {
-    candidates_of(setup, bins, &pixel_frustum(setup, g, i), visit)
+    let ndc_box = setup.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i]);
+    candidates_of(setup, bins, &pixel_frustum(setup, g, i, ndc_box), visit)
 }
 
 fn candidates_of(
@@ -295,7 +318,7 @@ fn candidates_of(
             continue;
         };
         levels += 1;
-        let level_cells = grid.level(level);
+        let level_cells = bins.level_cells[px.cascade][level as usize];
         for y in y0..=y1 {
             for x in x0..=x1 {
                 cells += 1;
@@ -318,12 +341,10 @@ fn evaluate_pixel(
     setup: &LightSetup,
     bins: &Bins,
     triangles: &[[Vec3; 3]],
-    g: &GBuffer,
-    i: usize,
+    px: &PixelFrustum,
     rule: &MaskRule,
     stats: &mut EvaluateStats,
 ) -> (u32, u64) {
-    let px = pixel_frustum(setup, g, i);
     let mut mask = 0u32;
     let mut tests = 0u64;
     let mut counters = TestCounters::default();
@@ -333,23 +354,23 @@ fn evaluate_pixel(
     // and skipping it in the loop leaves the mask as it was; when it fills
     // the mask alone, the loop is skipped.
     let cover = if rule.skips.shadow_map {
-        cover_of(setup, bins, &px)
+        cover_of(setup, bins, px)
     } else {
         NO_COVER
     };
     if cover != NO_COVER && cover != px.receiver {
         tests += 1;
-        mask = triangle_mask(&px, &triangles[cover as usize], rule, &mut counters);
+        mask = triangle_mask(px, &triangles[cover as usize], rule, &mut counters);
     }
     let (cells, levels) = if mask == FULL {
         stats.shadow_map_early_outs += 1;
         (0, 0)
     } else {
         let stop_when_full = rule.skips.full_mask;
-        let cells = candidates_of(setup, bins, &px, |id| {
+        let cells = candidates_of(setup, bins, px, |id| {
             if id != px.receiver && id != cover {
                 tests += 1;
-                mask |= triangle_mask(&px, &triangles[id as usize], rule, &mut counters);
+                mask |= triangle_mask(px, &triangles[id as usize], rule, &mut counters);
             }
             stop_when_full && mask == FULL
         });
@@ -376,7 +397,8 @@ pub fn triangle_mask_for_pixel(
     id: u32,
     rule: &MaskRule,
 ) -> u32 {
-    let px = pixel_frustum(setup, g, i);
+    let ndc_box = setup.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i]);
+    let px = pixel_frustum(setup, g, i, ndc_box);
     if id == px.receiver {
         return 0;
     }
@@ -400,6 +422,7 @@ pub fn evaluate(
     bins: &Bins,
     triangles: &[[Vec3; 3]],
     g: &GBuffer,
+    boxes: &MicroquadBoxes,
     rule: &MaskRule,
 ) -> (Vec<u32>, EvaluateStats) {
     let w = g.width as usize;
@@ -419,8 +442,9 @@ pub fn evaluate(
                         return 0;
                     }
                     stats.pixels_tested += 1;
+                    let px = pixel_frustum(setup, g, i, boxes.ndc[i]);
                     let (mask, tests) =
-                        evaluate_pixel(setup, bins, triangles, g, i, rule, &mut stats);
+                        evaluate_pixel(setup, bins, triangles, &px, rule, &mut stats);
                     let group = &mut longest[(i % w) / GROUP[0]];
                     *group = (*group).max(tests);
                     if g.flags[i] & flags::SHADOW_TESTED == 0 {

@@ -12,6 +12,7 @@ use super::frustum::LightRel;
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::{Light, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
+use rayon::prelude::*;
 
 /// How light view maps to the 2-D grid plane.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -102,6 +103,12 @@ impl CascadeGrid {
                     w * h
                 })
                 .sum::<u32>()
+    }
+
+    /// [`Self::level`] of every level, finest first: for loops that visit
+    /// levels per pixel ([`Self::level_offset`] sums the finer levels).
+    pub fn level_table(&self) -> Vec<LevelCells> {
+        (0..self.levels).map(|l| self.level(l)).collect()
     }
 
     /// Cells of the whole pyramid.
@@ -229,10 +236,28 @@ impl LightSetup {
         self.cascades.iter().map(|c| c.cell_count() as usize).sum()
     }
 
-    /// Grid-space bounding box, in `grid`, of the µQuad (centre `p`, axes
-    /// `ex`, `ey`, eye-relative): the box of its projected corners, which
-    /// holds the projection of every point of the µQuad, its centre
-    /// included. NaN when a corner is not in front of a point light.
+    /// Light-NDC bounding box of the µQuad (centre `p`, axes `ex`, `ey`,
+    /// eye-relative): the box of its projected corners, which holds the
+    /// projection of every point of the µQuad, its centre included. A
+    /// corner not in front of a point light is left out (`f32::min`
+    /// ignores NaN); then the grid is disabled and the box unused.
+    #[inline]
+    pub fn microquad_ndc_box(&self, p: Vec3, ex: Vec3, ey: Vec3) -> (Vec2, Vec2) {
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for c in microquad_corners(p, ex, ey) {
+            let n = self.ndc(self.to_light_view(c)).unwrap_or(Vec2::NAN);
+            lo = lo.min(n);
+            hi = hi.max(n);
+        }
+        (lo, hi)
+    }
+
+    /// Grid-space bounding box, in `grid`, of the µQuad: the grid
+    /// coordinates of [`Self::microquad_ndc_box`]. Bit for bit the box of
+    /// the four corners' grid coordinates (what `light_view.glsl`
+    /// computes): [`CascadeGrid::grid_coords`] subtracts, divides and
+    /// multiplies by positive numbers, each rounded monotonically, so it
+    /// commutes with min and max.
     pub fn microquad_grid_box(
         &self,
         grid: &CascadeGrid,
@@ -240,14 +265,26 @@ impl LightSetup {
         ex: Vec3,
         ey: Vec3,
     ) -> (Vec2, Vec2) {
-        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for c in microquad_corners(p, ex, ey) {
-            let n = self.ndc(self.to_light_view(c)).unwrap_or(Vec2::NAN);
-            let gc = grid.grid_coords(n);
-            lo = lo.min(gc);
-            hi = hi.max(gc);
-        }
-        (lo, hi)
+        let (lo, hi) = self.microquad_ndc_box(p, ex, ey);
+        (grid.grid_coords(lo), grid.grid_coords(hi))
+    }
+
+    /// [`Self::microquad_ndc_box`] of every receiver of `g` (`skips`
+    /// decides which pixels are: [`super::is_receiver`]), computed once
+    /// per frame for the bin's receiver registration and evaluate.
+    pub fn microquad_boxes(&self, g: &GBuffer, skips: super::Skips) -> MicroquadBoxes {
+        let boxes: Vec<(Vec2, Vec2)> = (0..g.flags.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|i| {
+                if super::is_receiver(g.flags[i], skips) {
+                    self.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i])
+                } else {
+                    (Vec2::NAN, Vec2::NAN)
+                }
+            })
+            .collect();
+        MicroquadBoxes { ndc: boxes }
     }
 
     /// Where the light is, seen from the eye-relative point `p`, in eye
@@ -260,6 +297,24 @@ impl LightSetup {
             Projection::Orthographic => LightRel::Toward(self.rotation.row(2)),
             Projection::Perspective => LightRel::At(self.origin - p),
         }
+    }
+}
+
+/// Per pixel, the light-NDC box of its µQuad
+/// ([`LightSetup::microquad_ndc_box`]; NaN for pixels that are not
+/// receivers): the µQuad projection the bin and evaluate both need, so the
+/// four corners are projected once per frame, not once per pass.
+pub struct MicroquadBoxes {
+    pub ndc: Vec<(Vec2, Vec2)>,
+}
+
+impl MicroquadBoxes {
+    /// Pixel `i`'s box in `grid`'s coordinates
+    /// ([`LightSetup::microquad_grid_box`]).
+    #[inline]
+    pub fn grid_box(&self, grid: &CascadeGrid, i: usize) -> (Vec2, Vec2) {
+        let (lo, hi) = self.ndc[i];
+        (grid.grid_coords(lo), grid.grid_coords(hi))
     }
 }
 

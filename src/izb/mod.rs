@@ -190,11 +190,12 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let setup = light_setup(scene, &g, settings.grid_request());
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
-    let cull_behind = settings.skips.behind_receivers.then_some(&g);
+    let boxes = setup.microquad_boxes(&g, settings.skips);
+    let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::new(settings.mode, settings.skips);
-    let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &rule);
+    let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule);
     seconds.evaluate = lap();
     let visibility = resolve(&masks, &g);
     seconds.resolve = lap();

@@ -6,7 +6,7 @@
 //! `STEP_RECEIVERS` and `behind_receivers` in `shaders/bin.comp`.
 
 use super::footprint::{cell_range_at, CELL_PADDING};
-use super::light_setup::{level_scale, CascadeGrid, LightSetup, Projection};
+use super::light_setup::{level_scale, CascadeGrid, LightSetup, MicroquadBoxes, Projection};
 use super::{is_receiver, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -55,13 +55,14 @@ impl CellReceivers {
 }
 
 /// [`CellReceivers`] of the receivers of `g` (`None` for a disabled
-/// grid), on each level of each receiver's own cascade's pyramid that
+/// grid), their µQuads' boxes taken from `boxes`, on each level of each receiver's own cascade's pyramid that
 /// `levels` (per cascade, bit l = level l) names, every level with `None`:
 /// at level l a receiver's µQuad box and reach are those of level 0 scaled
 /// by 2⁻ˡ. Cells of other levels stay empty (the bin never reads them).
 pub fn cell_receivers(
     setup: &LightSetup,
     g: &GBuffer,
+    boxes: &MicroquadBoxes,
     skips: Skips,
     levels: Option<&[u32]>,
 ) -> Option<CellReceivers> {
@@ -71,22 +72,30 @@ pub fn cell_receivers(
     let projection = setup.projection;
     let cells = setup.total_cells();
     // One partial array per thread, merged once: a split per 64 k pixels
-    // would allocate and merge a whole pyramid's arrays each time.
-    let per_thread = g.flags.len().div_ceil(rayon::current_num_threads()).max(1);
-    let receivers = (0..g.flags.len())
+    // would allocate and merge a whole pyramid's arrays each time. Split
+    // over the receivers, not the pixels: the sky rows at the top of an
+    // image would leave one thread with most of the work (measured at
+    // 1080p: deckchair 0.079 → 0.042 s, the threads finishing together).
+    let list: Vec<usize> = (0..g.flags.len())
         .into_par_iter()
-        .with_min_len(per_thread)
-        .fold(
-            || CellReceivers::empty(cells, projection),
-            |mut out, i| {
-                if !is_receiver(g.flags[i], skips) {
-                    return out;
-                }
+        .with_min_len(4096)
+        .filter(|&i| is_receiver(g.flags[i], skips))
+        .collect();
+    let per_thread = list.len().div_ceil(rayon::current_num_threads()).max(1);
+    let level_cells: Vec<_> = setup
+        .cascades
+        .iter()
+        .map(CascadeGrid::level_table)
+        .collect();
+    let receivers = list
+        .par_chunks(per_thread)
+        .map(|chunk| {
+            let mut out = CellReceivers::empty(cells, projection);
+            for &i in chunk {
                 let k = setup.cascade_of(g.position[i]);
                 let grid = &setup.cascades[k];
                 let wanted = levels.map_or(u32::MAX, |l| l[k]);
-                let (lo, hi) =
-                    setup.microquad_grid_box(grid, g.position[i], g.axis_x[i], g.axis_y[i]);
+                let (lo, hi) = boxes.grid_box(grid, i);
                 let z = receiver_key(projection, setup.to_light_view(g.position[i]));
                 for level in (0..grid.levels).filter(|l| wanted & (1 << l) != 0) {
                     let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
@@ -94,7 +103,7 @@ pub fn cell_receivers(
                     };
                     let s = level_scale(level);
                     let reach = receiver_reach(lo * s, hi * s);
-                    let cells = grid.level(level);
+                    let cells = level_cells[k][level as usize];
                     for y in y0..=y1 {
                         for x in x0..=x1 {
                             let c = cells.index(x, y);
@@ -103,9 +112,9 @@ pub fn cell_receivers(
                         }
                     }
                 }
-                out
-            },
-        )
+            }
+            out
+        })
         .reduce(
             || CellReceivers::empty(cells, projection),
             CellReceivers::merge,
