@@ -12,6 +12,7 @@
 
 pub mod baseline;
 pub mod bench;
+pub mod cli;
 pub mod gbuffer;
 pub mod gpu;
 pub mod izb;

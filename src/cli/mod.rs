@@ -1,0 +1,158 @@
+//! The `izb` command line's commands, as library code: each command's
+//! arguments (clap) and the function that runs it. `src/bin/izb.rs` only
+//! parses and dispatches. Every command takes a `SCENE`: a procedural
+//! scene's name (default: `default`) or a path to a `*.scene.json` spec.
+
+pub mod bench;
+pub mod reference;
+pub mod render;
+pub mod tools;
+
+use crate::izb::{CascadeCount, IzbSettings};
+use crate::reference::bvh::SceneBvh;
+use crate::reference::{reference, ReferenceImage, ReferenceSettings};
+use crate::scene::{self, Scene};
+use anyhow::Result;
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct SceneArgs {
+    /// Procedural scene name (default, wires, hairball, city, grazing, far,
+    /// analytic) or path to a *.scene.json spec.
+    #[arg(default_value = "default")]
+    scene: String,
+    /// Image size WxH, overriding the scene's.
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<[u32; 2]>,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    /// Vulkan when a device opens, else the CPU (saying why).
+    Auto,
+    /// The Vulkan backend (ash); fails if no device opens.
+    Vulkan,
+    /// The CPU twin (rayon).
+    Cpu,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BenchBackend {
+    Cpu,
+    Vulkan,
+    Both,
+}
+
+/// Grid, overflow and cascade choices of a render.
+#[derive(Args, Clone)]
+pub struct GridArgs {
+    /// Cell budget of the light-space grids as the side of a square (200:
+    /// 40 000 cells, square in light space whatever the footprint's shape),
+    /// shared between the cascades in proportion to their pixels (default:
+    /// from the pixel and triangle counts).
+    #[arg(long)]
+    cells: Option<u32>,
+    /// A triangle is binned at the finest grid-pyramid level where its
+    /// cell rectangle holds at most this many cells (default 1024).
+    #[arg(long)]
+    level_cells: Option<u32>,
+    /// Sample-distribution cascades: auto (as few as the view-depth range
+    /// needs) or 1..4.
+    #[arg(long, default_value = "auto", value_parser = CascadeCount::parse)]
+    cascades: CascadeCount,
+    /// Cascade split blend: 1 logarithmic, 0 uniform.
+    #[arg(long, default_value_t = 1.0)]
+    split_lambda: f32,
+}
+
+impl GridArgs {
+    fn apply(&self, settings: IzbSettings) -> Result<IzbSettings> {
+        anyhow::ensure!(
+            (0.0..=1.0).contains(&self.split_lambda),
+            "--split-lambda must be in 0..=1, not {}",
+            self.split_lambda
+        );
+        anyhow::ensure!(
+            self.level_cells != Some(0) && self.cells != Some(0),
+            "--level-cells and --cells must be at least 1"
+        );
+        Ok(IzbSettings {
+            cells: self.cells,
+            level_cells: self.level_cells,
+            cascades: self.cascades,
+            split_lambda: self.split_lambda,
+            ..settings
+        })
+    }
+}
+
+pub fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}': expected WxH, e.g. 960x540"))?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("'{s}': {e}"));
+    Ok([parse(w)?, parse(h)?])
+}
+
+pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
+    let mut scene = scene::load(&args.scene)?;
+    if let Some(r) = args.resolution {
+        scene = scene.with_resolution(r)?;
+    }
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        anyhow::ensure!(n > 0, "--threads must be at least 1");
+        b = b.num_threads(n);
+    }
+    Ok(b.build()?)
+}
+
+pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {percent}% {elapsed_precise} (eta {eta})")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// Builds the BVH and traces the reference, with a progress bar.
+pub fn trace_reference(
+    scene: &Scene,
+    settings: ReferenceSettings,
+) -> (ReferenceImage, SceneBvh, f64) {
+    let t = Instant::now();
+    let bvh = SceneBvh::build(scene);
+    let bvh_seconds = t.elapsed().as_secs_f64();
+    let bar = progress_bar(
+        scene.pixel_count() as u64,
+        &format!("reference {}", scene.name),
+    );
+    let image = reference(scene, &bvh, settings, &|n| bar.inc(n));
+    bar.finish_and_clear();
+    (image, bvh, bvh_seconds)
+}
+
+pub fn scene_summary(scene: &Scene) -> serde_json::Value {
+    serde_json::json!({
+        "name": scene.name,
+        "resolution": scene.resolution,
+        "triangles": scene.triangles.len(),
+        "source_triangles": scene.stats.source_triangles,
+        "dropped_degenerate_triangles": scene.stats.dropped_degenerate,
+        "skipped_non_triangle_primitives": scene.stats.skipped_non_triangle_primitives,
+        "camera": scene.camera,
+        "light": scene.light,
+    })
+}

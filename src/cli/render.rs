@@ -1,0 +1,258 @@
+//! `izb render`: one shadow mask, on Vulkan or the CPU twin.
+
+use super::{load_scene, scene_summary, thread_pool, Backend, GridArgs, SceneArgs};
+use crate::gpu::{GBufferSource, GpuOptions, GpuRenderer};
+use crate::izb::{render_cpu, IzbSettings, SampleMode, Skips};
+use crate::output::{
+    write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
+};
+use crate::reference::bvh::SceneBvh;
+use crate::scene::Scene;
+use anyhow::{Context, Result};
+use clap::builder::TypedValueParser;
+use clap::Args;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Visibility samples per pixel: 32 (µQuad frustum test) or 1 (point test).
+    #[arg(long, default_value_t = 32, value_parser = clap::builder::PossibleValuesParser::new(["32", "1"]).map(|s| s.parse::<u32>().expect("listed values")))]
+    spp: u32,
+    /// Evaluate every edge function at every sample instead of the LUT.
+    #[arg(long)]
+    exact: bool,
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    backend: Backend,
+    /// Vulkan device index (see `izb devices`; default: the best one).
+    #[arg(long)]
+    device: Option<usize>,
+    #[command(flatten)]
+    grid: GridArgs,
+    /// Exact shortcuts to take: all, none, or a comma-separated list of
+    /// facing-away, outside-bounds, full-mask, saturated-edges,
+    /// behind-receivers, shadow-map.
+    #[arg(long, default_value = "all")]
+    skip: Skips,
+    /// Output folder.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+pub fn mode_for(spp: u32, exact: bool) -> SampleMode {
+    match (spp, exact) {
+        (1, _) => SampleMode::One,
+        (_, true) => SampleMode::Exact32,
+        _ => SampleMode::Lut32,
+    }
+}
+
+pub fn run_render(args: RenderArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
+    anyhow::ensure!(
+        !(args.exact && args.spp == 1),
+        "--exact applies to 32 spp; 1 spp is always an exact point test"
+    );
+    let settings = args.grid.apply(IzbSettings {
+        mode: mode_for(args.spp, args.exact),
+        skips: args.skip,
+        ..Default::default()
+    })?;
+    let renderer = match args.backend {
+        Backend::Cpu => None,
+        Backend::Vulkan | Backend::Auto => {
+            let options = GpuOptions {
+                device_index: args.device,
+                ..GpuOptions::from_env()
+            };
+            match GpuRenderer::new(&options) {
+                Ok(r) => Some(r),
+                Err(e) if args.backend == Backend::Auto => {
+                    eprintln!("backend: cpu ({e})");
+                    None
+                }
+                Err(e) => return Err(e).context("--backend vulkan"),
+            }
+        }
+    };
+    match renderer {
+        Some(r) => match render_on_gpu(&r, &scene, settings, &args) {
+            // lavapipe refuses frames its loop cap would cut short: with
+            // --backend auto the CPU renders the same masks instead.
+            Err(e) if args.backend == Backend::Auto && is_loop_cap(&e) => {
+                eprintln!("backend: cpu ({e:#})");
+                render_on_cpu(&scene, settings, &args)
+            }
+            other => other,
+        },
+        None => render_on_cpu(&scene, settings, &args),
+    }
+}
+
+pub fn is_loop_cap(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        matches!(
+            c.downcast_ref::<crate::gpu::GpuError>(),
+            Some(crate::gpu::GpuError::LoopCap { .. })
+        )
+    })
+}
+
+/// Writes `visibility.exr` (lit fraction + masks) and `visibility.png`.
+pub fn write_mask_outputs(
+    out: &Path,
+    scene: &Scene,
+    visibility: &[f32],
+    masks: &[u32],
+) -> Result<()> {
+    let [w, h] = scene.resolution;
+    write_exr_with_masks(
+        &out.join("visibility.exr"),
+        w,
+        h,
+        &[("visibility", visibility)],
+        &[("mask", masks)],
+    )?;
+    write_visibility_png(&out.join("visibility.png"), w, h, visibility)
+}
+
+/// The one-line summary of a render: cascades and grids, binning, tests,
+/// timing.
+#[allow(clippy::too_many_arguments)]
+pub fn print_render_summary(
+    scene: &Scene,
+    mode: SampleMode,
+    backend: &str,
+    [binned, overflow, culled]: [u64; 3],
+    grids: &[([u32; 2], u32)],
+    cascade_reason: &str,
+    tests: u64,
+    timing: &str,
+    out: &Path,
+) {
+    let [w, h] = scene.resolution;
+    let grids: Vec<String> = grids
+        .iter()
+        .map(|([x, y], cap)| format!("{x}x{y} pyramid (≤ {cap} cells per triangle)"))
+        .collect();
+    println!(
+        "render {} ({mode:?}, {backend}): {w}x{h}, {} triangles ({binned} placements binned, \
+         {overflow} overflow, {culled} culled), {} cascade(s) ({cascade_reason}): {}, {tests} tests, \
+         {timing} -> {}",
+        scene.name,
+        scene.triangles.len(),
+        grids.len(),
+        grids.join(" + "),
+        out.display()
+    );
+}
+
+pub fn render_on_gpu(
+    renderer: &GpuRenderer,
+    scene: &Scene,
+    settings: IzbSettings,
+    args: &RenderArgs,
+) -> Result<()> {
+    eprintln!(
+        "backend: vulkan ({}, {})",
+        renderer.context.info().name,
+        renderer.context.info().kind
+    );
+    let render = renderer.render(scene, settings, GBufferSource::Gpu)?;
+    let messages = renderer.take_validation_messages();
+    for m in &messages {
+        eprintln!("validation: {m}");
+    }
+    let [w, h] = scene.resolution;
+    write_mask_outputs(&args.out, scene, &render.visibility, &render.masks)?;
+    let shaded =
+        image::RgbImage::from_raw(w, h, render.shaded.concat()).context("shaded image size")?;
+    write_png(&args.out.join("shaded.png"), &shaded)?;
+    let report = serde_json::json!({
+        "command": "render",
+        "backend": "vulkan",
+        "scene": scene_summary(scene),
+        "render": render.report,
+        "validation_messages": messages,
+    });
+    write_json(&args.out.join("report.json"), &report)?;
+    let r = &render.report;
+    let ms = r
+        .gpu_milliseconds
+        .as_ref()
+        .map_or("no timestamps".to_string(), |m| {
+            format!("GPU {:.3} ms (evaluate {:.3} ms)", m.total, m.evaluate)
+        });
+    let c = &r.counters;
+    print_render_summary(
+        scene,
+        settings.mode,
+        "vulkan",
+        [c.triangles_binned, c.overflow, c.culled].map(u64::from),
+        &r.light
+            .cascades
+            .iter()
+            .map(|g| (g.cells, g.level_cells))
+            .collect::<Vec<_>>(),
+        &r.light.cascade_choice.reason,
+        c.tests_spawned,
+        &format!(
+            "{ms}, {:.1} MiB",
+            r.memory_total_bytes as f64 / (1024.0 * 1024.0)
+        ),
+        &args.out,
+    );
+    Ok(())
+}
+
+pub fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) -> Result<()> {
+    let pool = thread_pool(args.threads)?;
+    let (render, bvh_seconds) = pool.install(|| {
+        let t = Instant::now();
+        let bvh = SceneBvh::build(scene);
+        let bvh_seconds = t.elapsed().as_secs_f64();
+        (render_cpu(scene, &bvh, settings), bvh_seconds)
+    });
+    write_mask_outputs(&args.out, scene, &render.visibility, &render.masks)?;
+    let light = scene.light.relative_to(scene.camera.eye);
+    write_shaded_png(
+        &args.out.join("shaded.png"),
+        &render.gbuffer,
+        &light,
+        &render.visibility,
+    )?;
+    let report = serde_json::json!({
+        "command": "render",
+        "backend": "cpu",
+        "scene": scene_summary(scene),
+        "threads": pool.current_num_threads(),
+        "bvh_build_seconds": bvh_seconds,
+        "render": render.report,
+    });
+    write_json(&args.out.join("report.json"), &report)?;
+    let r = &render.report;
+    print_render_summary(
+        scene,
+        settings.mode,
+        "cpu",
+        [r.bin.binned, r.bin.overflow, r.bin.culled].map(|n| n as u64),
+        &r.light
+            .cascades
+            .iter()
+            .map(|g| (g.cells, g.level_cells))
+            .collect::<Vec<_>>(),
+        &r.light.cascade_choice.reason,
+        r.evaluate.tests_spawned,
+        &format!(
+            "{:.3} s (evaluate {:.3} s)",
+            r.seconds.total, r.seconds.evaluate
+        ),
+        &args.out,
+    );
+    Ok(())
+}

@@ -1,0 +1,116 @@
+//! The small commands: `izb lut`, `izb report`, `izb info`, `izb devices`.
+
+use super::{load_scene, scene_summary, SceneArgs};
+use crate::izb::IzbSettings;
+use anyhow::Result;
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct InfoArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Also print the device memory a GPU frame allocates, per pass (no
+    /// device needed).
+    #[arg(long)]
+    gpu_memory: bool,
+}
+
+#[derive(Args)]
+pub struct LutArgs {
+    /// Angle cells of the table.
+    #[arg(long, default_value_t = crate::lut::DEFAULT_ANGLES)]
+    angles: u32,
+    /// Signed-distance cells of the table.
+    #[arg(long, default_value_t = crate::lut::DEFAULT_DISTANCES)]
+    distances: u32,
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+pub struct ReportArgs {
+    /// A JSON file written by `izb bench`.
+    #[arg(default_value = "out/bench.json")]
+    bench: PathBuf,
+    /// Folder for the charts, crops and index.html.
+    #[arg(long, default_value = "out/report")]
+    out: PathBuf,
+}
+
+pub fn run_report(args: ReportArgs) -> Result<()> {
+    let files = crate::report::report(&args.bench, &args.out)?;
+    for v in &files.verdicts {
+        println!(
+            "{} ({}): izb32 vs {:<16} penumbra MAE {:+.4}, MAE {:+.5}, time {:.2}x izb32{}",
+            v.scene,
+            v.backend,
+            v.shadow_map,
+            v.penumbra_mae_margin,
+            v.mae_margin,
+            v.time_ratio,
+            if v.izb_more_accurate() {
+                ""
+            } else {
+                "  <- not more accurate"
+            }
+        );
+    }
+    println!(
+        "report: {} charts, {} crops -> {}",
+        files.charts.len(),
+        files.crops.len(),
+        files.index.display()
+    );
+    Ok(())
+}
+
+pub fn run_lut(args: LutArgs) -> Result<()> {
+    let stats = crate::lut::regenerate(args.angles, args.distances, &args.out)?;
+    println!("{stats:#?}");
+    println!(
+        "wrote {} and {}",
+        args.out.join("edge_lut.bin").display(),
+        args.out.join("edge_lut.png").display()
+    );
+    Ok(())
+}
+
+pub fn run_info(args: InfoArgs) -> Result<()> {
+    let scene = load_scene(&args.scene)?;
+    let (lo, hi) = scene.bounds();
+    let mut summary = scene_summary(&scene);
+    summary["bounds"] = serde_json::json!({"min": lo, "max": hi});
+    if args.gpu_memory {
+        let plan = crate::gpu::frame::planned_memory(&scene, IzbSettings::default())?;
+        let total: u64 = plan.iter().map(|m| m.bytes).sum();
+        let (p, t) = (scene.pixel_count() as u64, scene.triangles.len() as u64);
+        summary["gpu_memory"] = serde_json::json!({
+            "per_pass": plan,
+            "total_bytes": total,
+            "total_mib": total as f64 / (1024.0 * 1024.0),
+            "budget_bytes_64_per_pixel_plus_64_per_triangle": 64 * (p + t),
+            "bytes_per_pixel_plus_triangle": total as f64 / (p + t).max(1) as f64,
+        });
+    }
+    println!("{}", serde_json::to_string_pretty(&summary)?);
+    Ok(())
+}
+
+pub fn run_devices() -> Result<()> {
+    let devices = crate::gpu::list_devices()?;
+    if devices.is_empty() {
+        println!("no Vulkan 1.2 device with compute and the scalar block layout");
+    }
+    for d in devices {
+        println!(
+            "{}: {} ({}, Vulkan {}, max storage buffer {} MiB)",
+            d.index,
+            d.name,
+            d.kind,
+            d.api_version,
+            d.max_storage_buffer_range / (1 << 20)
+        );
+    }
+    Ok(())
+}
