@@ -19,6 +19,9 @@ pub mod bin;
 pub mod context;
 pub mod evaluate;
 pub mod frame;
+pub mod frame_inputs;
+pub mod frame_memory;
+pub mod frame_report;
 pub mod gbuffer;
 pub mod light_setup;
 pub mod pipeline;
@@ -27,9 +30,11 @@ pub mod resources;
 pub mod shadow_map;
 pub mod shadow_rays;
 pub mod shared;
+mod timestamps;
 
 pub use context::{list_devices, DeviceInfo, GpuContext, GpuOptions};
-pub use frame::{GBufferSource, GpuRender, GpuRenderReport, GpuRenderer};
+pub use frame::{GBufferSource, GpuRenderer};
+pub use frame_report::{GpuRender, GpuRenderReport};
 
 use ash::vk;
 use pipeline::{BindingLayout, ComputeKernel};

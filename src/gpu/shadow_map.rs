@@ -3,9 +3,16 @@
 //! [`crate::baseline::shadow_map::shadow_map`] and
 //! [`crate::baseline::shadow_map::shadow_lookup`], run after the IZB's own
 //! G-buffer and light-setup passes in a frame of their own
-//! ([`super::frame::GpuRenderer::render_shadow_map`]).
+//! ([`GpuRenderer::render_shadow_map`], below).
 
-use super::{Kernels, Recorder};
+use super::frame::{FramePasses, GBufferSource, GpuRenderer, GpuShadowMapRender};
+use super::frame_inputs::LLVMPIPE_LOOP_CAP;
+use super::shared::{self, counter};
+use super::{GpuError, Kernels, Recorder};
+use crate::baseline::ShadowMapSettings;
+use crate::gbuffer::flags;
+use crate::izb::IzbSettings;
+use crate::scene::Scene;
 
 /// Most workgroups along x (the Vulkan minimum of
 /// `maxComputeWorkGroupCount[0]`); more triangles go on in y.
@@ -26,4 +33,81 @@ pub fn shadow_lookup(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
     rec.dispatch_pixels(&kernels.shadow_lookup, size);
     rec.barrier();
     rec.end_label();
+}
+
+impl GpuRenderer {
+    /// Renders the shadow-map baseline `map` on the GPU: the IZB's
+    /// G-buffer and light setup (with `map.cascades` cascades), then the
+    /// raster and lookup passes; the twin of
+    /// [`crate::baseline::render_shadow_map`].
+    pub fn render_shadow_map(
+        &self,
+        scene: &Scene,
+        map: ShadowMapSettings,
+        source: GBufferSource,
+    ) -> Result<GpuShadowMapRender, GpuError> {
+        let limits = &self.shared().limits;
+        let passes = FramePasses::ShadowMap(map);
+        let map_bytes = passes.shadow_map_texels() * 4;
+        let range = u64::from(limits.max_storage_buffer_range);
+        if map_bytes > range {
+            return Err(GpuError::Unsupported(format!(
+                "{map}: {} MiB of maps, above this device's {} MiB storage-buffer range",
+                map_bytes >> 20,
+                range >> 20
+            )));
+        }
+        let upload = self.prepare_frame(scene, source)?;
+        let bvh = match source {
+            GBufferSource::Gpu => super::gbuffer::build_bvh(&upload.triangles)?,
+            GBufferSource::Upload(_) => super::gbuffer::GpuBvh {
+                nodes: Vec::new(),
+                prims: Vec::new(),
+                depth: 0,
+            },
+        };
+        // The light setup the CPU baseline asks for: `map.cascades` fixed
+        // cascades; the 8×8 grid is unused.
+        let settings = IzbSettings {
+            cells: Some(8),
+            cascades: crate::izb::CascadeCount::Fixed(map.cascades),
+            ..Default::default()
+        };
+        let max_cells = crate::izb::cascades::max_total_cells(8);
+        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
+        let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
+        if trips != 0 {
+            return Err(GpuError::LoopCap {
+                device: self.context.info().name.clone(),
+                cap: LLVMPIPE_LOOP_CAP,
+                trips,
+            });
+        }
+        if out.light.grid_disabled != 0 {
+            return Err(GpuError::Unsupported(format!(
+                "{map} on {}: the receivers surround the point light, which one shadow-map frustum cannot hold (a cube map would)",
+                scene.name
+            )));
+        }
+        let visibility = out
+            .masks
+            .iter()
+            .zip(&out.id_flags)
+            .map(|(&m, &word)| {
+                let (_, flags) = shared::unpack_id_flags(word);
+                if flags & flags::SHADOW_TESTED != 0 {
+                    f32::from_bits(m)
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect();
+        Ok(GpuShadowMapRender {
+            visibility,
+            gpu_milliseconds: out.millis,
+            wall_seconds: out.wall_seconds,
+            map_bytes,
+            memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
+        })
+    }
 }

@@ -6,7 +6,8 @@
 //! slot, followed by resolve
 //! ([`GpuRenderer::render_shadow_rays`]).
 
-use super::frame::{FramePasses, GBufferSource, GpuPassMillis, GpuRenderer};
+use super::frame::{FramePasses, GBufferSource, GpuRenderer};
+use super::frame_report::GpuPassMillis;
 use super::shared::{self, counter};
 use super::{GpuError, Kernels, Recorder};
 use crate::gbuffer::flags;

@@ -1,0 +1,167 @@
+//! What a frame uploads besides the G-buffer: the scene as the GPU
+//! receives it and the frame's parameters, with the per-device loop
+//! budget.
+
+use super::shared::{self, FrameParams, GpuTriangle};
+use super::GpuError;
+use crate::gbuffer::{flags, GBuffer, MAX_MICROQUAD_STRETCH};
+use crate::izb::light_setup::directional_rotation;
+use crate::izb::{IzbSettings, SampleMode};
+use crate::scene::{Light, Scene};
+use glam::Vec3;
+
+/// The scene as the GPU receives it, built once per render (a capacity
+/// rerun reuses it): eye-relative `f32` vertices and the unit normals the
+/// CPU twin computes from the `f64` vertices, rounded.
+pub(super) struct SceneUpload {
+    pub(super) triangles: Vec<GpuTriangle>,
+    pub(super) normals: Vec<[f32; 3]>,
+}
+
+impl SceneUpload {
+    pub(super) fn new(scene: &Scene) -> Self {
+        let eye_relative = scene.eye_relative_triangles();
+        SceneUpload {
+            triangles: eye_relative
+                .iter()
+                .map(|t| GpuTriangle {
+                    v: t.map(|v| v.as_vec3().to_array()),
+                })
+                .collect(),
+            normals: eye_relative
+                .iter()
+                .map(|t| {
+                    (t[1] - t[0])
+                        .cross(t[2] - t[0])
+                        .normalize()
+                        .as_vec3()
+                        .to_array()
+                })
+                .collect(),
+        }
+    }
+
+    /// The camera-facing normal of a receiver on triangle `id` with GPU
+    /// G-buffer flags `gpu_flags` (zero for a miss).
+    pub(super) fn receiver_normal(&self, id: u32, gpu_flags: u32) -> Vec3 {
+        match self.normals.get(id as usize) {
+            None => Vec3::ZERO,
+            Some(&n) if gpu_flags & shared::FLAG_NORMAL_FLIPPED != 0 => -Vec3::from(n),
+            Some(&n) => Vec3::from(n),
+        }
+    }
+
+    /// The GPU G-buffer words of a CPU G-buffer: id, flags, and whether the
+    /// CPU's normal is its triangle's negated. The CPU twin computes the
+    /// same `f64` normal and rounds it the same way, so anything but an
+    /// exact match up to sign is an inconsistent upload.
+    pub(super) fn gbuffer_words(&self, g: &GBuffer) -> Result<Vec<u32>, GpuError> {
+        (0..g.triangle_id.len())
+            .map(|i| {
+                let (id, f) = (g.triangle_id[i], g.flags[i]);
+                let mut gpu_flags = f;
+                if f & flags::HIT != 0 {
+                    let stored = self.normals.get(id as usize).map(|&n| Vec3::from(n));
+                    match stored {
+                        Some(n) if n == g.normal[i] => {}
+                        Some(n) if -n == g.normal[i] => gpu_flags |= shared::FLAG_NORMAL_FLIPPED,
+                        _ => {
+                            return Err(GpuError::Unsupported(format!(
+                                "uploaded G-buffer: pixel {i}'s normal {} is not triangle {id}'s                                  normal up to sign",
+                                g.normal[i]
+                            )))
+                        }
+                    }
+                }
+                Ok(shared::pack_id_flags(id, gpu_flags))
+            })
+            .collect()
+    }
+}
+
+fn mode_code(mode: SampleMode) -> u32 {
+    match mode {
+        SampleMode::One => shared::mode::ONE,
+        SampleMode::Lut32 => shared::mode::LUT32,
+        SampleMode::Exact32 => shared::mode::EXACT32,
+    }
+}
+
+/// lavapipe's gallivm stops every loop of a shader invocation once they
+/// have run this many iterations in total (`LP_MAX_TGSI_LOOP_ITERATIONS`).
+pub const LLVMPIPE_LOOP_CAP: u32 = 65535;
+
+/// `FrameParams::loop_budget` for a device: below llvmpipe's cap with room
+/// for the shader's other loops, unbounded on every other driver.
+pub(super) fn loop_budget(device_name: &str) -> u32 {
+    if device_name.contains("llvmpipe") {
+        LLVMPIPE_LOOP_CAP - 1024
+    } else {
+        u32::MAX
+    }
+}
+
+/// The largest cell budget (as a square's side) the light setup may choose:
+/// its upper bound, every receiver being a pixel.
+pub(super) fn grid_budget_side(pixels: usize, triangles: usize, hint: Option<u32>) -> u32 {
+    hint.unwrap_or_else(|| crate::izb::light_setup::default_grid_side(pixels, triangles))
+}
+
+/// `FrameParams` for `scene`: camera rays as affine functions of the pixel
+/// coordinates, the light, the directional light-view rotation (the CPU
+/// twin's matrix, f64 then f32), the mode, the LUT and the pattern.
+pub(super) fn frame_params(
+    scene: &Scene,
+    settings: IzbSettings,
+    triangles: usize,
+    max_cells: u64,
+    cell_capacity: u64,
+    loop_budget: u32,
+) -> FrameParams {
+    let frame = scene.camera.frame(scene.resolution);
+    let corner = frame.direction(0.0, 0.0);
+    let light = scene.light.relative_to(scene.camera.eye);
+    let (light_vec, is_point, rotation) = match light {
+        Light::Directional { direction } => {
+            ((-direction).as_vec3(), 0, directional_rotation(direction))
+        }
+        Light::Point { position } => (position.as_vec3(), 1, glam::Mat3::IDENTITY),
+    };
+    let lut = crate::lut::edge_lut();
+    let rows = rotation.transpose();
+    FrameParams {
+        cam_corner: corner.as_vec3().to_array(),
+        near: scene.camera.near as f32,
+        cam_dx: frame.direction_dx().as_vec3().to_array(),
+        far: scene.camera.far as f32,
+        cam_dy: frame.direction_dy().as_vec3().to_array(),
+        max_stretch: MAX_MICROQUAD_STRETCH as f32,
+        light_vec: light_vec.to_array(),
+        light_is_point: is_point,
+        rot_x: rows.x_axis.to_array(),
+        width: scene.resolution[0],
+        rot_y: rows.y_axis.to_array(),
+        height: scene.resolution[1],
+        rot_z: rows.z_axis.to_array(),
+        triangle_count: triangles as u32,
+        mode: mode_code(settings.mode),
+        cells_hint: settings.cells.unwrap_or(0),
+        level_cells: settings.level_cells.unwrap_or(0),
+        cell_capacity: cell_capacity.min(u64::from(u32::MAX)) as u32,
+        lut_angle_scale: lut.angle_scale_f32(),
+        lut_distance_scale: lut.distance_scale_f32(),
+        lut_angles: lut.angles,
+        lut_distances: lut.distances,
+        max_cells: max_cells as u32,
+        loop_budget,
+        skips: settings.skips.bits(),
+        pattern_radius: crate::izb::frustum::pattern_radius(crate::lut::sample_pattern()),
+        cam_forward: frame.forward.as_vec3().to_array(),
+        cascades: settings.cascades.code(),
+        split_lambda: settings.split_lambda,
+        map_side: 0,
+        map_filter: 0,
+        map_reach: 0,
+        pattern: *crate::lut::sample_pattern(),
+    }
+}

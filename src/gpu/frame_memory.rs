@@ -1,0 +1,103 @@
+//! A frame's device buffers by intent: sizes per binding, grouped per
+//! pass for the report and for `izb info --gpu-memory` (no device needed).
+
+use super::frame_inputs::{grid_budget_side, SceneUpload};
+use super::frame_report::PassMemory;
+use super::resources::{BufferDesc, GpuBuffer};
+use super::shared::{binding, counter, FrameParams, LightState};
+use super::GpuError;
+use crate::izb::IzbSettings;
+use crate::scene::Scene;
+
+/// The sizes that decide a frame's buffers.
+pub struct FrameSizes {
+    pub pixels: u64,
+    pub triangles: u64,
+    pub bvh_nodes: u64,
+    pub bvh_prims: u64,
+    pub max_cells: u64,
+    pub cell_capacity: u64,
+    pub lut_entries: u64,
+    /// Texels of every cascade's shadow map (0 in an IZB frame).
+    pub shadow_map_texels: u64,
+}
+
+/// Every device buffer of a frame, in binding order (`shared::binding`),
+/// each with the pass it counts toward and its size.
+pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usize] {
+    let (p, t, vec3) = (z.pixels, z.triangles, 12u64);
+    [
+        BufferDesc::device("frame", "frame_params", size_of::<FrameParams>() as u64),
+        BufferDesc::device("scene", "triangles", t * 36),
+        BufferDesc::device("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
+        BufferDesc::device("gbuffer", "bvh_prims", z.bvh_prims * 4),
+        BufferDesc::device("gbuffer", "g_position", p * vec3),
+        BufferDesc::device("gbuffer", "g_axis_x", p * vec3),
+        BufferDesc::device("gbuffer", "g_axis_y", p * vec3),
+        BufferDesc::device("gbuffer", "g_id_flags", p * 4),
+        BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
+        BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
+        BufferDesc::device("bin", "cell_cover", z.max_cells * 8),
+        BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
+        BufferDesc::device("bin", "cell_triangles", z.cell_capacity * 4),
+        BufferDesc::device("bin", "overflow", t * 4),
+        BufferDesc::device("evaluate", "edge_lut", z.lut_entries * 4),
+        BufferDesc::device("evaluate", "masks", p * 4),
+        BufferDesc::device("resolve", "shaded_and_lit_samples", p * 4),
+        BufferDesc::device("scene", "triangle_normals", t * vec3),
+        BufferDesc::device("bin", "cell_receivers", z.max_cells * 8),
+        BufferDesc::device("shadow_map", "shadow_maps", z.shadow_map_texels.max(1) * 4),
+    ]
+}
+
+/// The device memory a GPU frame of `scene` allocates before it runs (the
+/// cell list at its first guess), per pass, without a device: for budgets
+/// on machines that cannot run the frame.
+pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMemory>, GpuError> {
+    let triangles = SceneUpload::new(scene).triangles;
+    let bvh = super::gbuffer::build_bvh(&triangles)?;
+    let side = grid_budget_side(scene.pixel_count(), triangles.len(), settings.cells);
+    let descs = frame_buffer_descs(&FrameSizes {
+        pixels: scene.pixel_count() as u64,
+        triangles: triangles.len() as u64,
+        bvh_nodes: bvh.nodes.len() as u64,
+        bvh_prims: bvh.prims.len() as u64,
+        max_cells: crate::izb::cascades::max_total_cells(side),
+        cell_capacity: initial_cell_capacity(triangles.len()),
+        lut_entries: crate::lut::edge_lut().masks.len() as u64,
+        shadow_map_texels: 0,
+    });
+    Ok(group_by_pass(descs.iter().map(|d| {
+        (d.pass, d.name, d.size.max(4).next_multiple_of(4))
+    })))
+}
+
+/// Sums buffer sizes per owning pass, keeping each buffer's own size.
+pub(super) fn group_by_pass(
+    buffers: impl Iterator<Item = (&'static str, &'static str, u64)>,
+) -> Vec<PassMemory> {
+    let mut out: Vec<PassMemory> = Vec::new();
+    for (pass, name, size) in buffers {
+        match out.iter_mut().find(|m| m.pass == pass) {
+            Some(m) => {
+                m.bytes += size;
+                m.buffers.push((name, size));
+            }
+            None => out.push(PassMemory {
+                pass,
+                bytes: size,
+                buffers: vec![(name, size)],
+            }),
+        }
+    }
+    out
+}
+
+/// First guess of the cell list's entries: 4 per triangle, at least 2^16.
+pub(super) fn initial_cell_capacity(triangles: usize) -> u64 {
+    (4 * triangles as u64).max(1 << 16)
+}
+
+pub(super) fn memory_by_pass(buffers: &[GpuBuffer]) -> Vec<PassMemory> {
+    group_by_pass(buffers.iter().map(|b| (b.desc.pass, b.desc.name, b.size())))
+}

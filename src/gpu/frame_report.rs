@@ -1,0 +1,295 @@
+//! What a GPU frame reports: per-pass milliseconds, counters, the light
+//! setup as the GPU fitted it, memory per pass; and the step that turns a
+//! frame's read-backs into that report.
+
+use super::frame::{FrameOutput, GBufferSource, GpuRenderer};
+use super::frame_inputs::SceneUpload;
+use super::shared::{self, counter};
+use crate::gbuffer::{flags, GBuffer, GBufferStats};
+use crate::izb::cascades::CascadeChoice;
+use crate::izb::IzbSettings;
+use crate::scene::Scene;
+
+/// Per-pass GPU milliseconds from timestamp queries.
+pub type GpuPassMillis = crate::izb::PassTimes;
+
+/// Device memory of one pass's buffers.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PassMemory {
+    pub pass: &'static str,
+    pub bytes: u64,
+    pub buffers: Vec<(&'static str, u64)>,
+}
+
+/// One cascade's grid as the GPU fitted it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GpuCascadeSummary {
+    pub receivers: u32,
+    pub cells: [u32; 2],
+    pub cell_offset: u32,
+    pub levels: u32,
+    pub level_cells: u32,
+    pub ndc_min: [f32; 2],
+    pub ndc_max: [f32; 2],
+}
+
+/// The light view, cascades and grids as the GPU fitted them.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GpuLightSummary {
+    pub perspective: bool,
+    pub grid_disabled: bool,
+    pub receivers: u32,
+    /// How many cascades and why (the host's words for the GPU's choice,
+    /// from the view-depth range it reduced).
+    pub cascade_choice: CascadeChoice,
+    /// View depth range of the shadow-tested pixels.
+    pub view_depth: [f32; 2],
+    /// Upper view depth of each cascade.
+    pub split_depths: Vec<f32>,
+    pub cascades: Vec<GpuCascadeSummary>,
+    pub total_cells: u32,
+    pub receiver_z: [f32; 2],
+}
+
+/// Counters read back once after the frame.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GpuCounters {
+    pub hits: u32,
+    pub shadow_tested: u32,
+    pub clamped_microquads: u32,
+    pub triangles_binned: u32,
+    pub overflow: u32,
+    pub culled: u32,
+    pub cell_entries: u32,
+    pub pixels_tested: u32,
+    /// Pixels never shadow-tested (sky, facing away from the light).
+    pub pixels_skipped: u32,
+    pub early_outs: u32,
+    pub shadow_map_early_outs: u32,
+    pub saturated_masks: u64,
+    pub entries_behind_receivers: u32,
+    pub triangles_behind_receivers: u32,
+    pub tests_spawned: u64,
+    pub depth_passed: u64,
+    pub cells_visited: u64,
+    pub levels_visited: u64,
+    /// Rectangle cells a binned triangle's projection misses (not listed).
+    pub cells_untouched: u32,
+    /// Tests whose mask was not empty.
+    pub masks_nonempty: u64,
+    /// Per cascade, bit l set when pyramid level l holds a placement.
+    pub levels: Vec<u32>,
+}
+
+/// Settings, timings, counters and memory of one GPU frame.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GpuRenderReport {
+    pub device: String,
+    pub device_kind: String,
+    pub settings: IzbSettings,
+    pub gbuffer_source: &'static str,
+    /// `None` when the queue has no timestamps.
+    pub gpu_milliseconds: Option<GpuPassMillis>,
+    /// Host wall time of the frame (submit to fence), seconds.
+    pub wall_seconds: f64,
+    /// Host seconds spent building the G-buffer BVH.
+    pub bvh_build_seconds: f64,
+    pub counters: GpuCounters,
+    pub light: GpuLightSummary,
+    /// Frames run: 2 when the cell list had to grow.
+    pub frames_run: u32,
+    pub memory: Vec<PassMemory>,
+    pub memory_total_bytes: u64,
+    pub memory_bytes_per_pixel_plus_triangle: f64,
+}
+
+/// What a GPU frame returns.
+pub struct GpuRender {
+    /// Occlusion mask per pixel (bit i = sample i in shadow).
+    pub masks: Vec<u32>,
+    /// Lit fraction, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    /// Shaded image, RGB8 per pixel.
+    pub shaded: Vec<[u8; 3]>,
+    /// The G-buffer as the GPU saw it (read back).
+    pub gbuffer: GBuffer,
+    pub report: GpuRenderReport,
+}
+
+/// What a GPU shadow-map frame returns.
+pub struct GpuShadowMapRender {
+    /// Lit fraction, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    /// GPU milliseconds: `bin` holds the raster pass, `evaluate` the
+    /// lookup, `resolve` is 0.
+    pub gpu_milliseconds: Option<GpuPassMillis>,
+    pub wall_seconds: f64,
+    pub map_bytes: u64,
+    pub memory_total_bytes: u64,
+}
+
+impl GpuRenderer {
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn finish(
+        &self,
+        scene: &Scene,
+        settings: IzbSettings,
+        source: GBufferSource,
+        out: FrameOutput,
+        frames_run: u32,
+        bvh_build_seconds: f64,
+        upload: &SceneUpload,
+    ) -> GpuRender {
+        let triangles = upload.triangles.len() as u32;
+        let c = &out.counters;
+        let wide = |i: usize| u64::from(c[i]) | (u64::from(c[i + 1]) << 32);
+        let counters = GpuCounters {
+            hits: c[counter::HITS],
+            shadow_tested: c[counter::SHADOW_TESTED],
+            clamped_microquads: c[counter::CLAMPED],
+            triangles_binned: c[counter::BINNED],
+            overflow: c[counter::OVERFLOW],
+            culled: c[counter::CULLED],
+            cell_entries: c[counter::CELL_ENTRIES],
+            pixels_tested: c[counter::PIXELS_TESTED],
+            pixels_skipped: (scene.pixel_count() as u32).saturating_sub(c[counter::PIXELS_TESTED]),
+            early_outs: c[counter::EARLY_OUTS],
+            shadow_map_early_outs: c[counter::SHADOW_MAP_EARLY_OUTS],
+            saturated_masks: wide(counter::SATURATED_MASKS),
+            entries_behind_receivers: c[counter::ENTRIES_BEHIND],
+            triangles_behind_receivers: c[counter::TRIANGLES_BEHIND],
+            tests_spawned: wide(counter::TESTS_SPAWNED),
+            depth_passed: wide(counter::DEPTH_PASSED),
+            cells_visited: wide(counter::CELLS_VISITED),
+            levels_visited: wide(counter::LEVELS_VISITED),
+            cells_untouched: c[counter::CELLS_UNTOUCHED],
+            masks_nonempty: wide(counter::MASKS_NONEMPTY),
+            levels: (0..out.light.cascade_count as usize)
+                .map(|k| c[counter::LEVELS + k])
+                .collect(),
+        };
+        let [w, h] = scene.resolution;
+        let frame = scene.camera.frame(scene.resolution);
+        let forward = frame.forward.as_vec3();
+        let gbuffer = match source {
+            GBufferSource::Upload(g) => g.clone(),
+            GBufferSource::Gpu => {
+                let (triangle_id, gpu_flags): (Vec<u32>, Vec<u32>) = out
+                    .id_flags
+                    .iter()
+                    .map(|&w| shared::unpack_id_flags(w))
+                    .unzip();
+                let normal = triangle_id
+                    .iter()
+                    .zip(&gpu_flags)
+                    .map(|(&id, &f)| upload.receiver_normal(id, f))
+                    .collect();
+                let flags: Vec<u32> = gpu_flags
+                    .iter()
+                    .map(|f| f & !shared::FLAG_NORMAL_FLIPPED)
+                    .collect();
+                let depth = out
+                    .position
+                    .iter()
+                    .zip(&flags)
+                    .map(|(p, &f)| {
+                        if f & flags::HIT != 0 {
+                            p.dot(forward)
+                        } else {
+                            f32::INFINITY
+                        }
+                    })
+                    .collect();
+                GBuffer {
+                    width: w,
+                    height: h,
+                    triangle_id,
+                    depth,
+                    position: out.position,
+                    normal,
+                    axis_x: out.axis_x,
+                    axis_y: out.axis_y,
+                    flags,
+                    stats: GBufferStats {
+                        pixels: scene.pixel_count(),
+                        hits: counters.hits as usize,
+                        shadow_tested: counters.shadow_tested as usize,
+                        clamped_microquads: counters.clamped_microquads as usize,
+                    },
+                }
+            }
+        };
+        let memory_total_bytes: u64 = out.memory.iter().map(|m| m.bytes).sum();
+        let l = &out.light;
+        let report = GpuRenderReport {
+            device: self.context.info().name.clone(),
+            device_kind: self.context.info().kind.clone(),
+            settings,
+            gbuffer_source: match source {
+                GBufferSource::Gpu => "gpu",
+                GBufferSource::Upload(_) => "uploaded",
+            },
+            gpu_milliseconds: out.millis,
+            wall_seconds: out.wall_seconds,
+            bvh_build_seconds,
+            counters,
+            light: GpuLightSummary {
+                perspective: l.projection == 1,
+                grid_disabled: l.grid_disabled != 0,
+                receivers: l.receivers,
+                cascade_choice: if l.receivers == 0 || l.grid_disabled != 0 {
+                    CascadeChoice {
+                        count: l.cascade_count,
+                        reason: "no grid: no receivers, or every triangle overflows".into(),
+                        ..Default::default()
+                    }
+                } else {
+                    CascadeChoice::new(
+                        settings.cascades,
+                        l.view_depth[0],
+                        l.view_depth[1],
+                        settings.split_lambda,
+                    )
+                },
+                view_depth: l.view_depth,
+                split_depths: l.split[..l.cascade_count as usize].to_vec(),
+                cascades: l.cascade[..l.cascade_count as usize]
+                    .iter()
+                    .map(|c| GpuCascadeSummary {
+                        receivers: c.receivers,
+                        cells: [c.cells_x, c.cells_y],
+                        cell_offset: c.cell_offset,
+                        levels: c.levels,
+                        level_cells: c.level_cells,
+                        ndc_min: c.ndc_min,
+                        ndc_max: c.ndc_max,
+                    })
+                    .collect(),
+                total_cells: l.total_cells,
+                receiver_z: l.receiver_z,
+            },
+            frames_run,
+            memory: out.memory,
+            memory_total_bytes,
+            memory_bytes_per_pixel_plus_triangle: memory_total_bytes as f64
+                / (scene.pixel_count() as f64 + f64::from(triangles)).max(1.0),
+        };
+        let shaded = out
+            .shaded
+            .iter()
+            .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
+            .collect();
+        let visibility = out
+            .shaded
+            .iter()
+            .map(|&p| shared::lit_fraction_of_alpha((p >> 24) as u8))
+            .collect();
+        GpuRender {
+            masks: out.masks,
+            visibility,
+            shaded,
+            gbuffer,
+            report,
+        }
+    }
+}
