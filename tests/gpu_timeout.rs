@@ -1,9 +1,14 @@
 //! A frame that outlives its time limit is reported as a timeout — no hang,
 //! no crash — and the abandoned work is never freed under the GPU. Its own
 //! test binary: `IZB_GPU_TIMEOUT_S` is read per process, and the device it
-//! poisons must not be shared with other tests.
+//! poisons must not be shared with other tests. The validation layer is
+//! on (whatever `IZB_VALIDATION` says) and any message fails the test: the
+//! timeout path must not misuse the objects it abandons.
 
-use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
+mod common;
+
+use common::gpu::{assert_no_validation_messages, own_renderer};
+use izb::gpu::{GBufferSource, GpuError, GpuOptions};
 use izb::izb::IzbSettings;
 
 #[test]
@@ -11,15 +16,12 @@ fn a_frame_past_its_time_limit_is_a_timeout_error() {
     // One microsecond: no device finishes a 320×180 frame of the hairball
     // (20 000 triangles) that fast.
     std::env::set_var("IZB_GPU_TIMEOUT_S", "0.000001");
-    let renderer = match GpuRenderer::new(&GpuOptions::from_env()) {
-        Ok(r) => r,
-        Err(e) => {
-            if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}");
-            }
-            eprintln!("skipped (no Vulkan device: {e})");
-            return;
-        }
+    let options = GpuOptions {
+        validation: true,
+        ..GpuOptions::from_env()
+    };
+    let Some(renderer) = own_renderer(&options) else {
+        return;
     };
     let scene = izb::scene::load("hairball")
         .unwrap()
@@ -36,6 +38,7 @@ fn a_frame_past_its_time_limit_is_a_timeout_error() {
         "unexpected error: {err}"
     );
     assert!(renderer.context.shared.is_poisoned());
+    assert_no_validation_messages(&renderer, "timed-out frame");
     // Dropping the renderer now must neither block nor free in-flight work.
     drop(renderer);
 }

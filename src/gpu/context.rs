@@ -11,6 +11,7 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use std::ffi::{c_void, CStr, CString};
 use std::mem::ManuallyDrop;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -110,6 +111,8 @@ impl DeviceShared {
                 .object_handle(handle)
                 .object_name(&name);
             // Naming is a debugging aid: a failure is not worth an error.
+            // SAFETY: `handle` belongs to this device (callers name objects they
+            // just created) and `info` outlives the call.
             unsafe {
                 let _ = debug.set_debug_utils_object_name(&info);
             }
@@ -127,6 +130,10 @@ impl Drop for DeviceShared {
         if self.is_poisoned() {
             return;
         }
+        // SAFETY: the last owner drops: every buffer, pipeline, pool and the
+        // GpuContext hold an Arc to this, so they are gone; the device is not
+        // poisoned, so after the idle wait nothing is in flight. The allocator
+        // is dropped once, before its device.
         unsafe {
             let _ = self.device.device_wait_idle();
             ManuallyDrop::drop(&mut self.allocator);
@@ -139,6 +146,11 @@ impl Drop for DeviceShared {
     }
 }
 
+/// The validation layer's message callback: appends to the messages list.
+///
+/// # Safety
+/// Called by the Vulkan loader only, with `data` valid for the call and
+/// `user_data` the messenger's `Mutex<Vec<String>>` (see `GpuContext::new`).
 unsafe extern "system" fn debug_callback(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
     kind: vk::DebugUtilsMessageTypeFlagsEXT,
@@ -148,9 +160,14 @@ unsafe extern "system" fn debug_callback(
     if data.is_null() || user_data.is_null() {
         return vk::FALSE;
     }
+    // SAFETY: the loader passes valid callback data for the duration of
+    // the call (checked non-null above).
     let message = unsafe { (*data).message_as_c_str() }
         .map(|m| m.to_string_lossy().into_owned())
         .unwrap_or_default();
+    // SAFETY: `user_data` is the `Mutex` the messenger was created with,
+    // owned by `DeviceShared` (boxed, so it does not move) and destroyed
+    // after the messenger.
     let messages = unsafe { &*(user_data as *const Mutex<Vec<String>>) };
     messages
         .lock()
@@ -172,7 +189,16 @@ fn device_kind(t: vk::PhysicalDeviceType) -> (u32, &'static str) {
 /// The Vulkan context: a shared device plus the command pool of its queue.
 pub struct GpuContext {
     pub shared: Arc<DeviceShared>,
-    command_pool: vk::CommandPool,
+    /// The command pool, behind the lock every submission holds from
+    /// allocation to the end of its wait: a command pool and a queue are
+    /// externally synchronised objects (Vulkan spec, "Threading
+    /// Behavior"), and ash's handles are `Send + Sync`, so without it two
+    /// threads rendering with one `GpuRenderer` would allocate from the
+    /// pool and submit to the queue at once. Frames are serialised.
+    command_pool: Mutex<vk::CommandPool>,
+    /// Submissions between allocation and wait right now, and the most
+    /// ever seen: 1 while the lock does its job (`tests/gpu_threads.rs`).
+    submissions: [AtomicU32; 2],
 }
 
 impl Drop for GpuContext {
@@ -180,11 +206,16 @@ impl Drop for GpuContext {
         if self.shared.is_poisoned() {
             return;
         }
+        let pool = *self
+            .command_pool
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner());
+        // SAFETY: the device is not poisoned, so after the idle wait no
+        // command buffer of the pool is in flight; `&mut self` means no
+        // other thread holds the pool.
         unsafe {
             let _ = self.shared.device.device_wait_idle();
-            self.shared
-                .device
-                .destroy_command_pool(self.command_pool, None);
+            self.shared.device.destroy_command_pool(pool, None);
         }
     }
 }
@@ -201,19 +232,24 @@ struct Candidate {
 }
 
 fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
+    // SAFETY (this function): `instance` is a live instance and each
+    // `physical` comes from it; the out-structures outlive the calls.
     let physicals = unsafe { instance.enumerate_physical_devices() }.map_err(GpuError::vk)?;
     let mut out = Vec::new();
     for physical in physicals {
+        // SAFETY: `physical` was enumerated from this live instance.
         let props = unsafe { instance.get_physical_device_properties(physical) };
         if props.api_version < vk::API_VERSION_1_2 {
             continue;
         }
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12);
+        // SAFETY: as above; the feature chain outlives the call.
         unsafe { instance.get_physical_device_features2(physical, &mut f2) };
         if f12.scalar_block_layout == vk::FALSE {
             continue;
         }
+        // SAFETY: as above.
         let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
         let Some((family, family_props)) = families
             .iter()
@@ -257,6 +293,8 @@ fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
 }
 
 fn load_entry() -> Result<ash::Entry, GpuError> {
+    // SAFETY: loading the system's Vulkan loader runs its initialisers;
+    // it is the library this crate is written against.
     unsafe { ash::Entry::load() }.map_err(|e| GpuError::NoVulkan(format!("no Vulkan loader ({e})")))
 }
 
@@ -268,6 +306,7 @@ fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance
     let mut layers = Vec::new();
     let mut extensions = Vec::new();
     if validation {
+        // SAFETY: `entry` is a loaded Vulkan entry.
         let available = unsafe { entry.enumerate_instance_layer_properties() }
             .map_err(GpuError::vk)?
             .iter()
@@ -286,6 +325,7 @@ fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance
         .application_info(&app)
         .enabled_layer_names(&layers)
         .enabled_extension_names(&extensions);
+    // SAFETY: `info` and the name arrays it points to outlive the call.
     unsafe { entry.create_instance(&info, None) }.map_err(|e| {
         GpuError::NoVulkan(format!(
             "vkCreateInstance failed ({e}): no Vulkan 1.2 driver?"
@@ -298,6 +338,7 @@ pub fn list_devices() -> Result<Vec<DeviceInfo>, GpuError> {
     let entry = load_entry()?;
     let instance = create_instance(&entry, false)?;
     let list = candidates(&instance).map(|c| c.into_iter().map(|c| c.info).collect());
+    // SAFETY: nothing was created from this instance but the list.
     unsafe { instance.destroy_instance(None) };
     list
 }
@@ -308,6 +349,8 @@ impl GpuContext {
         let entry = load_entry()?;
         let instance = create_instance(&entry, options.validation)?;
         let fail = |instance: &ash::Instance, e: GpuError| {
+            // SAFETY: called on the failure paths of `new`, when nothing created
+            // from the instance is alive any more.
             unsafe { instance.destroy_instance(None) };
             Err(e)
         };
@@ -348,6 +391,8 @@ impl GpuContext {
                 )
                 .pfn_user_callback(Some(debug_callback))
                 .user_data(&*messages as *const Mutex<Vec<String>> as *mut c_void);
+            // SAFETY: `info`'s user data points at `messages`, which `DeviceShared`
+            // keeps alive until after the messenger is destroyed.
             match unsafe { debug.create_debug_utils_messenger(&info, None) } {
                 Ok(m) => (Some(debug), m),
                 Err(e) => return fail(&instance, GpuError::vk(e)),
@@ -364,15 +409,19 @@ impl GpuContext {
         let device_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
             .push_next(&mut f12);
+        // SAFETY: `chosen.physical` comes from `instance`; `device_info` and
+        // the feature chain it points to outlive the call.
         let device = match unsafe { instance.create_device(chosen.physical, &device_info, None) } {
             Ok(d) => d,
             Err(e) => {
                 if let Some(debug) = &debug_instance {
+                    // SAFETY: the messenger was created above and nothing else uses it.
                     unsafe { debug.destroy_debug_utils_messenger(messenger, None) };
                 }
                 return fail(&instance, GpuError::vk(e));
             }
         };
+        // SAFETY: the device was created with one queue of this family.
         let queue = unsafe { device.get_device_queue(chosen.queue_family, 0) };
         let allocator = Allocator::new(&AllocatorCreateDesc {
             instance: instance.clone(),
@@ -386,6 +435,8 @@ impl GpuContext {
         let allocator = match allocator {
             Ok(a) => a,
             Err(e) => {
+                // SAFETY: the device and messenger were created above and nothing
+                // else holds them yet.
                 unsafe {
                     device.destroy_device(None);
                     if let Some(debug) = &debug_instance {
@@ -420,11 +471,13 @@ impl GpuContext {
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(shared.queue_family)
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: the queue family is the device's own.
         let command_pool =
             unsafe { shared.device.create_command_pool(&pool_info, None) }.map_err(GpuError::vk)?;
         Ok(GpuContext {
             shared,
-            command_pool,
+            command_pool: Mutex::new(command_pool),
+            submissions: Default::default(),
         })
     }
 
@@ -434,36 +487,71 @@ impl GpuContext {
     }
 
     /// Records commands with `record` into a fresh command buffer, submits
-    /// them, and waits (at most [`frame_timeout`]). On a timeout or a lost
-    /// device the device is poisoned: the caller's buffers are then leaked
-    /// rather than freed under work that may still be running.
+    /// them, and waits (at most [`frame_timeout`]). One submission at a
+    /// time: the pool's lock is held throughout. On a timeout or a lost
+    /// device the device is poisoned: the command buffer, its fence and the
+    /// caller's buffers are then leaked rather than freed under work that
+    /// may still be running.
     pub fn submit_and_wait(
         &self,
+        record: impl FnOnce(vk::CommandBuffer) -> Result<(), GpuError>,
+    ) -> Result<(), GpuError> {
+        let pool = self.command_pool.lock().unwrap_or_else(|e| e.into_inner());
+        let [now, most] = &self.submissions;
+        most.fetch_max(now.fetch_add(1, Ordering::SeqCst) + 1, Ordering::SeqCst);
+        let result = self.submit_and_wait_locked(*pool, record);
+        now.fetch_sub(1, Ordering::SeqCst);
+        result
+    }
+
+    /// The most submissions ever in progress at once (1 unless the
+    /// command pool's lock failed to serialise them).
+    pub fn max_concurrent_submissions(&self) -> u32 {
+        self.submissions[1].load(Ordering::SeqCst)
+    }
+
+    /// [`Self::submit_and_wait`] with the pool's lock held.
+    fn submit_and_wait_locked(
+        &self,
+        pool: vk::CommandPool,
         record: impl FnOnce(vk::CommandBuffer) -> Result<(), GpuError>,
     ) -> Result<(), GpuError> {
         let device = &self.shared.device;
         let timeout = frame_timeout();
         let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(self.command_pool)
+            .command_pool(pool)
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(1);
+        // SAFETY: the pool is alive and its lock is held (the caller).
         let cmd = unsafe { device.allocate_command_buffers(&alloc) }.map_err(GpuError::vk)?[0];
-        let free = || unsafe { device.free_command_buffers(self.command_pool, &[cmd]) };
         let result = (|| {
             let begin = vk::CommandBufferBeginInfo::default()
                 .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            // SAFETY: `cmd` was just allocated from the locked pool and is
+            // in the initial state.
             unsafe { device.begin_command_buffer(cmd, &begin) }.map_err(GpuError::vk)?;
             record(cmd)?;
+            // SAFETY: `cmd` is recording (begun above, on this thread).
             unsafe { device.end_command_buffer(cmd) }.map_err(GpuError::vk)?;
+            // SAFETY: creating a fence needs only a live device.
             let fence = unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) }
                 .map_err(GpuError::vk)?;
             let cmds = [cmd];
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+            // SAFETY: the queue is used only under the pool's lock, held
+            // here; `cmd` is executable and `fence` unsignalled.
             let waited = unsafe { device.queue_submit(self.shared.queue, &submit, fence) }
+                // SAFETY: `fence` is alive until destroyed below.
                 .and_then(|_| unsafe {
                     device.wait_for_fences(&[fence], true, timeout.as_nanos() as u64)
                 });
-            unsafe { device.destroy_fence(fence, None) };
+            match waited {
+                // The work may still run and signal the fence: keep it.
+                Err(vk::Result::TIMEOUT) | Err(vk::Result::ERROR_DEVICE_LOST) => {}
+                // SAFETY: the wait returned (or the submit failed), so no
+                // queue operation still refers to the fence.
+                _ => unsafe { device.destroy_fence(fence, None) },
+            }
             waited.map_err(|e| match e {
                 vk::Result::TIMEOUT => GpuError::Timeout(timeout),
                 e => GpuError::vk(e),
@@ -473,7 +561,9 @@ impl GpuContext {
         // than free it under the GPU (the device is unusable anyway).
         match result {
             Err(GpuError::Timeout(_)) | Err(GpuError::DeviceLost) => self.shared.poison(),
-            _ => free(),
+            // SAFETY: the fence wait returned or the buffer was never
+            // submitted, so `cmd` is not pending; the pool's lock is held.
+            _ => unsafe { device.free_command_buffers(pool, &[cmd]) },
         }
         result
     }

@@ -323,6 +323,8 @@ impl GpuRenderer {
                 layout: &self.layout,
                 set: set.set,
             };
+            // SAFETY: `cmd` is recording; every buffer belongs to this frame and
+            // lives until after its fence wait; copies stay within each buffer.
             unsafe {
                 for (staging, b) in &uploads {
                     let region = [vk::BufferCopy::default().size(staging.size())];
@@ -395,11 +397,13 @@ impl GpuRenderer {
             timestamps.write(cmd, 5);
             for (rb, b) in &readbacks {
                 let region = [vk::BufferCopy::default().size(rb.size())];
+                // SAFETY: as above; each read-back buffer is its source's size.
                 unsafe { device.cmd_copy_buffer(cmd, fb.get(*b).buffer, rb.buffer, &region) };
             }
             let to_host = [vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
                 .dst_access_mask(vk::AccessFlags::HOST_READ)];
+            // SAFETY: `cmd` is recording; `to_host` outlives the call.
             unsafe {
                 device.cmd_pipeline_barrier(
                     cmd,

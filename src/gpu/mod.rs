@@ -159,6 +159,8 @@ impl Recorder<'_> {
     /// Dispatches `kernel` over `groups` workgroups.
     pub fn dispatch(&self, kernel: &ComputeKernel, groups: [u32; 3]) {
         let d = self.device();
+        // SAFETY: `self.cmd` is recording (inside `submit_and_wait`); the
+        // pipeline, layout and set outlive the frame's fence wait.
         unsafe {
             d.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
             d.cmd_bind_descriptor_sets(
@@ -199,6 +201,7 @@ impl Recorder<'_> {
                     | vk::AccessFlags::TRANSFER_WRITE,
             )];
         let stages = vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER;
+        // SAFETY: `self.cmd` is recording; the barrier arrays outlive the call.
         unsafe {
             self.device().cmd_pipeline_barrier(
                 self.cmd,
@@ -217,6 +220,7 @@ impl Recorder<'_> {
         if let Some(debug) = &self.shared.debug_device {
             let name = std::ffi::CString::new(name).unwrap_or_default();
             let label = vk::DebugUtilsLabelEXT::default().label_name(&name);
+            // SAFETY: `self.cmd` is recording; `label` outlives the call.
             unsafe { debug.cmd_begin_debug_utils_label(self.cmd, &label) };
         }
     }
@@ -224,6 +228,8 @@ impl Recorder<'_> {
     /// Closes the label opened by [`Self::begin_label`].
     pub fn end_label(&self) {
         if let Some(debug) = &self.shared.debug_device {
+            // SAFETY: `self.cmd` is recording and a label is open (the passes
+            // pair every begin with an end).
             unsafe { debug.cmd_end_debug_utils_label(self.cmd) };
         }
     }

@@ -32,12 +32,15 @@ impl BindingLayout {
         let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
         let device = &shared.device;
         let set_layout =
+            // SAFETY: `info` and the bindings it points to outlive the call.
             unsafe { device.create_descriptor_set_layout(&info, None) }.map_err(GpuError::vk)?;
         let layouts = [set_layout];
         let info = vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts);
+        // SAFETY: `set_layout` was created just above on this device.
         let pipeline_layout = match unsafe { device.create_pipeline_layout(&info, None) } {
             Ok(l) => l,
             Err(e) => {
+                // SAFETY: created above, used by nothing (the pipeline layout failed).
                 unsafe { device.destroy_descriptor_set_layout(set_layout, None) };
                 return Err(GpuError::vk(e));
             }
@@ -55,6 +58,10 @@ impl Drop for BindingLayout {
         if self.shared.is_poisoned() {
             return;
         }
+        // SAFETY: every pipeline and descriptor set made with this layout
+        // holds the layout alive through the renderer (its fields drop the
+        // kernels first) and no frame is in flight: frames wait for their
+        // fence, and a poisoned device returns above.
         unsafe {
             let d = &self.shared.device;
             d.destroy_pipeline_layout(self.pipeline_layout, None);
@@ -85,6 +92,7 @@ impl ComputeKernel {
         let device = &shared.device;
         let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
         let module =
+            // SAFETY: `words` is the SPIR-V build.rs compiled (aligned u32s).
             unsafe { device.create_shader_module(&module_info, None) }.map_err(GpuError::vk)?;
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
@@ -94,7 +102,9 @@ impl ComputeKernel {
             .stage(stage)
             .layout(layout.pipeline_layout)];
         let pipeline =
+            // SAFETY: `module` and `layout` are alive; `info` outlives the call.
             unsafe { device.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        // SAFETY: a pipeline keeps no reference to its module once created.
         unsafe { device.destroy_shader_module(module, None) };
         let pipeline = pipeline.map_err(|(_, e)| GpuError::vk(e))?[0];
         shared.set_name(pipeline, name);
@@ -111,6 +121,8 @@ impl Drop for ComputeKernel {
         if self.shared.is_poisoned() {
             return;
         }
+        // SAFETY: frames wait for their fence before returning, so no command
+        // buffer using the pipeline is pending (a poisoned device returns above).
         unsafe { self.shared.device.destroy_pipeline(self.pipeline, None) };
     }
 }
@@ -136,14 +148,17 @@ impl DescriptorSet {
         let info = vk::DescriptorPoolCreateInfo::default()
             .max_sets(1)
             .pool_sizes(&sizes);
+        // SAFETY: `info` and its pool sizes outlive the call.
         let pool = unsafe { device.create_descriptor_pool(&info, None) }.map_err(GpuError::vk)?;
         let layouts = [layout.set_layout];
         let alloc = vk::DescriptorSetAllocateInfo::default()
             .descriptor_pool(pool)
             .set_layouts(&layouts);
+        // SAFETY: `pool` was created above for exactly this one set.
         let set = match unsafe { device.allocate_descriptor_sets(&alloc) } {
             Ok(s) => s[0],
             Err(e) => {
+                // SAFETY: created above; its allocation failed, so nothing uses it.
                 unsafe { device.destroy_descriptor_pool(pool, None) };
                 return Err(GpuError::vk(e));
             }
@@ -168,6 +183,8 @@ impl DescriptorSet {
                     .buffer_info(info)
             })
             .collect();
+        // SAFETY: the set is not bound yet and every buffer outlives the
+        // frame that binds it (the frame owns both).
         unsafe { device.update_descriptor_sets(&writes, &[]) };
         Ok(DescriptorSet {
             shared: shared.clone(),
@@ -182,6 +199,8 @@ impl Drop for DescriptorSet {
         if self.shared.is_poisoned() {
             return;
         }
+        // SAFETY: dropped after the frame's fence wait, so no command buffer
+        // using the set is pending (a poisoned device returns above).
         unsafe { self.shared.device.destroy_descriptor_pool(self.pool, None) };
     }
 }

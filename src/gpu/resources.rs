@@ -85,7 +85,9 @@ impl GpuBuffer {
             .size(size)
             .usage(usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: `info` outlives the call; a live device (the Arc).
         let buffer = unsafe { device.create_buffer(&info, None) }.map_err(GpuError::vk)?;
+        // SAFETY: `buffer` was just created on this device.
         let requirements = unsafe { device.get_buffer_memory_requirements(buffer) };
         let allocation = shared
             .allocator
@@ -101,6 +103,7 @@ impl GpuBuffer {
         let allocation = match allocation {
             Ok(a) => a,
             Err(e) => {
+                // SAFETY: created above, never bound nor used.
                 unsafe { device.destroy_buffer(buffer, None) };
                 return Err(GpuError::Allocation(format!(
                     "buffer `{}` ({size} bytes): {e}",
@@ -109,8 +112,13 @@ impl GpuBuffer {
             }
         };
         if let Err(e) =
-            unsafe { device.bind_buffer_memory(buffer, allocation.memory(), allocation.offset()) }
+            // SAFETY: the allocation was made for this buffer's requirements and
+            // the buffer is not bound yet.
+            unsafe {
+                device.bind_buffer_memory(buffer, allocation.memory(), allocation.offset())
+            }
         {
+            // SAFETY: created above; binding failed, so nothing uses it.
             unsafe { device.destroy_buffer(buffer, None) };
             let _ = shared
                 .allocator
@@ -156,6 +164,9 @@ impl Drop for GpuBuffer {
         if self.shared.is_poisoned() {
             return;
         }
+        // SAFETY: frames wait for their fence before dropping their buffers,
+        // so no pending command buffer uses it (a poisoned device returns
+        // above, leaking it); the memory is freed after the buffer.
         unsafe { self.shared.device.destroy_buffer(self.buffer, None) };
         if let Some(a) = self.allocation.take() {
             let _ = self

@@ -23,6 +23,7 @@ impl TimestampPool {
                     .query_type(vk::QueryType::TIMESTAMP)
                     .query_count(count);
                 Some(
+                    // SAFETY: `info` outlives the call; the queue supports timestamps.
                     unsafe { shared.device.create_query_pool(&info, None) }
                         .map_err(GpuError::vk)?,
                 )
@@ -37,6 +38,7 @@ impl TimestampPool {
 
     pub(super) fn reset(&self, cmd: vk::CommandBuffer) {
         if let Some(pool) = self.pool {
+            // SAFETY: `cmd` is recording and the pool has `count` queries.
             unsafe {
                 self.shared
                     .device
@@ -47,6 +49,7 @@ impl TimestampPool {
 
     pub(super) fn write(&self, cmd: vk::CommandBuffer, index: u32) {
         if let Some(pool) = self.pool {
+            // SAFETY: `cmd` is recording; the caller's indices stay below `count`.
             unsafe {
                 self.shared.device.cmd_write_timestamp(
                     cmd,
@@ -64,6 +67,8 @@ impl TimestampPool {
             return Ok(None);
         };
         let mut ticks = vec![0u64; self.count as usize];
+        // SAFETY: called after the frame's fence wait returned, so every
+        // query was written; `ticks` holds `count` 64-bit results.
         unsafe {
             self.shared.device.get_query_pool_results(
                 pool,
@@ -91,6 +96,8 @@ impl Drop for TimestampPool {
             return;
         }
         if let Some(pool) = self.pool {
+            // SAFETY: the frame that wrote the queries has finished (fence wait),
+            // and a poisoned device returns above.
             unsafe { self.shared.device.destroy_query_pool(pool, None) };
         }
     }

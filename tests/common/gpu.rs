@@ -16,14 +16,26 @@ pub fn renderer() -> Option<&'static Mutex<GpuRenderer>> {
             .map_err(|e| e.to_string())
     }) {
         Ok(r) => Some(r),
-        Err(e) => {
-            if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}");
-            }
-            eprintln!("skipped (no Vulkan device: {e})");
-            None
-        }
+        Err(e) => skip_without_gpu(e),
     }
+}
+
+/// A renderer of the test's own (not the binary's shared one), opened with
+/// `options`, or `None` with a printed skip.
+pub fn own_renderer(options: &GpuOptions) -> Option<GpuRenderer> {
+    GpuRenderer::new(options)
+        .map_err(|e| skip_without_gpu::<()>(e))
+        .ok()
+}
+
+/// Without a device: `None` and a printed skip, or a failure with
+/// `IZB_REQUIRE_GPU=1` (CI).
+fn skip_without_gpu<T>(e: impl std::fmt::Display) -> Option<T> {
+    if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+        panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}");
+    }
+    eprintln!("skipped (no Vulkan device: {e})");
+    None
 }
 
 /// Locks the renderer, through a poisoned lock (another test's panic).
