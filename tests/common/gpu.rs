@@ -23,9 +23,10 @@ pub fn renderer() -> Option<&'static Mutex<GpuRenderer>> {
 /// A renderer of the test's own (not the binary's shared one), opened with
 /// `options`, or `None` with a printed skip.
 pub fn own_renderer(options: &GpuOptions) -> Option<GpuRenderer> {
-    GpuRenderer::new(options)
-        .map_err(|e| skip_without_gpu::<()>(e))
-        .ok()
+    match GpuRenderer::new(options) {
+        Ok(r) => Some(r),
+        Err(e) => skip_without_gpu(e),
+    }
 }
 
 /// Without a device: `None` and a printed skip, or a failure with
