@@ -7,6 +7,8 @@
 //! span so much geometry that 32 spp and 1 spp tie on them, 0.058 vs 0.057;
 //! at its own 960×540 the 32-sample edge MAE is 7% lower).
 
+mod common;
+
 use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::metrics::metrics;
 use izb::reference::bvh::SceneBvh;
@@ -84,16 +86,10 @@ fn thirty_two_samples_beat_one_on_procedural_scenes() {
 
 #[test]
 fn thirty_two_samples_beat_one_on_shared_scenes() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
-    if !std::path::Path::new(dir).exists() {
-        eprintln!("skipped: ../shared/scenes not found");
+    if common::shared_scenes_dir().is_none() {
         return;
     }
-    for name in ["deckchair", "tablefan", "ficus", "engine", "courtyard"] {
-        check(
-            name,
-            scene::load(&format!("{dir}/{name}.scene.json")).unwrap(),
-            SHARED_RESOLUTION,
-        );
+    for name in common::SHARED_SCENES {
+        check(name, common::shared_scene(name).unwrap(), SHARED_RESOLUTION);
     }
 }

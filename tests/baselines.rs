@@ -166,18 +166,15 @@ const MAX_GPU_PIXEL_MISMATCH: f64 = 2e-3;
 fn gpu_shadow_maps_match_the_cpu_twin() {
     let Some(r) = renderer() else { return };
     let r = lock(r);
-    let shared = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
     let mut scenes: Vec<Scene> = ["default", "city", "wires", "grazing"]
         .iter()
         .map(|n| small(n))
         .collect();
-    if std::path::Path::new(shared).exists() {
+    if common::shared_scenes_dir().is_some() {
         for name in ["deckchair", "engine"] {
-            let s = scene::load(&format!("{shared}/{name}.scene.json")).unwrap();
+            let s = common::shared_scene(name).unwrap();
             scenes.push(s.with_resolution([160, 90]).unwrap());
         }
-    } else {
-        eprintln!("shared scenes skipped: ../shared/scenes not found");
     }
     let methods = ["sm-256", "pcf3-256", "pcf5-128", "csm2-pcf3-128"];
     for scene in &scenes {

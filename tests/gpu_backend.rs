@@ -42,8 +42,22 @@ fn selected(name: &str) -> bool {
     }
 }
 
-/// Largest fraction of samples GPU and CPU masks may disagree on.
+/// Largest fraction of samples GPU and CPU masks may disagree on, on a
+/// GPU: Vulkan allows 2.5 ulp for division and square roots and leaves
+/// `atan`'s precision open, which can move a LUT cell or a tolerance
+/// comparison that sits within rounding of its boundary.
 const MAX_SAMPLE_MISMATCH: f64 = 1e-4;
+
+/// The allowance when the GPU saw the CPU's own G-buffer: none on a CPU
+/// device (lavapipe: IEEE `f32` arithmetic, as the CPU twin, and 0 samples
+/// measured on every scene and mode), [`MAX_SAMPLE_MISMATCH`] on a GPU.
+fn uploaded_allowance(r: &GpuRenderer) -> f64 {
+    if r.context.info().kind == "CPU" {
+        0.0
+    } else {
+        MAX_SAMPLE_MISMATCH
+    }
+}
 /// Largest fraction of hit pixels whose triangle id may differ.
 const MAX_ID_MISMATCH: f64 = 1e-3;
 /// µQuad axes: |gpu − cpu| ≤ max(this, 32 ε₃₂ κ) × |cpu| × stretch, where
@@ -108,8 +122,10 @@ fn same_surface(scene: &Scene, a: u32, b: u32) -> bool {
     key(ta) == key(tb)
 }
 
-/// Runs both comparisons on one scene and every mode.
-fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
+/// Runs both comparisons on one scene and every mode; returns how many
+/// modes it compared.
+fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) -> usize {
+    let mut compared = 0;
     let resolution = test_resolution(&scene);
     let scene = scene.with_resolution(resolution).unwrap();
     let bvh = SceneBvh::build(&scene);
@@ -139,10 +155,12 @@ fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
             gpu.report.counters.tests_spawned,
             cpu.report.evaluate.tests_spawned
         );
+        let allowed = uploaded_allowance(r);
         assert!(
-            rate <= MAX_SAMPLE_MISMATCH,
-            "{name} {mode:?}: {diff} of {total} samples differ ({rate:.2e} > {MAX_SAMPLE_MISMATCH:.0e})"
+            rate <= allowed,
+            "{name} {mode:?}: {diff} of {total} samples differ ({rate:.2e} > {allowed:.0e})"
         );
+        compared += 1;
         // resolve: lit fraction bit for bit from the same masks, and the
         // shaded image within one 8-bit level of the CPU twin.
         let cpu_visibility = izb::izb::resolve(&gpu.masks, &cpu.gbuffer);
@@ -230,36 +248,44 @@ fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) {
         worst_axis <= 1.0,
         "{name}: µQuad axes off by {worst_axis:.2} times their tolerance"
     );
+    compared
 }
 
 #[test]
 fn gpu_matches_cpu_on_procedural_scenes() {
     let Some(r) = renderer() else { return };
     let r = r.lock().unwrap_or_else(|e| e.into_inner());
-    for name in scene::procedural::NAMES.iter().filter(|n| selected(n)) {
-        check_scene(&r, name, scene::load(name).unwrap());
-    }
+    let names: Vec<_> = scene::procedural::NAMES
+        .iter()
+        .filter(|n| selected(n))
+        .collect();
+    let compared: usize = names
+        .iter()
+        .map(|name| check_scene(&r, name, scene::load(name).unwrap()))
+        .sum();
+    assert_eq!(compared, 3 * names.len(), "every mode of every scene");
 }
 
 #[test]
 fn gpu_matches_cpu_on_shared_scenes() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
-    if !std::path::Path::new(dir).exists() {
-        eprintln!("skipped: ../shared/scenes not found");
+    let Some(dir) = common::shared_scenes_dir() else {
         return;
-    }
+    };
+    let dir = dir.display();
     let Some(r) = renderer() else { return };
     let r = r.lock().unwrap_or_else(|e| e.into_inner());
-    for name in ["deckchair", "tablefan", "ficus", "engine", "courtyard"]
+    let names: Vec<_> = common::SHARED_SCENES
         .into_iter()
         .filter(|n| selected(n))
-    {
-        check_scene(
-            &r,
-            name,
-            scene::load(&format!("{dir}/{name}.scene.json")).unwrap(),
-        );
-    }
+        .collect();
+    let compared: usize = names
+        .iter()
+        .map(|name| {
+            let scene = scene::load(&format!("{dir}/{name}.scene.json")).unwrap();
+            check_scene(&r, name, scene)
+        })
+        .sum();
+    assert_eq!(compared, 3 * names.len(), "every mode of every scene");
 }
 
 #[test]
@@ -299,11 +325,15 @@ fn grid_capacity_overrun_reruns_with_room() {
         cpu.report.bin.entries_behind_receivers
     );
     assert_eq!(
+        gpu.report.frames_run, 2,
+        "the first cell-list guess was big enough: nothing was rerun"
+    );
+    assert_eq!(
         gpu.report.counters.cell_entries as usize,
         cpu.report.bin.cell_entries
     );
     let (diff, total) = mask_mismatch(&gpu.masks, &cpu.masks, &cpu.gbuffer);
-    assert!(diff as f64 / total as f64 <= MAX_SAMPLE_MISMATCH);
+    assert!(diff as f64 <= uploaded_allowance(&r) * total as f64);
 }
 
 #[test]

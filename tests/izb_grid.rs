@@ -5,6 +5,8 @@
 //! pixel visits (zero light leaks by construction, design §5), with one
 //! grid and with several cascades.
 
+mod common;
+
 use izb::gbuffer::{flags, gbuffer};
 use izb::izb::bin::{bin, place, CellEntry, Placement};
 use izb::izb::evaluate::{for_each_candidate, triangle_mask_for_pixel};
@@ -158,11 +160,10 @@ fn grid_offers_every_occluder_on_thin_and_grazing_scenes() {
 
 #[test]
 fn point_light_grid_offers_every_occluder() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
-    if !std::path::Path::new(dir).exists() {
-        eprintln!("skipped: ../shared/scenes not found");
+    let Some(dir) = common::shared_scenes_dir() else {
         return;
-    }
+    };
+    let dir = dir.display();
     // The engine: a point light, 82 transformed nodes, self-shadowing. A
     // coarse 32-cell grid and a 9-cell level threshold exercise every level;
     // the cull runs with the point light's pyramid test.

@@ -9,6 +9,8 @@
 //! samples. LUT mode is checked against `--exact` in `tests/lut_bound.rs`;
 //! here its mismatch rate against the reference is reported.
 
+mod common;
+
 use izb::gbuffer::{flags, pixel_surface};
 use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::reference::bvh::SceneBvh;
@@ -94,11 +96,10 @@ fn exact_matches_same_samples_on_procedural_scenes() {
 
 #[test]
 fn exact_matches_same_samples_on_shared_scenes() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
-    if !std::path::Path::new(dir).exists() {
-        eprintln!("skipped: ../shared/scenes not found");
+    let Some(dir) = common::shared_scenes_dir() else {
         return;
-    }
+    };
+    let dir = dir.display();
     let (mut diff, mut total) = (0, 0);
     for name in ["deckchair", "tablefan", "ficus", "engine", "courtyard"] {
         let (d, t) = check_exact(

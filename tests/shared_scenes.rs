@@ -2,23 +2,16 @@
 //! the triangle counts listed in that folder's README. Skipped (with a
 //! message) where the folder is not present, e.g. outside this workspace.
 
+mod common;
+
 use glam::DVec3;
 use izb::scene::{Scene, Triangle};
-use std::path::PathBuf;
 use std::time::Instant;
-
-fn scenes_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes"));
-    dir.is_dir().then_some(dir)
-}
 
 /// Loads `<name>.scene.json` and checks its source triangle count and the
 /// kept + dropped balance; `None` when the scenes are absent.
 fn load_counted(name: &str, source_triangles: usize) -> Option<Scene> {
-    let Some(dir) = scenes_dir() else {
-        eprintln!("skipped: ../shared/scenes not found");
-        return None;
-    };
+    let dir = common::shared_scenes_dir()?;
     let spec = dir.join(format!("{name}.scene.json"));
     let start = Instant::now();
     let scene = izb::scene::load(spec.to_str().unwrap()).unwrap_or_else(|e| panic!("{e}"));
@@ -74,7 +67,9 @@ fn engine() {
     // source; the scene also drops slivers thinner than 4 ε32 of their
     // longest edge, so it may drop more.
     let dropped = scene.stats.dropped_degenerate;
-    let source = izb::scene::load_gltf(&scenes_dir().unwrap().join("engine_121k.glb")).unwrap();
+    let source =
+        izb::scene::load_gltf(&common::shared_scenes_dir().unwrap().join("engine_121k.glb"))
+            .unwrap();
     let zero_area = |t: &&Triangle| (t[1] - t[0]).cross(t[2] - t[0]) == DVec3::ZERO;
     let zero_area_in_source = source.triangles.iter().filter(zero_area).count();
     let zero_area_kept = scene.triangles.iter().filter(zero_area).count();

@@ -15,6 +15,8 @@
 //! frame earlier or later than the exact edge by design (`tests/lut_bound.rs`
 //! bounds how far).
 
+mod common;
+
 use izb::bench::flicker::rotated_light;
 use izb::gbuffer::flags;
 use izb::izb::{render_cpu, IzbSettings, SampleMode};
@@ -114,14 +116,9 @@ fn exact_masks_change_only_where_the_reference_changes_on_procedural_scenes() {
 
 #[test]
 fn exact_masks_change_only_where_the_reference_changes_on_engine() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/scenes/engine.scene.json"
-    );
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipped: {path} not found");
+    let Some(engine) = common::shared_scene("engine") else {
         return;
-    }
-    let (_, changes) = check("engine", scene::load(path).unwrap());
+    };
+    let (_, changes) = check("engine", engine);
     assert!(changes > 0, "no shadow moved: the test would prove nothing");
 }

@@ -15,6 +15,32 @@ use serde_json::{json, Value};
 use std::fmt::Display;
 use std::path::{Path, PathBuf};
 
+/// The five shared scenes (`../shared/scenes/NAME.scene.json`), smallest
+/// first.
+pub const SHARED_SCENES: [&str; 5] = ["deckchair", "tablefan", "ficus", "engine", "courtyard"];
+
+/// `../shared/scenes`, or `None` with a printed skip when it is missing;
+/// with `IZB_REQUIRE_SCENES=1` (CI) a missing folder fails the test.
+pub fn shared_scenes_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    if std::env::var("IZB_REQUIRE_SCENES").is_ok_and(|v| v == "1") {
+        panic!("IZB_REQUIRE_SCENES=1 but {} is missing", dir.display());
+    }
+    eprintln!("skipped: {} not found", dir.display());
+    None
+}
+
+/// Shared scene `name` loaded through its spec, or `None` as
+/// [`shared_scenes_dir`] says.
+pub fn shared_scene(name: &str) -> Option<Scene> {
+    let spec = shared_scenes_dir()?.join(format!("{name}.scene.json"));
+    let spec = spec.to_str().expect("UTF-8 path");
+    Some(izb::scene::load(spec).unwrap_or_else(|e| panic!("{spec}: {e}")))
+}
+
 /// glTF `componentType` values.
 pub const UNSIGNED_BYTE: u32 = 5121;
 pub const UNSIGNED_SHORT: u32 = 5123;
