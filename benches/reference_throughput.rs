@@ -3,7 +3,7 @@
 //! when `../shared` is absent), written as JSON to `target/bench/`.
 //! The same measurement is `izb bench`; this keeps it under `cargo bench`.
 
-use izb::reference::bvh::SceneBvh;
+use izb::bvh::SceneBvh;
 use izb::reference::{reference, ReferenceSettings};
 use std::time::Instant;
 

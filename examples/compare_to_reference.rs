@@ -4,9 +4,9 @@
 //!
 //! `cargo run --release --example compare_to_reference -- [SCENE]`
 
+use izb::bvh::SceneBvh;
 use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::metrics::metrics;
-use izb::reference::bvh::SceneBvh;
 use izb::reference::{reference, ReferenceSettings};
 
 fn main() -> anyhow::Result<()> {

@@ -3,8 +3,8 @@
 //!
 //! `cargo run --release --example reference_ground_truth -- [SCENE] [OUT.exr]`
 
+use izb::bvh::SceneBvh;
 use izb::output::write_exr;
-use izb::reference::bvh::SceneBvh;
 use izb::reference::{reference, ReferenceSettings};
 
 fn main() -> anyhow::Result<()> {

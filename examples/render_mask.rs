@@ -4,10 +4,10 @@
 //!
 //! `cargo run --release --example render_mask -- [SCENE] [OUT.exr]`
 
+use izb::bvh::SceneBvh;
 use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
 use izb::izb::{render_cpu, IzbSettings};
 use izb::output::write_exr_with_masks;
-use izb::reference::bvh::SceneBvh;
 
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);

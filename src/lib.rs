@@ -12,7 +12,9 @@
 
 pub mod baseline;
 pub mod bench;
+pub mod bvh;
 pub mod cli;
+pub mod frustum;
 pub mod gbuffer;
 pub mod gpu;
 pub mod izb;

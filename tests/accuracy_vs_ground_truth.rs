@@ -9,9 +9,9 @@
 
 mod common;
 
+use izb::bvh::SceneBvh;
 use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::metrics::metrics;
-use izb::reference::bvh::SceneBvh;
 use izb::reference::{reference, ReferenceSettings};
 use izb::scene::{self, Scene};
 

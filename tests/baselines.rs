@@ -9,10 +9,10 @@ mod common;
 use common::gpu::{assert_no_validation_messages, lock, renderer};
 use izb::baseline::shadow_map::{shadow_map, CascadeMap, Filter};
 use izb::baseline::{render_shadow_map, ShadowMapSettings};
+use izb::bvh::SceneBvh;
 use izb::gbuffer::gbuffer;
 use izb::izb::light_setup::Projection;
 use izb::izb::{eye_relative_f32, light_setup, render_cpu, GridRequest, IzbSettings, SampleMode};
-use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 
 fn small(name: &str) -> Scene {

@@ -3,7 +3,7 @@
 //! answer, for random rays through a scene of thin random triangles.
 
 use glam::DVec3;
-use izb::reference::bvh::{SceneBvh, WatertightRay};
+use izb::bvh::{SceneBvh, WatertightRay};
 use izb::scene::{self, Scene};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;

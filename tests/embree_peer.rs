@@ -7,9 +7,9 @@
 #[cfg(feature = "embree")]
 #[test]
 fn embree_masks_match_the_same_sample_reference() {
+    use izb::bvh::SceneBvh;
     use izb::gbuffer::{flags, gbuffer};
     use izb::peer::embree::{rt32_embree_masks, EmbreeScene};
-    use izb::reference::bvh::SceneBvh;
     use izb::reference::same_samples::same_sample_masks;
     use izb::scene;
 

@@ -3,7 +3,7 @@
 //! references must agree pixel for pixel (same seed, same sub-sample
 //! positions): no acne from self-intersection, no leaks from rounding.
 
-use izb::reference::bvh::SceneBvh;
+use izb::bvh::SceneBvh;
 use izb::reference::{reference, ReferenceImage, ReferenceSettings};
 use izb::scene;
 

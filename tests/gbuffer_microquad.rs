@@ -7,8 +7,8 @@
 //! pixel rays (h = 1) and a fine step (h = 1/256).
 
 use glam::DVec3;
+use izb::bvh::SceneBvh;
 use izb::gbuffer::{microquad_axes, trace_primary, SurfaceHit};
-use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, CameraFrame, Scene};
 
 /// Central differences of the hit point along x and y at the pixel centre

@@ -18,9 +18,9 @@ use izb::gbuffer::{flags, GBuffer};
 mod common;
 
 use common::gpu::{assert_no_validation_messages, renderer};
+use izb::bvh::SceneBvh;
 use izb::gpu::{GBufferSource, GpuError, GpuRenderer};
 use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode};
-use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 
 /// Test resolution; `IZB_GPU_TEST_RESOLUTION=scene` runs each scene at its

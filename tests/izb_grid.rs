@@ -7,13 +7,13 @@
 
 mod common;
 
+use izb::bvh::SceneBvh;
 use izb::gbuffer::{flags, gbuffer};
 use izb::izb::bin::{bin, place, CellEntry, Placement};
 use izb::izb::evaluate::{for_each_candidate, triangle_mask_for_pixel};
 use izb::izb::{
     eye_relative_f32, light_setup, CascadeCount, GridRequest, MaskRule, SampleMode, Skips,
 };
-use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 use std::collections::HashSet;
 

@@ -4,9 +4,9 @@
 //! size and at a deliberately coarse one.
 
 use glam::DVec3;
+use izb::bvh::SceneBvh;
 use izb::gbuffer::flags;
 use izb::izb::{render_cpu, IzbSettings, SampleMode};
-use izb::reference::bvh::SceneBvh;
 use izb::reference::same_samples::same_sample_masks;
 use izb::scene::procedural::shapes::{ground, sun_direction};
 use izb::scene::{Camera, Light, Scene};

@@ -2,8 +2,8 @@
 //! (NaN included), writes are atomic, the reference is deterministic for a
 //! seed whatever the thread count, and bad arguments give clear errors.
 
+use izb::bvh::SceneBvh;
 use izb::output::{read_exr_channel, write_atomically, write_exr};
-use izb::reference::bvh::SceneBvh;
 use izb::reference::{reference, ReferenceSettings};
 use std::path::PathBuf;
 use std::process::Command;

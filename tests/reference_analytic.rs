@@ -4,8 +4,8 @@
 //! traced with a slightly wrong light must not.
 
 use glam::{DQuat, DVec3};
+use izb::bvh::SceneBvh;
 use izb::reference::analytic::AnalyticShadow;
-use izb::reference::bvh::SceneBvh;
 use izb::reference::{reference, ReferenceSettings};
 use izb::scene::{self, Light};
 

@@ -8,10 +8,10 @@
 mod common;
 
 use common::gpu::{assert_no_validation_messages, lock, renderer};
+use izb::bvh::SceneBvh;
 use izb::gbuffer::{flags, gbuffer};
 use izb::gpu::GBufferSource;
 use izb::peer::shadow_rays::shadow_rays;
-use izb::reference::bvh::SceneBvh;
 use izb::reference::same_samples::same_sample_masks;
 use izb::scene;
 

@@ -13,9 +13,9 @@
 mod common;
 
 use common::gpu::{lock, renderer};
+use izb::bvh::SceneBvh;
 use izb::gpu::{GBufferSource, GpuError};
 use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
-use izb::reference::bvh::SceneBvh;
 use izb::scene::{self, Scene};
 
 const MODES: [SampleMode; 3] = [SampleMode::One, SampleMode::Lut32, SampleMode::Exact32];

@@ -12,7 +12,6 @@
 
 use crate::gbuffer::{flags, GBuffer};
 // The GLSL twin's order-preserving float bits (for `fetch_min`).
-use crate::gpu::shared::{from_ordered_bits, ordered_bits};
 use crate::izb::light_setup::{CascadeGrid, LightSetup, Projection};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -411,6 +410,27 @@ fn pcf(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2, k:
         }
     }
     lit / (k * k) as f32
+}
+
+/// The float ↔ ordered-uint map both shadow-map twins store depths with
+/// (`ordered_bits` in the shaders): unsigned order of the words is the
+/// order of the floats, so an atomic minimum keeps the nearest depth.
+pub fn ordered_bits(f: f32) -> u32 {
+    let u = f.to_bits();
+    if u & 0x8000_0000 != 0 {
+        !u
+    } else {
+        u | 0x8000_0000
+    }
+}
+
+/// Inverse of [`ordered_bits`].
+pub fn from_ordered_bits(u: u32) -> f32 {
+    f32::from_bits(if u & 0x8000_0000 != 0 {
+        u & 0x7FFF_FFFF
+    } else {
+        !u
+    })
 }
 
 #[cfg(test)]

@@ -28,11 +28,11 @@ mod methods;
 pub use methods::{parse_methods, Method, MethodKind, DEFAULT_MAP_SIDES};
 
 use crate::baseline::render_shadow_map;
+use crate::bvh::SceneBvh;
 use crate::gbuffer::{gbuffer, GBuffer};
 use crate::izb::{render_cpu, resolve, PassTimes};
 use crate::metrics::{metrics, sample_mismatches, Metrics};
 use crate::output::write_exr;
-use crate::reference::bvh::SceneBvh;
 use crate::reference::same_samples::same_sample_masks;
 use crate::reference::{reference, ReferenceImage, ReferenceSettings};
 use crate::scene::Scene;

@@ -8,8 +8,8 @@ pub mod reference;
 pub mod render;
 pub mod tools;
 
+use crate::bvh::SceneBvh;
 use crate::izb::{CascadeCount, IzbSettings};
-use crate::reference::bvh::SceneBvh;
 use crate::reference::{reference, ReferenceImage, ReferenceSettings};
 use crate::scene::{self, Scene};
 use anyhow::Result;

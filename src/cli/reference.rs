@@ -2,13 +2,13 @@
 //! in `f64`) and `izb compare` (every IZB mode against it).
 
 use super::{load_scene, progress_bar, scene_summary, thread_pool, trace_reference, SceneArgs};
+use crate::bvh::SceneBvh;
 use crate::gbuffer::gbuffer;
 use crate::izb::{render_cpu, IzbSettings, SampleMode};
 use crate::metrics::{error_heat_map, metrics, sample_mismatches};
 use crate::output::{
     write_exr, write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
 };
-use crate::reference::bvh::SceneBvh;
 use crate::reference::same_samples::same_sample_masks;
 use crate::reference::ReferenceSettings;
 use anyhow::Result;

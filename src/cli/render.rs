@@ -1,12 +1,12 @@
 //! `izb render`: one shadow mask, on Vulkan or the CPU twin.
 
 use super::{load_scene, scene_summary, thread_pool, Backend, GridArgs, SceneArgs};
+use crate::bvh::SceneBvh;
 use crate::gpu::{GBufferSource, GpuOptions, GpuRenderer};
 use crate::izb::{render_cpu, IzbSettings, SampleMode, Skips};
 use crate::output::{
     write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
 };
-use crate::reference::bvh::SceneBvh;
 use crate::scene::Scene;
 use anyhow::{Context, Result};
 use clap::builder::TypedValueParser;

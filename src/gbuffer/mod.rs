@@ -7,7 +7,7 @@
 //! `Ex = dP/dx`, `Ey = dP/dy` (seed 002 §4: the pixel's footprint on its
 //! tangent plane, the base of its shadow frustum).
 
-use crate::reference::bvh::SceneBvh;
+use crate::bvh::SceneBvh;
 use crate::scene::{CameraFrame, Light, Scene};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;

@@ -155,7 +155,7 @@ pub(super) fn frame_params(
         max_cells: max_cells as u32,
         loop_budget,
         skips: settings.skips.bits(),
-        pattern_radius: crate::izb::frustum::pattern_radius(crate::lut::sample_pattern()),
+        pattern_radius: crate::frustum::pattern_radius(crate::lut::sample_pattern()),
         cam_forward: frame.forward.as_vec3().to_array(),
         cascades: settings.cascades.code(),
         split_lambda: settings.split_lambda,

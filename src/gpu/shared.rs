@@ -282,21 +282,6 @@ pub fn unpack_id_flags(word: u32) -> (u32, u32) {
     (id, word >> ID_BITS)
 }
 
-/// The GLSL float ↔ ordered-uint map (`ordered_bits`), for tests.
-pub fn ordered_bits(f: f32) -> u32 {
-    let u = f.to_bits();
-    if u & 0x8000_0000 != 0 {
-        !u
-    } else {
-        u | 0x8000_0000
-    }
-}
-
-/// Inverse of [`ordered_bits`].
-pub fn from_ordered_bits(u: u32) -> f32 {
-    f32::from_bits(if u & 0x8000_0000 != 0 {
-        u & 0x7FFF_FFFF
-    } else {
-        !u
-    })
-}
+/// The GLSL float ↔ ordered-uint map (`ordered_bits` in the shadow-map
+/// shaders), declared with its CPU twin.
+pub use crate::baseline::shadow_map::{from_ordered_bits, ordered_bits};

@@ -14,12 +14,12 @@
 //! projection touches.
 
 use super::bin::{cell_range, cell_range_at, Bins, NO_COVER};
-use super::frustum::{
+use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
+use super::{is_receiver, Skips};
+use crate::frustum::{
     above_tangent_plane, beyond_triangle_plane, edge_function, exact_edge_mask,
     microquad_tolerance, saturated_edge, winding, LightRel,
 };
-use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
-use super::{is_receiver, Skips};
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -162,7 +162,7 @@ pub struct MaskRule<'a> {
     pub pattern: &'a [[f32; 2]; 32],
     pub lut: &'a izb_lut::EdgeLut,
     pub skips: Skips,
-    /// [`super::frustum::pattern_radius`] of `pattern`.
+    /// [`crate::frustum::pattern_radius`] of `pattern`.
     pub radius: f32,
 }
 
@@ -174,7 +174,7 @@ impl<'a> MaskRule<'a> {
             pattern,
             lut: crate::lut::edge_lut(),
             skips,
-            radius: super::frustum::pattern_radius(pattern),
+            radius: crate::frustum::pattern_radius(pattern),
         }
     }
 

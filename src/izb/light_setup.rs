@@ -8,7 +8,7 @@
 //! light's view axis).
 
 use super::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
-use super::frustum::LightRel;
+use crate::frustum::LightRel;
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::{Light, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};

@@ -15,7 +15,6 @@ pub mod bin;
 pub mod cascades;
 pub mod evaluate;
 pub mod footprint;
-pub mod frustum;
 pub mod light_setup;
 pub mod receivers;
 pub mod skips;
@@ -25,8 +24,8 @@ pub use evaluate::{MaskRule, SampleMode, FULL};
 pub use light_setup::{light_setup, GridRequest, LightSetup};
 pub use skips::Skips;
 
+use crate::bvh::SceneBvh;
 use crate::gbuffer::{flags, gbuffer, GBuffer, GBufferStats};
-use crate::reference::bvh::SceneBvh;
 use crate::scene::Scene;
 use std::time::Instant;
 

@@ -138,7 +138,7 @@ pub const BEHIND_MARGIN: f32 = 1.0 / 1024.0;
 /// test it in cell (`x`, `y`) of level `level` of `grid` (index `c` in the
 /// cell arrays): no µQuad centre P
 /// of those receivers can lie beyond its plane, seen from the light. Then
-/// the per-pixel depth test ([`super::frustum::may_shadow`]: P beyond the
+/// the per-pixel depth test ([`crate::frustum::may_shadow`]: P beyond the
 /// plane, away from the light, by more than a tolerance) fails for each of
 /// them and the cell need not list the triangle. A cell no receiver
 /// touches never needs a list. Where the P can be: over the cell grown by

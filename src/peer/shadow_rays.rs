@@ -14,9 +14,9 @@
 //! where a neighbour meets the receiver (the sample mismatch against
 //! `rt32` in `izb bench` says how often).
 
+use crate::bvh::SceneBvh;
+use crate::frustum::DEPTH_TOLERANCE_MICROQUAD;
 use crate::gbuffer::{flags, GBuffer};
-use crate::izb::frustum::DEPTH_TOLERANCE_MICROQUAD;
-use crate::reference::bvh::SceneBvh;
 use crate::scene::{Light, Scene};
 use glam::Vec3;
 use rayon::prelude::*;

@@ -10,12 +10,11 @@
 //! [`bvh::self_hit_offset`] for how shadow rays leave their surface.
 
 pub mod analytic;
-pub mod bvh;
 pub mod same_samples;
 
+use crate::bvh::{self_hit_offset, SceneBvh};
 use crate::gbuffer::{faces_light, pixel_surface, trace_primary};
 use crate::scene::{CameraFrame, Light, Scene};
-use bvh::{self_hit_offset, SceneBvh};
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;

@@ -3,16 +3,23 @@
 //!
 //! Sample S is shadowed iff some triangle other than the receiver's, lying
 //! between the µQuad centre P and the light (the per-pixel depth test of
-//! [`crate::izb::frustum::may_shadow`]), meets the *line* through S along
+//! [`crate::frustum::may_shadow`]), meets the *line* through S along
 //! the light: for a directional light a ray started far behind S toward the
 //! light, for a point light the ray from the light through S, not stopped
 //! at S. That is "S lies in the triangle's shadow prism", the rule the IZB
 //! evaluates with edge functions — so the two agree by construction, and
 //! every disagreement is a bug or a sample within rounding of a boundary.
+//!
+//! Sharing the depth rule with the IZB is intended: this reference judges
+//! the IZB's *visibility* (which samples a triangle's prism covers, found
+//! through a BVH instead of the grid, in `f64`), not its choice of which
+//! triangles may shadow P; that rule lives once, in [`crate::frustum`],
+//! below both. The supersampled ground truth (`super::reference`) uses no
+//! such rule and judges both.
 
-use super::bvh::SceneBvh;
+use crate::bvh::SceneBvh;
+use crate::frustum::{may_shadow, LightRel};
 use crate::gbuffer::pixel_surface;
-use crate::izb::frustum::{may_shadow, LightRel};
 use crate::scene::{Light, Scene};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -90,9 +97,7 @@ pub fn decision_margin(
     light: &Light,
     uv: [f32; 2],
 ) -> f64 {
-    use crate::izb::frustum::{
-        edge_functions, DEPTH_TOLERANCE_MICROQUAD, DEPTH_TOLERANCE_ROUNDING,
-    };
+    use crate::frustum::{edge_functions, DEPTH_TOLERANCE_MICROQUAD, DEPTH_TOLERANCE_ROUNDING};
     let p = px.hit.position;
     let size = px.axis_x.length().max(px.axis_y.length());
     let rel = match *light {

@@ -5,7 +5,9 @@
 //!
 //! Written once, generically over `f32` (the IZB, CPU and GPU) and `f64`
 //! (the same-sample reference), with every vector *relative to the pixel*
-//! (seed 000: subtract P before any product, never work in NDC).
+//! (seed 000: subtract P before any product, never work in NDC). Below
+//! both the IZB (`crate::izb`) and the reference (`crate::reference`),
+//! which import it; it imports neither.
 
 use glam::{DVec3, Vec3};
 
