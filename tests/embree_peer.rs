@@ -25,16 +25,16 @@ fn embree_masks_match_the_same_sample_reference() {
         let embree = EmbreeScene::new(&izb::izb::eye_relative_f32(&scene)).unwrap();
         let got = rt32_embree_masks(&scene, &embree, &g, pattern);
         let want = same_sample_masks(&scene, &bvh, pattern);
-        let (mut diff, mut total, mut shadowed) = (0u64, 0u64, 0u64);
+        let tested = |i: usize| g.flags[i] & flags::SHADOW_TESTED != 0;
+        let mut shadowed = 0u64;
         for i in 0..got.len() {
-            if g.flags[i] & flags::SHADOW_TESTED == 0 {
+            if tested(i) {
+                shadowed += u64::from(want[i].count_ones());
+            } else {
                 assert_eq!(got[i], 0, "{name}: pixel {i} not tested but masked");
-                continue;
             }
-            diff += u64::from((got[i] ^ want[i]).count_ones());
-            shadowed += u64::from(want[i].count_ones());
-            total += 32;
         }
+        let (diff, total) = izb::metrics::sample_mismatches(&got, &want, tested);
         let rate = diff as f64 / total as f64;
         println!(
             "{name}: {diff} of {total} samples differ from rt32 ({rate:.2e}), {shadowed} shadowed"

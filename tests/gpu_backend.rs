@@ -70,15 +70,7 @@ const AXIS_RELATIVE_TOLERANCE: f32 = 1e-3;
 
 /// (differing samples, compared samples) over pixels shadow-tested in `g`.
 fn mask_mismatch(a: &[u32], b: &[u32], g: &GBuffer) -> (u64, u64) {
-    let mut diff = 0u64;
-    let mut total = 0u64;
-    for i in 0..a.len() {
-        if g.flags[i] & flags::SHADOW_TESTED != 0 {
-            diff += u64::from((a[i] ^ b[i]).count_ones());
-            total += 32;
-        }
-    }
-    (diff, total)
+    izb::metrics::sample_mismatches(a, b, |i| g.flags[i] & flags::SHADOW_TESTED != 0)
 }
 
 /// The settings of a comparison: 32-sample modes with two cascades (so

@@ -2,22 +2,17 @@
 //! (NaN included), writes are atomic, the reference is deterministic for a
 //! seed whatever the thread count, and bad arguments give clear errors.
 
+mod common;
+
+use common::TempDir;
+
 use izb::bvh::SceneBvh;
 use izb::output::{read_exr_channel, write_atomically, write_exr};
 use izb::reference::{reference, ReferenceSettings};
-use std::path::PathBuf;
-use std::process::Command;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("izb-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 #[test]
 fn exr_channels_round_trip_bit_for_bit() {
-    let dir = temp_dir("exr");
+    let dir = TempDir::new("exr");
     let path = dir.join("v.exr");
     let visibility = [0.0, 0.25, f32::NAN, 1.0, 0.5, 1.0 / 3.0];
     let smooth = [1.0, 0.0, f32::NAN, 1.0, 1.0, 0.0];
@@ -43,7 +38,7 @@ fn exr_channels_round_trip_bit_for_bit() {
 
 #[test]
 fn a_failed_write_leaves_neither_file_nor_temporary() {
-    let dir = temp_dir("atomic");
+    let dir = TempDir::new("atomic");
     let path = dir.join("report.json");
     std::fs::write(&path, "old").unwrap();
     let err = write_atomically(&path, |tmp| {
@@ -99,16 +94,11 @@ fn reference_is_deterministic_across_thread_counts() {
     assert_ne!(bits(&one.visibility), bits(&other.visibility));
 }
 
-fn izb(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_izb"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use common::izb_cli as izb;
 
 #[test]
 fn cli_reference_writes_every_output() {
-    let dir = temp_dir("cli");
+    let dir = TempDir::new("cli");
     let out = dir.to_str().unwrap();
     let run = izb(&[
         "reference",
@@ -190,7 +180,7 @@ fn cli_rejects_bad_arguments_with_a_clear_message() {
 #[test]
 fn cli_render_writes_masks_consistent_with_visibility() {
     for (spp, exact) in [("32", false), ("32", true), ("1", false)] {
-        let dir = temp_dir(&format!("render-{spp}-{exact}"));
+        let dir = TempDir::new(&format!("render-{spp}-{exact}"));
         let out = dir.to_str().unwrap();
         let mut args = vec![
             "render",
@@ -284,7 +274,7 @@ fn cli_render_writes_masks_consistent_with_visibility() {
 
 #[test]
 fn cli_lut_and_compare_write_their_files() {
-    let dir = temp_dir("lut");
+    let dir = TempDir::new("lut");
     let run = izb(&[
         "lut",
         "--angles",
@@ -304,7 +294,7 @@ fn cli_lut_and_compare_write_their_files() {
     assert_eq!((lut.angles, lut.distances), (16, 8));
     assert!(dir.join("edge_lut.png").is_file());
 
-    let dir = temp_dir("compare");
+    let dir = TempDir::new("compare");
     let run = izb(&[
         "compare",
         "analytic",

@@ -12,10 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn izb(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_izb"))
-        .args(args)
-        .output()
-        .unwrap();
+    let out = common::izb_cli(args);
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),

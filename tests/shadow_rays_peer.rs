@@ -11,18 +11,10 @@ use common::gpu::{assert_no_validation_messages, lock, renderer};
 use izb::bvh::SceneBvh;
 use izb::gbuffer::{flags, gbuffer};
 use izb::gpu::GBufferSource;
+use izb::metrics::sample_mismatches;
 use izb::peer::shadow_rays::shadow_rays;
 use izb::reference::same_samples::same_sample_masks;
 use izb::scene;
-
-/// Differing samples and samples of the shadow-tested pixels.
-fn mismatch(a: &[u32], b: &[u32], tested: impl Fn(usize) -> bool) -> (u64, u64) {
-    (0..a.len())
-        .filter(|&i| tested(i))
-        .fold((0, 0), |(d, n), i| {
-            (d + u64::from((a[i] ^ b[i]).count_ones()), n + 32)
-        })
-}
 
 #[test]
 fn gpu_shadow_rays_match_their_cpu_twin_and_rt32() {
@@ -57,9 +49,9 @@ fn gpu_shadow_rays_match_their_cpu_twin_and_rt32() {
             .filter(|&i| tested(i))
             .map(|i| u64::from(cpu[i].count_ones()))
             .sum();
-        let (d_gpu, n) = mismatch(&gpu.masks, &cpu, tested);
+        let (d_gpu, n) = sample_mismatches(&gpu.masks, &cpu, tested);
         let truth = same_sample_masks(&scene, &bvh, pattern);
-        let (d_rt, _) = mismatch(&cpu, &truth, tested);
+        let (d_rt, _) = sample_mismatches(&cpu, &truth, tested);
         println!(
             "{name}: GPU vs CPU twin {d_gpu} of {n} samples, CPU twin vs rt32 {d_rt}, \
              {shadowed} shadowed"

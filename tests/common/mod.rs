@@ -41,6 +41,14 @@ pub fn shared_scene(name: &str) -> Option<Scene> {
     Some(izb::scene::load(spec).unwrap_or_else(|e| panic!("{spec}: {e}")))
 }
 
+/// Runs the `izb` binary this test build made with `args`.
+pub fn izb_cli(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_izb"))
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("izb {args:?} did not start: {e}"))
+}
+
 /// glTF `componentType` values.
 pub const UNSIGNED_BYTE: u32 = 5121;
 pub const UNSIGNED_SHORT: u32 = 5123;
@@ -75,8 +83,21 @@ impl TempDir {
         &self.path
     }
 
-    pub fn join(&self, file: &str) -> PathBuf {
+    pub fn join(&self, file: impl AsRef<Path>) -> PathBuf {
         self.path.join(file)
+    }
+}
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.path
     }
 }
 
