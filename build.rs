@@ -1,7 +1,7 @@
 //! Build script: bakes the 32-sample pattern and the default edge LUT into
-//! the crate (design §2). `izb-lut` is a build-dependency, so the table is
+//! the crate (README, Layout). `izb-lut` is a build-dependency, so the table is
 //! generated here by the very code `izb lut` runs and the tests check
-//! (seed 002 §4: the sample locations are fixed when the LUT is built).
+//! (Wyman et al. 2015, §4: the sample locations are fixed when the LUT is built).
 //!
 //! Writes to `OUT_DIR`:
 //! - `edge_lut.bin`: [`izb_lut::EdgeLut::to_bytes`] of the
@@ -14,7 +14,7 @@
 //!
 //! It also compiles every GLSL compute shader in `shaders/` to SPIR-V with
 //! the `glslang` crate (built from source, so a fresh machine needs nothing
-//! but cargo; design §7), one `<name>.spv` per [`SHADERS`] entry. A compile
+//! but cargo; README, Precision), one `<name>.spv` per [`SHADERS`] entry. A compile
 //! error fails the build with the shader's file and glslang's line numbers.
 
 use std::fmt::Write as _;

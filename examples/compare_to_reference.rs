@@ -1,6 +1,6 @@
 //! The 32-sample IZB against supersampled ray-traced ground truth through
 //! the library API: MAE overall, on smooth penumbra pixels and on edge
-//! pixels, next to the 1-sample IZB (design §8).
+//! pixels, next to the 1-sample IZB (paper-notes/reference-estimator.md).
 //!
 //! `cargo run --release --example compare_to_reference -- [SCENE]`
 

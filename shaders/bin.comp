@@ -1,6 +1,6 @@
 #version 460
 // Pass 2, `bin` — GPU twin of `izb::izb::bin::bin`: a counting sort of
-// triangles into every cascade's light-space grid pyramid (seed 000; the
+// triangles into every cascade's light-space grid pyramid ([Compute IZB]; the
 // pyramids lie back to back in the cell arrays, levels finest first; each
 // triangle at the finest level where its rectangle holds at most
 // level_cells cells, listed in the cells its projection touches:

@@ -6,9 +6,11 @@
 // Rust `[f32; 3]`, and every binding below is one storage buffer of one
 // descriptor set shared by all passes (a pass declares only what it reads).
 //
-// Conventions (design §3, §4): positions are eye-relative f32 (the f64 →
-// f32 rounding happens on the host after subtracting the eye); every
-// triangle test runs in light view relative to the pixel, never in NDC.
+// Conventions (README, Conventions; paper-notes/frustum-test.md): positions
+// are eye-relative f32 (the f64 → f32 rounding happens on the host after
+// subtracting the eye); the frustum-triangle test runs in eye space,
+// relative to the pixel's P, never in NDC (light view only places
+// triangles and receivers in the grid).
 
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_EXT_control_flow_attributes : require

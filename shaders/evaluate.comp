@@ -1,7 +1,7 @@
 #version 460
 // Pass 3, `evaluate` — GPU twin of `izb::izb::evaluate::evaluate`.
 //
-// One thread per pixel, 8×8 tiles (seed 000). A shadow-tested pixel's
+// One thread per pixel, 8×8 tiles ([Compute IZB]). A shadow-tested pixel's
 // µQuad maps to a rectangle of cells on every level of its cascade's grid
 // pyramid; every triangle listed in those cells on the non-empty levels,
 // plus the overflow entries of its cascade, is a candidate, tested in the
@@ -13,13 +13,13 @@
 // elected cell (the lowest first cell among its pixels); cells a pixel
 // covers beyond the elected one are read from global memory.
 // Barriers are reached by every thread: finished or inactive pixels still
-// help load batches (seed 000's `live` flag).
+// help load batches ([Compute IZB]'s `live` flag).
 //
-// The test itself (design §4, seed 002 §4): a per-pixel depth test at the
+// The test itself (paper-notes/frustum-test.md, Wyman et al. 2015, §4): a per-pixel depth test at the
 // µQuad centre, then the three shadow-volume side planes as affine edge
 // functions over the µQuad — LUT masks (MODE_LUT32), all 32 samples
 // evaluated (MODE_EXACT32), or the centre only (MODE_ONE) — ANDed per
-// triangle, ORed per pixel, stopping when the mask is full (seed 002 §6.6).
+// triangle, ORed per pixel, stopping when the mask is full (Wyman et al. 2015, §6.6).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 

@@ -4,7 +4,7 @@
 // A compute visibility pass, not a raster pipeline: each thread casts the
 // pixel-centre ray through a BVH (built on the host by obvhs) exactly as the
 // CPU twin does, so both sample the same ray and derive the µQuad axes from
-// the same closed form (design §3: derivatives of the ray/tangent-plane
+// the same closed form (README, Conventions: derivatives of the ray/tangent-plane
 // intersection), with no rasterisation rules or depth-buffer precision in
 // between. Output: the struct-of-arrays G-buffer (hit point, µQuad axes,
 // triangle id and flags in one word; the normal is the triangle's, with
@@ -120,7 +120,7 @@ void main() {
     float n_dot_d = dot(n, d);
     vec3 ex = best_t * (frame.cam_dx - d * (dot(n, frame.cam_dx) / n_dot_d));
     vec3 ey = best_t * (frame.cam_dy - d * (dot(n, frame.cam_dy) / n_dot_d));
-    // Grazing clamp (design §5), identical to the CPU twin's.
+    // Grazing clamp (paper-notes/reference-estimator.md), identical to the CPU twin's.
     float limit = frame.max_stretch * best_t * length(frame.cam_dx) * length(d);
     float lx = length(ex);
     float ly = length(ey);

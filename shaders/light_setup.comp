@@ -13,7 +13,7 @@
 //                               corners; the light-view depth range;
 //   STEP_GRID      (1 thread)   per cascade padded bounds, grid size, cell
 //                               offset and overflow threshold.
-// Light view is a rotation plus a translation (seed 000): only the grid
+// Light view is a rotation plus a translation ([Compute IZB]): only the grid
 // lookup uses NDC.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"

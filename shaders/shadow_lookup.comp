@@ -2,8 +2,8 @@
 // Baseline pass `shadow_lookup` — GPU twin of
 // `baseline::shadow_map::shadow_lookup`: each shadow-tested pixel's lit
 // fraction from its cascade's map (the cascade light_setup stored in the
-// pixel's `masks` word), one tap with slope-scaled bias (seed 003) or k×k
-// bilinear PCF with receiver-plane depth bias (seed 001). The lit
+// pixel's `masks` word), one tap with slope-scaled bias ([Shadow mapping mechanics]) or k×k
+// bilinear PCF with receiver-plane depth bias ([Shadow acne notes]). The lit
 // fraction's float bits replace the word: a shadow-map frame has no
 // occlusion masks.
 #extension GL_GOOGLE_include_directive : require

@@ -4,7 +4,7 @@
 //!
 //! Why this split: `obvhs` traverses in `f32`, which is fine for culling as
 //! long as the bounds it sees are conservative; the hit itself decides what
-//! is in shadow, so it runs in `f64` on eye-relative coordinates (design §4:
+//! is in shadow, so it runs in `f64` on eye-relative coordinates (paper-notes/frustum-test.md:
 //! never hand `f32` a large absolute coordinate). Bounds are padded by 16
 //! `f32` ulps of the scene's eye-relative radius R: every ray starts within
 //! 3R of the eye (the same-sample reference starts lines 2R behind a

@@ -1,11 +1,11 @@
-//! The frustum-triangle test of seed 002 §4 (design §4): for one pixel's
+//! The frustum-triangle test of Wyman et al. 2015, §4 (paper-notes/frustum-test.md): for one pixel's
 //! µQuad and one occluder triangle, a per-pixel depth test at the µQuad
 //! centre P, then the three shadow-volume side planes as affine edge
 //! functions over the µQuad, `f(u, v) = α + β(u − ½) + γ(v − ½) ≥ 0` inside.
 //!
 //! Written once, generically over `f32` (the IZB, CPU and GPU) and `f64`
 //! (the same-sample reference), with every vector *relative to the pixel*
-//! (seed 000: subtract P before any product, never work in NDC). Below
+//! ([Compute IZB]: subtract P before any product, never work in NDC). Below
 //! both the IZB (`crate::izb`) and the reference (`crate::reference`),
 //! which import it; it imports neither.
 
@@ -87,7 +87,7 @@ fn side_plane_normal<V: Vector>(x: V, y: V, light: LightRel<V>) -> V {
     }
 }
 
-/// The per-pixel depth test at P (design §4): whether triangle `t`
+/// The per-pixel depth test at P (paper-notes/frustum-test.md): whether triangle `t`
 /// (vertices minus P) may shadow the µQuad of a receiver with camera-facing
 /// normal `normal`. Two conditions, both evaluated once per pixel:
 ///

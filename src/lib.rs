@@ -3,7 +3,7 @@
 //! Analytic, antialiased hard shadows with a compute irregular z-buffer
 //! (IZB), and the ray-traced ground truth they are measured against.
 //!
-//! Module map (design §2): [`scene`] loads glTF, scene specs and procedural
+//! Module map (README, Layout): [`scene`] loads glTF, scene specs and procedural
 //! scenes; [`gbuffer`] computes primary visibility with µQuad footprints;
 //! [`reference`] traces supersampled ground truth; [`izb`] is the CPU
 //! irregular z-buffer and [`gpu`] its Vulkan twin; [`output`] writes images

@@ -1,5 +1,5 @@
 //! The 32-sample pattern and the edge-visibility LUT as the renderer uses
-//! them (seed 002 §4, design §4).
+//! them (Wyman et al. 2015, §4, paper-notes/frustum-test.md).
 //!
 //! `build.rs` runs [`izb_lut`] at compile time and this module embeds what
 //! it wrote: [`edge_lut`] is the `DEFAULT_ANGLES × DEFAULT_DISTANCES` table

@@ -1,5 +1,5 @@
 //! 32 spp against 1 spp, both against the 256-spp ray-traced ground truth
-//! (design §8): on smooth penumbra pixels the 32-sample mask must be at
+//! (paper-notes/reference-estimator.md): on smooth penumbra pixels the 32-sample mask must be at
 //! least 5× more accurate, and on edge pixels and overall no worse. The
 //! full-resolution numbers are in the closing notes (`izb compare`); this
 //! guards them at reduced resolution: 240×135 for the procedural scenes,
@@ -18,7 +18,7 @@ use izb::scene::{self, Scene};
 const PROCEDURAL_RESOLUTION: [u32; 2] = [240, 135];
 const SHARED_RESOLUTION: [u32; 2] = [480, 270];
 /// Required smooth-penumbra MAE ratio 1 spp / 32 spp (calibration in
-/// design §8: 6–9× for an exact implementation).
+/// paper-notes/reference-estimator.md: 6–9× for an exact implementation).
 const MIN_PENUMBRA_GAIN: f64 = 5.0;
 
 fn check(name: &str, scene: Scene, resolution: [u32; 2]) {

@@ -2,7 +2,7 @@
 //! exactly the triangles whose footprint touches each cell of each level
 //! (within their rectangle), and no triangle able to
 //! shadow any of a pixel's 32 samples is missing from the candidates the
-//! pixel visits (zero light leaks by construction, design §5), with one
+//! pixel visits (zero light leaks by construction, paper-notes/reference-estimator.md), with one
 //! grid and with several cascades.
 
 mod common;

@@ -1,7 +1,7 @@
 //! The CPU IZB against the same-sample reference, sample by sample, on
 //! every procedural scene and every shared scene (reduced resolution).
 //!
-//! `--exact` evaluates the rule the reference traces (design §4), so they
+//! `--exact` evaluates the rule the reference traces (paper-notes/frustum-test.md), so they
 //! may differ only where a sample lies within float rounding of a shadow
 //! boundary (the IZB runs in `f32`, the reference in `f64`): every
 //! mismatch must have a decision margin below

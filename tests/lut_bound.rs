@@ -1,5 +1,5 @@
 //! The embedded edge LUT and its proven misclassification bound, end to end
-//! (seed 002 §4, design §4 and §8: LUT mode must match the exact samples
+//! (Wyman et al. 2015, §4, paper-notes/frustum-test.md and §8: LUT mode must match the exact samples
 //! within the LUT's proven quantisation bound).
 
 use glam::DVec3;
@@ -90,7 +90,7 @@ impl Configuration {
         }
     }
 
-    /// (α, β, γ) of each edge as design §4 defines them, in f64: n =
+    /// (α, β, γ) of each edge as paper-notes/frustum-test.md defines them, in f64: n =
     /// (B − A) × ω, flipped so the third vertex is inside; α = n·(P − A),
     /// β = n·Ex, γ = n·Ey.
     fn edges(&self) -> [[f64; 3]; 3] {

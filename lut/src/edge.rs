@@ -2,7 +2,7 @@
 //! µQuad, its normalised (angle, distance) form, and the exact per-sample
 //! classification the LUT is measured against.
 //!
-//! Seed 002 §4 (Wyman et al., "frustum-triangle tests"): each triangle edge
+//! Wyman et al. 2015, §4 (Wyman et al., "frustum-triangle tests"): each triangle edge
 //! and the light span a *shadow quad*; projected onto the receiver's tangent
 //! plane it is a line, and one side of it is shadowed. Design §4 writes the
 //! side test in µQuad coordinates as the affine function
@@ -19,7 +19,7 @@ use std::f64::consts::PI;
 
 /// Distance from the µQuad centre to its corners, √2/2, in units of the
 /// µQuad side: the largest |cos θ·(u−½) + sin θ·(v−½)| over the unit square.
-/// A line at |d| ≥ this from the centre cannot cut the square (design §4).
+/// A line at |d| ≥ this from the centre cannot cut the square (paper-notes/frustum-test.md).
 pub const HALF_DIAGONAL: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// Mask with every sample inside.
@@ -27,7 +27,7 @@ pub const ALL_SAMPLES: u32 = u32::MAX;
 
 const _: () = assert!(SAMPLES_PER_PIXEL == u32::BITS as usize);
 
-/// The normalised form of an edge function (design §4).
+/// The normalised form of an edge function (paper-notes/frustum-test.md).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum EdgeLine {
     /// The line misses the µQuad, or (β, γ) vanishes: every sample gets the
@@ -106,7 +106,7 @@ pub fn exact_mask(alpha: f64, beta: f64, gamma: f64, pattern: &SamplePattern) ->
 /// right, every operation rounded once and none fused. IEEE-754 (and Vulkan,
 /// for +, − and ×) round these operations correctly, so a GLSL shader that
 /// writes the same expression and declares the result `precise` (which
-/// forbids contraction into FMA; design §7: lavapipe fuses otherwise) gets
+/// forbids contraction into FMA; README, Precision: lavapipe fuses otherwise) gets
 /// the same bits for f, hence the same mask, even for samples exactly on an
 /// edge. Rust never contracts floating-point expressions on its own.
 pub fn exact_mask_f32(alpha: f32, beta: f32, gamma: f32, pattern: &SamplePattern) -> u32 {

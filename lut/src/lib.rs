@@ -1,6 +1,6 @@
 //! `izb-lut`: the 32-sample sub-pixel pattern, the normalised edge-line
 //! parameterisation and the edge-visibility lookup table of `izb`
-//! (seed 002 §4, design §4). Pure Rust, no I/O, no dependencies: `build.rs`
+//! (Wyman et al. 2015, §4, paper-notes/frustum-test.md). Pure Rust, no I/O, no dependencies: `build.rs`
 //! of the `izb` crate, the `izb lut` command and the tests all call this
 //! same code.
 //!

@@ -1,6 +1,6 @@
 //! The 32 sub-pixel sample positions and the measurement that chose them.
 //!
-//! Seed 002 §4 leaves the sample locations to the developer ("visibility
+//! Wyman et al. 2015, §4 leaves the sample locations to the developer ("visibility
 //! sample locations are developer specified during LUT construction") and
 //! the paper used a Halton set. What matters for analytic shadow edges is
 //! how well the fraction of samples on one side of a straight edge matches
@@ -14,7 +14,7 @@ use crate::SAMPLES_PER_PIXEL;
 use std::f64::consts::PI;
 
 /// 32 sample positions (u, v) ∈ [0, 1)², (0, 0) the µQuad's top-left
-/// corner, v downward (design §3). Sample i is bit i of an occlusion mask.
+/// corner, v downward (README, Conventions). Sample i is bit i of an occlusion mask.
 pub type SamplePattern = [[f32; 2]; SAMPLES_PER_PIXEL];
 
 /// Name of the candidate [`sample_pattern`] returns: the lowest RMS

@@ -1,4 +1,4 @@
-//! The edge-visibility lookup table (seed 002 §4, design §4): a 2-D table
+//! The edge-visibility lookup table (Wyman et al. 2015, §4, paper-notes/frustum-test.md): a 2-D table
 //! over (angle, signed distance) of the edge line, each cell the 32-bit
 //! mask of samples on the inside of the line through the cell centre.
 
@@ -214,7 +214,7 @@ impl EdgeLut {
     /// also routes NaN inputs to "none inside", as [`crate::exact_mask_f32`].
     /// Correct normalisation needs β² + γ² within f32 range
     /// (|β|, |γ| ≲ 10¹⁸ and not both ≲ 10⁻¹⁹); µQuad-relative light-view
-    /// coordinates (design §4) stay far inside it.
+    /// coordinates (paper-notes/frustum-test.md) stay far inside it.
     pub fn cell(&self, alpha: f32, beta: f32, gamma: f32) -> LutCell {
         const HALF_DIAGONAL_F32: f32 = std::f32::consts::FRAC_1_SQRT_2;
         const PI_F32: f32 = std::f32::consts::PI;

@@ -1,12 +1,12 @@
-//! Shadow-map baselines (seeds 001, 003, 004): what a user would pick
+//! Shadow-map baselines (Williams 1978, Reeves et al. 1987; [Shadow acne notes], [Shadow mapping mechanics], Agenjo 2020: paper-notes/references.md): what a user would pick
 //! instead of the IZB, rendered into the same G-buffer and judged by the
 //! same metrics.
 //!
-//! - `sm-R`: one tap, slope-scaled bias (seed 003);
+//! - `sm-R`: one tap, slope-scaled bias ([Shadow mapping mechanics]);
 //! - `pcf3-R`, `pcf5-R`: 3×3 / 5×5 bilinear PCF with receiver-plane depth
-//!   bias, one comparison depth per texel (seed 001's Gather variant);
+//!   bias, one comparison depth per texel ([Shadow acne notes]'s Gather variant);
 //! - `csmN-pcf3-R`: N cascaded maps on the IZB cascades' logarithmic splits,
-//!   each fitted to its own receivers (seed 004, Lauritzen's sample
+//!   each fitted to its own receivers (Agenjo 2020, Lauritzen's sample
 //!   distribution), 3×3 PCF.
 //!
 //! `R` is the side of each map in texels. The passes are

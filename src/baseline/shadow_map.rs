@@ -1,4 +1,4 @@
-//! The two passes of a shadow map (seeds 001, 003, 004): `shadow_map`
+//! The two passes of a shadow map (Williams 1978, Reeves et al. 1987; [Shadow acne notes], [Shadow mapping mechanics], Agenjo 2020: paper-notes/references.md): `shadow_map`
 //! rasterises every triangle's distance to the light into one map per
 //! cascade, `shadow_lookup` compares each shadow-tested pixel against it.
 //!
@@ -20,10 +20,10 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// How the map is filtered at lookup.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum Filter {
-    /// One texel, slope-scaled bias (seed 003).
+    /// One texel, slope-scaled bias ([Shadow mapping mechanics]).
     OneTap,
     /// `k`×`k` bilinear taps (each a Gather-style 2×2 with its own
-    /// comparison depth), receiver-plane depth bias (seed 001).
+    /// comparison depth), receiver-plane depth bias ([Shadow acne notes]).
     Pcf(u32),
 }
 
@@ -40,7 +40,7 @@ impl Filter {
 /// Slope-scaled bias of the one-tap lookup, in texel widths: the
 /// receiver's depth changes by `texel · tanθ` per texel (θ between normal
 /// and light), and a lookup lands up to half a texel diagonal (0.71) from
-/// the centre the texel's depth was taken at. Seed 003 scales with
+/// the centre the texel's depth was taken at. [Shadow mapping mechanics] scales with
 /// `1 − N·L`, which stays bounded where the real error grows without bound;
 /// `tanθ` is the slope factor of Vulkan's `depthBiasSlopeFactor`.
 pub const SLOPE_BIAS_TEXELS: f32 = 1.0;
@@ -362,7 +362,7 @@ fn tan_to_light(projection: Projection, p: Vec3, n: Vec3) -> f32 {
     (1.0 - cos * cos).sqrt() / cos
 }
 
-/// One texel, slope-scaled bias (seed 003).
+/// One texel, slope-scaled bias ([Shadow mapping mechanics]).
 fn one_tap(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2) -> f32 {
     let (x, y) = map.texel_of(map.texel_coords(ndc).floor());
     let stored = map.at(x, y);
@@ -372,12 +372,12 @@ fn one_tap(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2
     lit as u32 as f32
 }
 
-/// `k`×`k` bilinear PCF, receiver-plane depth bias (seed 001): each of
+/// `k`×`k` bilinear PCF, receiver-plane depth bias ([Shadow acne notes]): each of
 /// the 2×2 texels behind every tap is compared against the receiver
 /// plane's own distance at that texel's centre, computed geometrically
-/// from the G-buffer normal (seed 001 recommends this over screen-space
+/// from the G-buffer normal ([Shadow acne notes] recommends this over screen-space
 /// derivatives, which break at every silhouette). The plane is only
-/// allowed to move the comparison toward the light (seed 001's
+/// allowed to move the comparison toward the light ([Shadow acne notes]'s
 /// `min(0, …)`: a bias may remove shadow, never add it).
 fn pcf(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2, k: u32) -> f32 {
     let own = light_distance(projection, p);

@@ -69,7 +69,7 @@ pub fn rotated_light(scene: &Scene, degrees: f64) -> Light {
 
 /// Running sums of |Δ| between consecutive frames, over all pixels and
 /// split by the ground truth's pixel class (smooth in both frames, or
-/// not: design §8).
+/// not: paper-notes/reference-estimator.md).
 #[derive(Default)]
 struct Delta {
     previous: Option<Vec<f32>>,

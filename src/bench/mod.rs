@@ -1,4 +1,4 @@
-//! Run time against error (design §8, issue 6): every method on one scene,
+//! Run time against error (paper-notes/reference-estimator.md, issue 6): every method on one scene,
 //! in one process, repetitions interleaved so that drift in the machine's
 //! speed hits every method alike, medians reported, every metric measured
 //! against one supersampled ground truth.

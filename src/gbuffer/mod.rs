@@ -1,10 +1,10 @@
-//! Primary visibility: the G-buffer every later pass reads (design §3).
+//! Primary visibility: the G-buffer every later pass reads (README, Conventions).
 //!
 //! CPU twin of the GPU G-buffer pass: one `f64` ray per pixel centre against
 //! the real geometry. Per pixel it stores the hit triangle, the view depth,
 //! the eye-relative hit point, the geometric normal flipped to face the
 //! camera, whether the pixel is shadow-tested, and the µQuad axes
-//! `Ex = dP/dx`, `Ey = dP/dy` (seed 002 §4: the pixel's footprint on its
+//! `Ex = dP/dx`, `Ey = dP/dy` (Wyman et al. 2015, §4: the pixel's footprint on its
 //! tangent plane, the base of its shadow frustum).
 
 use crate::bvh::SceneBvh;
@@ -19,7 +19,7 @@ pub const NO_HIT: u32 = u32::MAX;
 /// facing the ray. At grazing views (N·V → 0) the exact axes grow without
 /// bound; beyond 64× (N·V < 1/64, 89.1° from the normal) they are scaled
 /// down to this length. The same clamp must be used by every consumer of
-/// µQuads (design §5); clamped pixels are counted in [`GBufferStats`].
+/// µQuads (paper-notes/reference-estimator.md); clamped pixels are counted in [`GBufferStats`].
 pub const MAX_MICROQUAD_STRETCH: f64 = 64.0;
 
 /// Per-pixel flags.

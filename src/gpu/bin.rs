@@ -1,7 +1,9 @@
 //! GPU pass 2, `bin` (`shaders/bin.comp`): triangles into the light-space
-//! grid by counting sort — atomic count per cell with the light-view vertex
-//! cache and the overflow list, exclusive prefix sum, scatter (seed 000) —
-//! the twin of [`crate::izb::bin::bin`].
+//! grid pyramid by counting sort ([Compute IZB]) — each triangle placed on
+//! its level from its light-view vertices and counted in the cells its
+//! projection touches (the overflow list only for triangles crossing a
+//! point light's image plane), an in-place prefix sum, a scatter by atomic
+//! decrement — the twin of [`crate::izb::bin::bin`].
 //!
 //! The cell list's size is only known after the prefix sum, inside the
 //! frame. The host allocates a guess; the prefix sum compares the total

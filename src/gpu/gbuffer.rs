@@ -4,7 +4,7 @@
 //!
 //! Why a compute visibility pass rather than a raster pipeline: the CPU
 //! twin casts the pixel-centre ray and differentiates the ray/tangent-plane
-//! intersection (design §3); casting the same ray on the GPU reproduces
+//! intersection (README, Conventions); casting the same ray on the GPU reproduces
 //! that exactly, with no rasterisation fill rules, no depth-buffer
 //! quantisation and no graphics pipeline to maintain. The price is a BVH,
 //! built here on the host by `obvhs` (a static scene builds it once per

@@ -1,5 +1,5 @@
 //! Pass 2, `bin`: triangles into the light-space grid pyramids by
-//! counting sort (seed 000): count per cell, exclusive prefix sum, scatter
+//! counting sort ([Compute IZB]): count per cell, exclusive prefix sum, scatter
 //! of triangle ids. Each triangle is placed in every cascade its shadow
 //! reaches, at the pyramid level where its rectangle holds at most
 //! `level_cells` cells, and listed only in the cells of that rectangle its
@@ -108,7 +108,7 @@ pub struct BinStats {
 /// The binned grids of every cascade, back to back. Cells hold triangle
 /// ids into the eye-relative triangle buffer, which `evaluate` reads as it
 /// is: its frustum test runs in eye space, so there is no light-view copy
-/// to cache (seed 000's vertex cache saves the evaluate pass a fetch,
+/// to cache ([Compute IZB]'s vertex cache saves the evaluate pass a fetch,
 /// skin and transform chain; this crate's input is already flat
 /// eye-relative `f32` triangles, the very vertices the test needs).
 pub struct Bins {
@@ -196,7 +196,7 @@ pub fn place(
     }
 }
 
-/// The conservative shadow map's test (Tokuyoshi 2018, seed 000, made a
+/// The conservative shadow map's test (Tokuyoshi 2018, [Compute IZB], made a
 /// candidate filter instead of a verdict): when triangle `tri` (light view,
 /// directional light) covers all of cell (`x`, `y`) of level `level` of
 /// `grid` — the cell's

@@ -1,4 +1,4 @@
-//! Sample-distribution cascades (Lauritzen et al. 2011, seed 002 §6.4):
+//! Sample-distribution cascades (Lauritzen et al. 2011, Wyman et al. 2015, §6.4):
 //! the shadow-tested pixels are split by view depth into 1–4 cascades, and
 //! each cascade gets its own light-space grid fitted to its own pixels'
 //! µQuads (see [`super::light_setup`]).
@@ -197,7 +197,7 @@ pub fn max_total_cells(side: u32) -> u64 {
 }
 
 /// Cells a triangle's rectangle may hold at the pyramid level it is
-/// binned at (Wyman et al. 2016 and seed 000 bin each triangle into every
+/// binned at (Wyman et al. 2016 and [Compute IZB] bin each triangle into every
 /// cell it covers up to a threshold and list the rest globally; a pyramid
 /// has no global list: a triangle too large for one level goes to the next,
 /// coarser one, where it covers about a quarter as many cells). Its

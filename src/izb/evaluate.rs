@@ -2,7 +2,7 @@
 //! triangles of every grid cell its µQuad touches on every non-empty
 //! pyramid level (plus the overflow list),
 //! run the frustum-triangle test of each, and OR the occluded samples into
-//! the pixel's 32-bit mask, stopping once it is full (seed 002 §6.6).
+//! the pixel's 32-bit mask, stopping once it is full (Wyman et al. 2015, §6.6).
 //!
 //! No missed occluder: a sample S can only be shadowed by a triangle whose
 //! light-NDC projection contains S's projection, and S lies in its µQuad,
@@ -32,7 +32,7 @@ use rayon::prelude::*;
 pub enum SampleMode {
     /// One point test at the µQuad centre: the mask is all or nothing.
     One,
-    /// 32 samples, each edge's mask from the edge LUT (seed 002 §4).
+    /// 32 samples, each edge's mask from the edge LUT (Wyman et al. 2015, §4).
     Lut32,
     /// 32 samples, every edge function evaluated at every sample.
     Exact32,
@@ -212,7 +212,7 @@ struct TestCounters {
 /// masks. With the `saturated_edges` skip an edge that misses the whole
 /// µQuad ends the test and an edge that contains it costs one comparison.
 ///
-/// Eye space, not light view (design §4 and seed 000 say light view; both
+/// Eye space, not light view (paper-notes/frustum-test.md and [Compute IZB] say light view; both
 /// are relative to P, so equally precise): the depth test's inputs —
 /// vertices, P, normal, µQuad — do not depend on the light, so in eye space
 /// they are the same floats in every frame while the light moves, and a

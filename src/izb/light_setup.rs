@@ -2,7 +2,7 @@
 //! bounds, fitted to the µQuads of the shadow-tested pixels.
 //!
 //! Light view is a rotation plus a translation (no projection, no scale):
-//! every test runs there, relative to the pixel (seed 000: never in NDC).
+//! every test runs there, relative to the pixel ([Compute IZB]: never in NDC).
 //! Only the *grid lookup* uses light NDC: `(x, y)` for a directional light
 //! (orthographic), `(x/z, y/z)` for a point light (perspective, z along the
 //! light's view axis).

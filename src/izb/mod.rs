@@ -41,7 +41,7 @@ pub struct IzbSettings {
     /// rectangle holds at most this many cells (None:
     /// [`cascades::DEFAULT_LEVEL_CELLS`]).
     pub level_cells: Option<u32>,
-    /// Sample-distribution cascades (seed 002 §6.4).
+    /// Sample-distribution cascades (Wyman et al. 2015, §6.4).
     pub cascades: CascadeCount,
     /// Split blend: 1 logarithmic, 0 uniform.
     pub split_lambda: f32,

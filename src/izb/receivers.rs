@@ -1,4 +1,4 @@
-//! The `behind-receivers` skip (seed 002 §5.4, exact): per cell of every
+//! The `behind-receivers` skip (Wyman et al. 2015, §5.4, exact): per cell of every
 //! pyramid level, how far the farthest receiver able to test a triangle
 //! there lies from the light, and the test that drops a triangle whose
 //! plane no such receiver can lie beyond (then the per-pixel depth test

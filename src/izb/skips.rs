@@ -1,5 +1,5 @@
-//! Work a render may skip because it cannot change any mask (seed 002
-//! §6.5–6.6, seed 000's culling), each behind its own switch so its effect
+//! Work a render may skip because it cannot change any mask (Wyman et al. 2015
+//! §6.5–6.6, [Compute IZB]'s culling), each behind its own switch so its effect
 //! can be measured (`--skip all|none|name,name,…`) and each with a counter
 //! in the report. Every skip is exact: `tests/skips_are_exact.rs` renders
 //! every scene with all skips on and all off and requires bit-identical
@@ -10,7 +10,7 @@ use std::fmt;
 /// Which exact shortcuts a render takes. `Default` is all of them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct Skips {
-    /// Pixels that face away from the light (N·L ≤ 0, seed 002 §6.5) are
+    /// Pixels that face away from the light (N·L ≤ 0, Wyman et al. 2015, §6.5) are
     /// neither fitted, binned against nor tested: their lit fraction is 0
     /// by the shading model. Off: they are fitted and tested like any
     /// receiver, and their masks are then discarded.
@@ -19,7 +19,7 @@ pub struct Skips {
     /// shadow any receiver) are dropped. Off: they join the overflow list
     /// that every pixel tests.
     pub outside_bounds: bool,
-    /// A pixel stops testing once its mask is full (seed 002 §6.6).
+    /// A pixel stops testing once its mask is full (Wyman et al. 2015, §6.6).
     pub full_mask: bool,
     /// An occluder whose shadow prism contains or misses the whole µQuad
     /// takes the cheap path: one comparison per edge instead of a LUT read
@@ -28,10 +28,10 @@ pub struct Skips {
     pub saturated_edges: bool,
     /// A cell does not list a triangle that lies behind (farther from the
     /// light than) every receiver that can test it there, nor anything at
-    /// all when no receiver touches it (seed 002 §5.4): see
+    /// all when no receiver touches it (Wyman et al. 2015, §5.4): see
     /// [`super::receivers::behind_receivers`]; directional and point lights.
     pub behind_receivers: bool,
-    /// The conservative shadow-map early-out (Tokuyoshi 2018, seed 000),
+    /// The conservative shadow-map early-out (Tokuyoshi 2018, [Compute IZB]),
     /// exact by construction: the bin pass records per cell the triangle
     /// whose shadow covers the whole cell with the highest floor
     /// ([`super::bin::cover_floor`]); a pixel tests that one first, with

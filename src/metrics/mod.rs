@@ -1,4 +1,4 @@
-//! Error of a lit-fraction image against the ground truth (design §8).
+//! Error of a lit-fraction image against the ground truth (paper-notes/reference-estimator.md).
 //!
 //! Only pixels shadow-tested in both images count. Pixel classes come from
 //! the reference's `smooth` channel: a *smooth* pixel's sub-pixel hits all

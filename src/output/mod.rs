@@ -1,4 +1,4 @@
-//! Output files (design §3): `visibility.exr`, `visibility.png`,
+//! Output files (README, Conventions): `visibility.exr`, `visibility.png`,
 //! `report.json`. Every file is written under a temporary name in the same
 //! folder and renamed into place, so a crash leaves the old file or the new
 //! one, never half of one.

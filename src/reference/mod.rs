@@ -1,4 +1,4 @@
-//! Ray-traced ground truth (design §8).
+//! Ray-traced ground truth (paper-notes/reference-estimator.md).
 //!
 //! Per pixel, `k × k` stratified jittered sub-pixel primary rays hit the real
 //! geometry; each hit sends one shadow ray toward the light. The pixel's
@@ -84,7 +84,7 @@ pub struct ReferenceImage {
     /// Lit fraction per pixel, NaN where the centre is not shadow-tested.
     pub visibility: Vec<f32>,
     /// 1 where every sub-pixel hit lies on the centre hit's plane (a
-    /// *smooth* pixel, design §8), 0 otherwise, NaN where not shadow-tested.
+    /// *smooth* pixel, paper-notes/reference-estimator.md), 0 otherwise, NaN where not shadow-tested.
     pub smooth: Vec<f32>,
     pub settings: ReferenceSettings,
     pub stats: ReferenceStats,

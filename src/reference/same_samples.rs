@@ -1,4 +1,4 @@
-//! The same-sample reference (design §4, §8): exactly the 32 µQuad samples
+//! The same-sample reference (paper-notes/frustum-test.md, §8): exactly the 32 µQuad samples
 //! of each pixel, traced in `f64` on the real geometry with the BVH.
 //!
 //! Sample S is shadowed iff some triangle other than the receiver's, lying

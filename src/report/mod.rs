@@ -95,7 +95,7 @@ pub struct ReportFiles {
 fn register_font() {
     static FONT: Once = Once::new();
     FONT.call_once(|| {
-        // DejaVu Sans, embedded: no system font libraries needed (design §7).
+        // DejaVu Sans, embedded: no system font libraries needed (README, Precision).
         plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
             .unwrap_or_else(|_| panic!("the embedded DejaVu Sans font is valid"));
     });

@@ -1,6 +1,6 @@
 use glam::DVec3;
 
-/// Pinhole camera of design §3: `fov_y_deg` is the full vertical field of
+/// Pinhole camera of README, Conventions: `fov_y_deg` is the full vertical field of
 /// view, pixels are square, the image plane is spanned by `r = f × up` and
 /// `u = r × f`.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -1,6 +1,6 @@
 //! Scenes: the world-space triangle soup, the camera and the light.
 //!
-//! Conventions (design §3): right-handed, +Y up, the camera looks along -Z in
+//! Conventions (README, Conventions): right-handed, +Y up, the camera looks along -Z in
 //! view space; pixel (x, y) has x to the right and y down, its centre at
 //! (x + 0.5, y + 0.5). World positions are kept in `f64` so that a scene
 //! 1e5 units from the origin keeps its sub-millimetre detail; everything that
@@ -149,7 +149,7 @@ impl Scene {
     }
 
     /// Triangles relative to the camera position, computed in `f64`: the
-    /// only form in which coordinates may be rounded to `f32` (design §4).
+    /// only form in which coordinates may be rounded to `f32` (paper-notes/frustum-test.md).
     pub fn eye_relative_triangles(&self) -> Vec<Triangle> {
         let eye = self.camera.eye;
         self.triangles

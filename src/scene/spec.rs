@@ -1,4 +1,4 @@
-//! The scene spec file (`*.scene.json`, design §3).
+//! The scene spec file (`*.scene.json`, README, Conventions).
 
 use super::{Camera, Light, Scene, SceneError};
 use glam::DVec3;
