@@ -12,6 +12,9 @@
 //!
 //! Both are read by `src/lut.rs` with `include_bytes!` / `include!`.
 //!
+//! - `contract.glsl`: [`izb_contract::glsl_header`], every constant and
+//!   struct the shaders share with Rust, included by `shaders/common.glsl`.
+//!
 //! It also compiles every GLSL compute shader in `shaders/` to SPIR-V with
 //! the `glslang` crate (built from source, so a fresh machine needs nothing
 //! but cargo; README, Precision), one `<name>.spv` per [`SHADERS`] entry. A compile
@@ -23,6 +26,7 @@ use std::path::PathBuf;
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=lut/src");
+    println!("cargo:rerun-if-changed=contract/src");
     assert_eq!(
         izb_lut::SAMPLES_PER_PIXEL,
         u32::BITS as usize,
@@ -47,6 +51,12 @@ fn main() {
     }
     source.push_str("]\n");
     write(&out_dir.join("sample_pattern.rs"), source.as_bytes());
+
+    // The CPU–GPU contract, rendered from its one Rust declaration.
+    write(
+        &out_dir.join("contract.glsl"),
+        izb_contract::glsl_header().as_bytes(),
+    );
 
     compile_shaders(&out_dir);
 }
@@ -89,8 +99,12 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ("shadow_rays", "shadow_rays.comp", &[]),
 ];
 
-/// Resolves `#include "x"` against `shaders/`.
-struct ShaderIncludes(PathBuf);
+/// Resolves `#include "x"` against `OUT_DIR` (the generated
+/// `contract.glsl`), then `shaders/`.
+struct ShaderIncludes {
+    generated: PathBuf,
+    shaders: PathBuf,
+}
 
 impl glslang::include::IncludeHandler for ShaderIncludes {
     fn include(
@@ -100,7 +114,12 @@ impl glslang::include::IncludeHandler for ShaderIncludes {
         _includer_name: &str,
         _include_depth: usize,
     ) -> Option<glslang::include::IncludeResult> {
-        let path = self.0.join(header_name);
+        let generated = self.generated.join(header_name);
+        let path = if generated.is_file() {
+            generated
+        } else {
+            self.shaders.join(header_name)
+        };
         let data = std::fs::read_to_string(&path).ok()?;
         Some(glslang::include::IncludeResult {
             name: path.display().to_string(),
@@ -130,7 +149,10 @@ fn compile_shaders(out_dir: &std::path::Path) {
         let source = glslang::ShaderSource::from(text);
         let defines: Vec<(&str, Option<&str>)> =
             defines.iter().map(|(k, v)| (*k, Some(*v))).collect();
-        let mut includes = ShaderIncludes(dir.clone());
+        let mut includes = ShaderIncludes {
+            generated: out_dir.to_path_buf(),
+            shaders: dir.clone(),
+        };
         let fail = |what: &str, e: &dyn std::fmt::Display| -> ! {
             panic!("\n{what} {} ({name}):\n{e}\n", path.display())
         };

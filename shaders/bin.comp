@@ -65,8 +65,6 @@ Triangle light_view_triangle(uint id) {
     return Triangle(to_light_view(w.a), to_light_view(w.b), to_light_view(w.c));
 }
 
-// bin::BEHIND_MARGIN.
-#define BEHIND_MARGIN (1.0 / 1024.0)
 
 // bin::upward_normal: the plane normal turned toward the light (+z);
 // false when the light sees the triangle edge-on (or it is NaN).
@@ -163,9 +161,6 @@ uint cover_floor(Triangle t, uint k, uint level, uint x, uint y) {
     return max(ordered_bits(floor_z), 1u);
 }
 
-// footprint::TOUCH_ROUNDING and SLIVER_RATIO.
-#define TOUCH_ROUNDING (1.0 / 262144.0)
-#define SLIVER_RATIO (1.0 / 65536.0)
 
 // footprint::Footprint: the level a triangle is binned at, its rectangle
 // there, its vertices in that level's grid coordinates and the side of

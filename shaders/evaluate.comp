@@ -45,9 +45,7 @@ layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 #include "light_view.glsl"
 
 #define NO_CELL 0xFFFFFFFFu
-// frustum::DEPTH_TOLERANCE_MICROQUAD and DEPTH_TOLERANCE_ROUNDING (16 ε₃₂).
-#define DEPTH_TOLERANCE_MICROQUAD (1.0 / 256.0)
-#define DEPTH_TOLERANCE_ROUNDING (16.0 * 1.1920929e-7)
+// DEPTH_TOLERANCE_*, SATURATION_MARGIN: contract.glsl (frustum.rs documents them).
 #define HALF_DIAGONAL 0.70710677
 #define PI 3.14159265
 
@@ -140,7 +138,6 @@ uint exact_mask(vec3 e) {
 
 // frustum::saturated_edge: whether the edge keeps every sample on one side
 // (2^-10 relative margin over the pattern's radius), and which.
-#define SATURATION_MARGIN (1.0 / 1024.0)
 bool saturated_edge(vec3 e, out uint m) {
     precise float r = sqrt(e.y * e.y + e.z * e.z);
     precise float reach = r * frame.pattern_radius * (1.0 + SATURATION_MARGIN);

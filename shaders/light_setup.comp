@@ -37,7 +37,6 @@ layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
 // Closest a receiver may come to the point light's image plane, relative to
 // the depth range, before the perspective grid is given up
 // (light_setup::MIN_PERSPECTIVE_DEPTH_RATIO).
-#define MIN_PERSPECTIVE_DEPTH_RATIO 1e-3
 
 #if defined(STEP_RECEIVERS) || defined(STEP_EXTENT)
 // Workgroup partial reductions: the tile reduces in shared memory, then
@@ -81,7 +80,7 @@ bool receiver_pixel(out uint i) {
 // light_setup::default_grid_side.
 uint default_grid_side(uint receivers) {
     // RECEIVERS_PER_CELL, TRIANGLES_PER_CELL.
-    return clamp(uint(ceil(sqrt(max(float(receivers) / 6.0, float(frame.triangle_count) / 16.0)))), 8u, 1024u);
+    return clamp(uint(ceil(sqrt(max(float(receivers) / RECEIVERS_PER_CELL, float(frame.triangle_count) / TRIANGLES_PER_CELL)))), GRID_SIDE_MIN, GRID_SIDE_MAX);
 }
 
 void main() {
@@ -267,13 +266,13 @@ void main() {
         vec2 nmax = vec2(from_ordered_bits(light.cascade[k].ndc_hi[0]), from_ordered_bits(light.cascade[k].ndc_hi[1]));
         vec2 size = nmax - nmin;
         // f32::MIN_POSITIVE = 2^-126.
-        float pad = max(max(size.x, size.y), uintBitsToFloat(0x00800000u)) * 1e-4;
+        float pad = max(max(size.x, size.y), uintBitsToFloat(0x00800000u)) * BOUNDS_PADDING;
         light.cascade[k].ndc_min = nmin - pad;
         light.cascade[k].ndc_max = nmax + pad;
         // cascades::cascade_cells: the budget side² shared by receivers,
         // square cells, sides rounded down.
         float budget = float(side) * float(side);
-        float target = light.cascade_count <= 1u ? budget : max(budget * (float(nk) / float(n)), 64.0);
+        float target = light.cascade_count <= 1u ? budget : max(budget * (float(nk) / float(n)), MIN_CASCADE_CELLS);
         vec2 extent = light.cascade[k].ndc_max - light.cascade[k].ndc_min;
         float cell = sqrt(extent.x * extent.y / target);
         uvec2 cells = uvec2(1u);

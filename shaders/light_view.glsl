@@ -8,7 +8,6 @@
 
 // bin::CELL_PADDING: cell rectangles grow by 1/64 cell on every side, far
 // above the f32 rounding of a grid coordinate.
-#define CELL_PADDING (1.0 / 64.0)
 
 // rotation · (p − origin); `precise` keeps the compiler from fusing
 // multiply-adds the CPU does not fuse.

@@ -32,7 +32,6 @@ layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 
 #define STACK_SIZE 64
 // frustum::DEPTH_TOLERANCE_MICROQUAD: the rays' start offset in µQuads.
-#define DEPTH_TOLERANCE_MICROQUAD (1.0 / 256.0)
 
 // Whether the ray from `org` along `d` enters the box (relative to org)
 // within (0, t_far).

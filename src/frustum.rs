@@ -16,11 +16,12 @@ use glam::{DVec3, Vec3};
 /// coplanar neighbour (distance 0 up to rounding) never passes; a real
 /// occluder closer than that to the receiver would shadow less than 1/256
 /// of the pixel's width before the edge tests even start.
-pub const DEPTH_TOLERANCE_MICROQUAD: f64 = 1.0 / 256.0;
+pub const DEPTH_TOLERANCE_MICROQUAD: f64 =
+    izb_contract::tolerance::DEPTH_TOLERANCE_MICROQUAD as f64;
 
 /// The part of the depth tolerance scaled by the triangle's distance from
 /// P, covering the rounding of the plane equation in `f32`: 16 ε₃₂.
-pub const DEPTH_TOLERANCE_ROUNDING: f64 = 16.0 * f32::EPSILON as f64;
+pub const DEPTH_TOLERANCE_ROUNDING: f64 = izb_contract::tolerance::DEPTH_TOLERANCE_ROUNDING as f64;
 
 /// Where the light is, relative to the pixel.
 #[derive(Clone, Copy, Debug)]
@@ -263,7 +264,7 @@ pub fn saturated_edge(e: [f32; 3], radius: f32) -> Option<u32> {
 }
 
 /// Relative margin of [`saturated_edge`] (2⁻¹⁰).
-pub const SATURATION_MARGIN: f32 = 1.0 / 1024.0;
+pub const SATURATION_MARGIN: f32 = izb_contract::tolerance::SATURATION_MARGIN;
 
 /// Largest distance of a pattern sample from the µQuad centre, in µQuad
 /// sides (below √2/2: samples lie strictly inside the square).

@@ -13,7 +13,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 /// Triangle id of a pixel whose centre ray hits nothing.
-pub const NO_HIT: u32 = u32::MAX;
+pub const NO_HIT: u32 = izb_contract::word::NO_HIT;
 
 /// Largest µQuad axis length, in units of the pixel's footprint on a plane
 /// facing the ray. At grazing views (N·V → 0) the exact axes grow without
@@ -23,14 +23,7 @@ pub const NO_HIT: u32 = u32::MAX;
 pub const MAX_MICROQUAD_STRETCH: f64 = 64.0;
 
 /// Per-pixel flags.
-pub mod flags {
-    /// The centre ray hit a triangle within [near, far].
-    pub const HIT: u32 = 1;
-    /// Hit and N·L > 0: the pixel's shadow is computed.
-    pub const SHADOW_TESTED: u32 = 2;
-    /// The µQuad axes were clamped to [`super::MAX_MICROQUAD_STRETCH`].
-    pub const AXES_CLAMPED: u32 = 4;
-}
+pub use izb_contract::flags;
 
 /// The primary hit of one ray, in `f64`, eye-relative.
 #[derive(Clone, Copy, Debug)]

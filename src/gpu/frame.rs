@@ -226,7 +226,7 @@ impl GpuRenderer {
             lut_entries: lut.masks.len() as u64,
             shadow_map_texels: passes.shadow_map_texels(),
         });
-        debug_assert_eq!(descs.len(), binding::COUNT as usize);
+        debug_assert_eq!(descs.len(), super::shared::BINDING_COUNT as usize);
         let frame_buffers = FrameBuffers {
             buffers: descs
                 .into_iter()
@@ -234,7 +234,8 @@ impl GpuRenderer {
                 .collect::<Result<_, _>>()?,
         };
         let fb = &frame_buffers;
-        let refs: [&GpuBuffer; binding::COUNT as usize] = std::array::from_fn(|b| fb.get(b as u32));
+        let refs: [&GpuBuffer; super::shared::BINDING_COUNT as usize] =
+            std::array::from_fn(|b| fb.get(b as u32));
         let set = DescriptorSet::new(shared, &self.layout, &refs)?;
 
         // Uploads through staging buffers, kept alive until the fence.

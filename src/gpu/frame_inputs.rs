@@ -24,8 +24,9 @@ impl SceneUpload {
         SceneUpload {
             triangles: eye_relative
                 .iter()
-                .map(|t| GpuTriangle {
-                    v: t.map(|v| v.as_vec3().to_array()),
+                .map(|t| {
+                    let [a, b, c] = t.map(|v| v.as_vec3().to_array());
+                    GpuTriangle { a, b, c }
                 })
                 .collect(),
             normals: eye_relative

@@ -4,7 +4,7 @@
 use super::frame_inputs::{grid_budget_side, SceneUpload};
 use super::frame_report::PassMemory;
 use super::resources::{BufferDesc, GpuBuffer};
-use super::shared::{binding, counter, FrameParams, LightState};
+use super::shared::{counter, FrameParams, LightState};
 use super::GpuError;
 use crate::izb::IzbSettings;
 use crate::scene::Scene;
@@ -24,7 +24,7 @@ pub struct FrameSizes {
 
 /// Every device buffer of a frame, in binding order (`shared::binding`),
 /// each with the pass it counts toward and its size.
-pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; binding::COUNT as usize] {
+pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; super::shared::BINDING_COUNT as usize] {
     let (p, t, vec3) = (z.pixels, z.triangles, 12u64);
     [
         BufferDesc::device("frame", "frame_params", size_of::<FrameParams>() as u64),

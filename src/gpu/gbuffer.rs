@@ -39,7 +39,7 @@ pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
     let boxes: Vec<Aabb> = triangles
         .iter()
         .map(|t| {
-            let [a, b, c] = t.v.map(glam::Vec3A::from);
+            let [a, b, c] = [t.a, t.b, t.c].map(glam::Vec3A::from);
             Aabb::new(a.min(b).min(c), a.max(b).max(c))
         })
         .collect();

@@ -99,6 +99,25 @@ macro_rules! spirv {
     };
 }
 
+/// Every compiled shader module by name, as `build.rs` wrote them (for
+/// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
+pub const SPIRV_MODULES: [(&str, &[u8]); 14] = [
+    ("gbuffer", spirv!("gbuffer")),
+    ("light_setup_receivers", spirv!("light_setup_receivers")),
+    ("light_setup_frame", spirv!("light_setup_frame")),
+    ("light_setup_extent", spirv!("light_setup_extent")),
+    ("light_setup_grid", spirv!("light_setup_grid")),
+    ("bin_receivers", spirv!("bin_receivers")),
+    ("bin_count", spirv!("bin_count")),
+    ("bin_prefix_sum", spirv!("bin_prefix_sum")),
+    ("bin_scatter", spirv!("bin_scatter")),
+    ("evaluate", spirv!("evaluate")),
+    ("resolve", spirv!("resolve")),
+    ("shadow_map", spirv!("shadow_map")),
+    ("shadow_lookup", spirv!("shadow_lookup")),
+    ("shadow_rays", spirv!("shadow_rays")),
+];
+
 /// The compiled pipelines of every pass.
 pub struct Kernels {
     pub gbuffer: ComputeKernel,

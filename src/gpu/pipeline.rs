@@ -6,7 +6,6 @@
 
 use super::context::DeviceShared;
 use super::resources::GpuBuffer;
-use super::shared::binding;
 use super::GpuError;
 use ash::vk;
 use std::sync::Arc;
@@ -20,7 +19,7 @@ pub struct BindingLayout {
 
 impl BindingLayout {
     pub fn new(shared: &Arc<DeviceShared>) -> Result<Self, GpuError> {
-        let bindings: Vec<vk::DescriptorSetLayoutBinding> = (0..binding::COUNT)
+        let bindings: Vec<vk::DescriptorSetLayoutBinding> = (0..super::shared::BINDING_COUNT)
             .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(b)
@@ -139,12 +138,12 @@ impl DescriptorSet {
     pub fn new(
         shared: &Arc<DeviceShared>,
         layout: &BindingLayout,
-        buffers: &[&GpuBuffer; binding::COUNT as usize],
+        buffers: &[&GpuBuffer; super::shared::BINDING_COUNT as usize],
     ) -> Result<Self, GpuError> {
         let device = &shared.device;
         let sizes = [vk::DescriptorPoolSize::default()
             .ty(vk::DescriptorType::STORAGE_BUFFER)
-            .descriptor_count(binding::COUNT)];
+            .descriptor_count(super::shared::BINDING_COUNT)];
         let info = vk::DescriptorPoolCreateInfo::default()
             .max_sets(1)
             .pool_sizes(&sizes);

@@ -133,7 +133,7 @@ pub struct Bins {
 }
 
 /// [`Bins::cover`] of a cell no triangle covers.
-pub const NO_COVER: u32 = u32::MAX;
+pub const NO_COVER: u32 = izb_contract::word::NO_COVER;
 
 impl Bins {
     /// Entries of cell (x, y) of pyramid level `level` of `grid`.

@@ -21,10 +21,11 @@
 //! which can move a pixel at a split into the next cascade and change the
 //! counters, never a mask.
 
+use izb_contract::tolerance::MIN_CASCADE_CELLS;
 use std::fmt;
 
 /// Most cascades a frame may have.
-pub const MAX_CASCADES: usize = 4;
+pub const MAX_CASCADES: usize = izb_contract::size::MAX_CASCADES as usize;
 
 /// `auto` uses the fewest cascades (up to [`MAX_CASCADES`]) whose
 /// logarithmic splits keep each cascade's far/near view-depth ratio at or
@@ -36,7 +37,7 @@ pub const MAX_CASCADES: usize = 4;
 /// (`paper-notes/skipping-work.md`). So `auto` keeps one grid up to a
 /// ratio of 16 and splits only deeper views, where one grid's cells must
 /// serve µQuads more than 16× apart in size.
-pub const AUTO_MAX_DEPTH_RATIO: f32 = 16.0;
+pub const AUTO_MAX_DEPTH_RATIO: f32 = izb_contract::tolerance::AUTO_MAX_DEPTH_RATIO;
 
 /// How many cascades to use (`--cascades auto|1..4`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -135,7 +136,7 @@ pub fn cascade_of_depth(upper: &[f32; MAX_CASCADES], depth: f32) -> usize {
 /// pixel's µQuad up to 4K images, and it bounds the pyramid's rim of
 /// rounded-up cells that the GPU cell arrays are sized for
 /// ([`max_total_cells`]).
-pub const MAX_GRID_SIDE: u32 = 4096;
+pub const MAX_GRID_SIDE: u32 = izb_contract::size::MAX_GRID_SIDE;
 
 /// Cells along x and y of a cascade's grid over a light-NDC `extent`: the
 /// frame's cell budget `side²` (`side` from all receivers and triangles,
@@ -158,7 +159,7 @@ pub fn cascade_cells(
     let target = if count <= 1 || all_receivers == 0 {
         budget
     } else {
-        (budget * (receivers as f32 / all_receivers as f32)).max(64.0)
+        (budget * (receivers as f32 / all_receivers as f32)).max(MIN_CASCADE_CELLS)
     };
     let cell = (extent.x * extent.y / target).sqrt();
     if cell.is_nan() || cell <= 0.0 {
@@ -191,7 +192,7 @@ pub fn cascade_cells(
 /// ([`cascade_cells`]); the levels of a `w × h` grid add at most
 /// `Σ (w/2^l + 1)(h/2^l + 1) ≤ wh/3 + 2(w + h) + levels` more.
 pub fn max_total_cells(side: u32) -> u64 {
-    let level0 = u64::from(side) * u64::from(side) + 64 * MAX_CASCADES as u64;
+    let level0 = u64::from(side) * u64::from(side) + MIN_CASCADE_CELLS as u64 * MAX_CASCADES as u64;
     let per_grid_rim = 4 * u64::from(MAX_GRID_SIDE) + 2 * 32;
     level0 + level0.div_ceil(3) + MAX_CASCADES as u64 * per_grid_rim
 }
@@ -209,7 +210,7 @@ pub fn max_total_cells(side: u32) -> u64 {
 /// (64.6 → 29.2 tests), engine 0.22 → 0.14 s (35.8 → 12.0), wires 1.01 →
 /// 0.51 s; 4096 and 16384 gain on simple scenes but let one GPU bin thread
 /// loop over that many cells (`paper-notes/performance.md`).
-pub const DEFAULT_LEVEL_CELLS: u32 = 1024;
+pub const DEFAULT_LEVEL_CELLS: u32 = izb_contract::word::DEFAULT_LEVEL_CELLS;
 
 /// What the frame chose, for the report.
 #[derive(Clone, Debug, Default, serde::Serialize)]

@@ -39,7 +39,7 @@ pub enum SampleMode {
 }
 
 /// A full 32-sample mask.
-pub const FULL: u32 = u32::MAX;
+pub const FULL: u32 = izb_contract::word::FULL_MASK;
 
 /// Counters of the evaluate pass.
 #[derive(Clone, Debug, Default, serde::Serialize)]

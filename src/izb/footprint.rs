@@ -27,19 +27,19 @@ use glam::Vec2;
 /// far above the `f32` rounding of a light NDC coordinate (~1e-4 cell on a
 /// 1024-cell grid), so rounding never drops a triangle from a cell its
 /// shadow touches.
-pub const CELL_PADDING: f32 = 1.0 / 64.0;
+pub const CELL_PADDING: f32 = izb_contract::tolerance::CELL_PADDING;
 
 /// Relative bound on the `f32` rounding of an edge function evaluated at a
 /// cell corner (2⁻¹⁸ ≈ 32 ε₃₂, for four roundings of products and
 /// differences): a cell is dropped only when it lies outside an edge by
 /// more than this times |edge|₁ · |corner − vertex|₁, on top of the padding.
-pub const TOUCH_ROUNDING: f32 = 1.0 / 262_144.0;
+pub const TOUCH_ROUNDING: f32 = izb_contract::tolerance::TOUCH_ROUNDING;
 
 /// A projected triangle whose doubled area is at most this fraction of
 /// |e₀|₁·|e₁|₁ (2⁻¹⁶) is treated as a segment whose orientation rounding
 /// may flip: it is listed in every cell of its rectangle. (A 1 mm wire ten
 /// metres long has ~1e-4, above it.)
-pub const SLIVER_RATIO: f32 = 1.0 / 65_536.0;
+pub const SLIVER_RATIO: f32 = izb_contract::tolerance::SLIVER_RATIO;
 
 /// Inclusive integer cell range of a `dims` grid covered by the continuous
 /// box `[lo, hi]` (in that grid's cells), grown by [`CELL_PADDING`], or

@@ -193,7 +193,7 @@ pub struct LightSetup {
 
 /// Closest a receiver may come to the point light's image plane, relative
 /// to its distance range, before the perspective grid is given up.
-const MIN_PERSPECTIVE_DEPTH_RATIO: f32 = 1e-3;
+const MIN_PERSPECTIVE_DEPTH_RATIO: f32 = izb_contract::tolerance::MIN_PERSPECTIVE_DEPTH_RATIO;
 
 impl LightSetup {
     /// Light-view coordinates of an eye-relative point (f32, as on the GPU).
@@ -340,11 +340,11 @@ pub fn microquad_corners(p: Vec3, ex: Vec3, ey: Vec3) -> [Vec3; 4] {
 }
 
 /// Receivers per level-0 cell the default grid aims at.
-pub const RECEIVERS_PER_CELL: f32 = 6.0;
+pub const RECEIVERS_PER_CELL: f32 = izb_contract::tolerance::RECEIVERS_PER_CELL;
 
 /// Triangles per level-0 cell the default grid aims at when the scene has
 /// more triangles than receivers per cell allow.
-pub const TRIANGLES_PER_CELL: f32 = 16.0;
+pub const TRIANGLES_PER_CELL: f32 = izb_contract::tolerance::TRIANGLES_PER_CELL;
 
 /// The frame's cell budget, as the side of a square of cells, when none is
 /// asked for: about [`RECEIVERS_PER_CELL`] receivers per cell, or about
@@ -362,7 +362,10 @@ pub const TRIANGLES_PER_CELL: f32 = 16.0;
 pub fn default_grid_side(receivers: usize, triangles: usize) -> u32 {
     let per_cell =
         (receivers as f32 / RECEIVERS_PER_CELL).max(triangles as f32 / TRIANGLES_PER_CELL);
-    (per_cell.sqrt().ceil() as u32).clamp(8, 1024)
+    (per_cell.sqrt().ceil() as u32).clamp(
+        izb_contract::word::GRID_SIDE_MIN,
+        izb_contract::word::GRID_SIDE_MAX,
+    )
 }
 
 /// What [`light_setup`] is asked for besides the scene and G-buffer.
@@ -502,7 +505,8 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
             }
             // Pad the bounds by a relative 1e-4 so µQuad corners on the
             // boundary stay inside after rounding.
-            let pad = (nmax[k] - nmin[k]).max_element().max(f32::MIN_POSITIVE) * 1e-4;
+            let pad = (nmax[k] - nmin[k]).max_element().max(f32::MIN_POSITIVE)
+                * izb_contract::tolerance::BOUNDS_PADDING;
             grid.ndc_min = nmin[k] - pad;
             grid.ndc_max = nmax[k] + pad;
             grid.cells = cascades::cascade_cells(

@@ -132,7 +132,7 @@ pub fn receiver_reach(lo: Vec2, hi: Vec2) -> u32 {
 
 /// Relative margin of [`behind_receivers`] (2⁻¹⁰), about 10⁴ times the
 /// `f32` rounding of the depth test it must agree with.
-pub const BEHIND_MARGIN: f32 = 1.0 / 1024.0;
+pub const BEHIND_MARGIN: f32 = izb_contract::tolerance::BEHIND_MARGIN;
 
 /// Whether triangle `tri` (light view) is behind every receiver that can
 /// test it in cell (`x`, `y`) of level `level` of `grid` (index `c` in the

@@ -5,6 +5,7 @@
 //! every scene with all skips on and all off and requires bit-identical
 //! masks, on both backends.
 
+use izb_contract::skip;
 use std::fmt;
 
 /// Which exact shortcuts a render takes. `Default` is all of them.
@@ -46,16 +47,23 @@ impl Default for Skips {
     }
 }
 
-/// One skip's name (as `--skip` spells it) and its field.
-type SkipField = (&'static str, fn(&mut Skips) -> &mut bool);
+/// One skip's name (as `--skip` spells it), its `SKIP_*` bit (the
+/// contract's, by name) and its field.
+type SkipField = (&'static str, u32, fn(&mut Skips) -> &mut bool);
 
 const FIELDS: [SkipField; 6] = [
-    ("facing-away", |s| &mut s.facing_away),
-    ("outside-bounds", |s| &mut s.outside_bounds),
-    ("full-mask", |s| &mut s.full_mask),
-    ("saturated-edges", |s| &mut s.saturated_edges),
-    ("behind-receivers", |s| &mut s.behind_receivers),
-    ("shadow-map", |s| &mut s.shadow_map),
+    ("facing-away", skip::FACING_AWAY, |s| &mut s.facing_away),
+    ("outside-bounds", skip::OUTSIDE_BOUNDS, |s| {
+        &mut s.outside_bounds
+    }),
+    ("full-mask", skip::FULL_MASK, |s| &mut s.full_mask),
+    ("saturated-edges", skip::SATURATED_EDGES, |s| {
+        &mut s.saturated_edges
+    }),
+    ("behind-receivers", skip::BEHIND_RECEIVERS, |s| {
+        &mut s.behind_receivers
+    }),
+    ("shadow-map", skip::SHADOW_MAP, |s| &mut s.shadow_map),
 ];
 
 impl Skips {
@@ -78,7 +86,7 @@ impl Skips {
 
     /// Every skip's `--skip` name.
     pub fn names() -> impl Iterator<Item = &'static str> {
-        FIELDS.iter().map(|(n, _)| *n)
+        FIELDS.iter().map(|(n, _, _)| *n)
     }
 
     /// Parses `all`, `none` or a comma-separated list of names.
@@ -90,7 +98,7 @@ impl Skips {
         }
         let mut skips = Skips::NONE;
         for name in text.split(',').map(str::trim) {
-            let (_, field) = FIELDS.iter().find(|(n, _)| *n == name).ok_or_else(|| {
+            let (_, _, field) = FIELDS.iter().find(|(n, _, _)| *n == name).ok_or_else(|| {
                 format!(
                     "unknown skip {name:?}: expected all, none or some of {}",
                     Skips::names().collect::<Vec<_>>().join(", ")
@@ -101,19 +109,22 @@ impl Skips {
         Ok(skips)
     }
 
-    /// (position in [`FIELDS`], name) of every skip that is on.
-    fn enabled(mut self) -> impl Iterator<Item = (usize, &'static str)> {
-        let on: Vec<bool> = FIELDS.iter().map(|(_, field)| *field(&mut self)).collect();
+    /// (`SKIP_*` bit, name) of every skip that is on.
+    fn enabled(mut self) -> impl Iterator<Item = (u32, &'static str)> {
+        let on: Vec<bool> = FIELDS
+            .iter()
+            .map(|(_, _, field)| *field(&mut self))
+            .collect();
         FIELDS
             .iter()
             .enumerate()
             .filter(move |(k, _)| on[*k])
-            .map(|(k, (name, _))| (k, *name))
+            .map(|(_, (name, bit, _))| (*bit, *name))
     }
 
-    /// The `SKIP_*` bits of `FrameParams::skips` (shaders/common.glsl).
+    /// The `SKIP_*` bits of `FrameParams::skips` (izb-contract's `skip`).
     pub fn bits(self) -> u32 {
-        self.enabled().map(|(k, _)| 1 << k).sum()
+        self.enabled().fold(0, |bits, (bit, _)| bits | bit)
     }
 }
 

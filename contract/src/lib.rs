@@ -1,0 +1,335 @@
+//! The CPU–GPU contract of izb: every struct, constant, binding and
+//! tolerance the Rust passes and the GLSL shaders share, declared once,
+//! here (kajiya's shared crate does the same). `build.rs` renders
+//! [`glsl_header`] to `contract.glsl`, which `shaders/common.glsl`
+//! includes; the structs are `#[repr(C)]` + bytemuck, laid out as GLSL's
+//! scalar block layout lays them out (every member 4-byte aligned, `vec3` =
+//! `[f32; 3]`), and `tests/spirv_layout.rs` reads every member's offset
+//! and size back from the compiled SPIR-V.
+
+pub mod macros;
+mod structs;
+
+use macros::{shared_constants, GlslConstant, SharedStruct};
+pub use structs::{BvhNode, CascadeGrid, FrameParams, GpuTriangle, LightState};
+
+shared_constants! {
+    /// Descriptor bindings of the one set every pass shares (`B_*`).
+    pub mod binding: u32 as Int, prefix "B_" {
+        FRAME = 0;
+        TRIANGLES = 1;
+        BVH_NODES = 2;
+        BVH_PRIMS = 3;
+        G_POSITION = 4;
+        G_AXIS_X = 5;
+        G_AXIS_Y = 6;
+        /// Triangle id and flags in one word (`ID_BITS`).
+        G_ID_FLAGS = 7;
+        LIGHT = 8;
+        COUNTERS = 9;
+        /// Per cell: the conservative shadow map's cover floor (ordered
+        /// bits) and !id of its cover triangle.
+        CELL_COVER = 10;
+        /// Per cell: the count, then (the scan's inclusive end, the
+        /// scatter's decrementing cursor) the first entry.
+        CELL_START = 11;
+        CELL_TRIANGLES = 12;
+        OVERFLOW = 13;
+        EDGE_LUT = 14;
+        MASKS = 15;
+        /// Shaded RGB8 with the lit sample count in alpha
+        /// (`ALPHA_NOT_TESTED`).
+        SHADED = 16;
+        /// Unit normal per triangle, computed on the host in `f64` exactly
+        /// as the CPU twin computes it, then rounded. A receiver's normal
+        /// is its triangle's, negated when its G-buffer word has
+        /// `FLAG_NORMAL_FLIPPED`.
+        TRIANGLE_NORMALS = 17;
+        /// Per cell: lowest receiver z (ordered bits) and !reach.
+        CELL_RECEIVERS = 18;
+        /// The shadow-map baseline's maps, cascade after cascade, one
+        /// order-preserving distance word per texel (empty texels
+        /// `u32::MAX`); 4 bytes in an IZB frame.
+        SHADOW_MAP = 19;
+    }
+}
+
+/// Number of bindings (one past the last of [`binding`]).
+pub const BINDING_COUNT: u32 = binding::SHADOW_MAP + 1;
+
+shared_constants! {
+    /// Word indices into the counters buffer (`C_*`); 64-bit counters take
+    /// two words, low first.
+    pub mod counter: usize as Int, prefix "C_" {
+        HITS = 0;
+        SHADOW_TESTED = 1;
+        CLAMPED = 2;
+        BINNED = 3;
+        OVERFLOW = 4;
+        CULLED = 5;
+        CELL_ENTRIES = 6;
+        CAPACITY_EXCEEDED = 7;
+        PIXELS_TESTED = 8;
+        EARLY_OUTS = 9;
+        /// 64-bit.
+        TESTS_SPAWNED = 10;
+        /// 64-bit.
+        DEPTH_PASSED = 12;
+        /// 64-bit.
+        CELLS_VISITED = 14;
+        LOOP_BUDGET_EXCEEDED = 16;
+        /// 64-bit.
+        SATURATED_MASKS = 17;
+        /// Cell entries the behind-receivers skip dropped.
+        ENTRIES_BEHIND = 19;
+        /// Binned placements dropped from every cell.
+        TRIANGLES_BEHIND = 20;
+        /// Pixels the cover triangle alone filled.
+        SHADOW_MAP_EARLY_OUTS = 21;
+        /// Per cascade k, word `LEVELS + k`: bit l set when pyramid level l
+        /// holds a placement (atomicOr in the bin count).
+        LEVELS = 22;
+        /// 64-bit.
+        LEVELS_VISITED = 26;
+        /// Rectangle cells a binned triangle's projection misses.
+        CELLS_UNTOUCHED = 28;
+        /// 64-bit.
+        MASKS_NONEMPTY = 29;
+        /// Words in the counters buffer.
+        WORDS = 31;
+    }
+}
+
+shared_constants! {
+    /// Local sizes of the pixel passes (8×8 tiles) and the linear passes.
+    pub mod workgroup: u32 as Int, prefix "WORKGROUP_" {
+        PIXELS_X = 8;
+        PIXELS_Y = 8;
+        PIXELS = 64;
+        LINEAR = 256;
+    }
+}
+
+shared_constants! {
+    /// `FrameParams::mode` (`MODE_*`).
+    pub mod mode: u32 as Uint, prefix "MODE_" {
+        ONE = 0;
+        LUT32 = 1;
+        EXACT32 = 2;
+    }
+}
+
+shared_constants! {
+    /// G-buffer flags (`FLAG_*`), the top bits of the G-buffer word.
+    pub mod flags: u32 as Uint, prefix "FLAG_" {
+        /// The centre ray hit a triangle within [near, far].
+        HIT = 1;
+        /// Hit and N·L > 0: the pixel's shadow is computed.
+        SHADOW_TESTED = 2;
+        /// The µQuad axes were clamped to the largest stretch.
+        AXES_CLAMPED = 4;
+        /// GPU only: the receiver's camera-facing normal is minus its
+        /// triangle's stored normal. Stored instead of a per-pixel normal
+        /// (12 bytes per pixel).
+        NORMAL_FLIPPED = 8;
+    }
+}
+
+shared_constants! {
+    /// The skips' bits (`SKIP_*`, `Skips::bits`): each exact shortcut by
+    /// name, not by its place in a field list.
+    pub mod skip: u32 as Uint, prefix "SKIP_" {
+        FACING_AWAY = 1;
+        OUTSIDE_BOUNDS = 2;
+        FULL_MASK = 4;
+        SATURATED_EDGES = 8;
+        BEHIND_RECEIVERS = 16;
+        SHADOW_MAP = 32;
+    }
+}
+
+shared_constants! {
+    /// Words and sentinels.
+    pub mod word: u32 as Uint, prefix "" {
+        /// A triangle id of no triangle (a miss).
+        NO_HIT = u32::MAX;
+        /// Id field of a miss in the G-buffer word; also one more than the
+        /// largest triangle id.
+        ID_MASK = (1 << crate::size::ID_BITS) - 1;
+        /// Alpha of a shaded pixel that is not shadow-tested; otherwise
+        /// alpha is the count of lit samples, 0..=32.
+        ALPHA_NOT_TESTED = 255;
+        /// A full 32-sample mask.
+        FULL_MASK = u32::MAX;
+        /// Placement of a triangle wholly outside the cascade.
+        PLACEMENT_CULLED = 0xFFFF_FFFE;
+        /// Placement of a triangle in the overflow list.
+        PLACEMENT_OVERFLOW = u32::MAX;
+        /// Cell entry bit: the triangle lacks the cell to the left.
+        ENTRY_FIRST_COLUMN = 1 << crate::size::ID_BITS;
+        /// Cell entry bit: the triangle lacks the cell below.
+        ENTRY_FIRST_ROW = 2 << crate::size::ID_BITS;
+        /// A cell no triangle covers (the conservative shadow map).
+        NO_COVER = u32::MAX;
+        /// The default cells per triangle and pyramid level.
+        DEFAULT_LEVEL_CELLS = 1024;
+        /// Smallest and largest default grid side (cells).
+        GRID_SIDE_MIN = 8;
+        GRID_SIDE_MAX = 1024;
+    }
+}
+
+shared_constants! {
+    /// Integer sizes.
+    pub mod size: u32 as Int, prefix "" {
+        /// Bits of the G-buffer word that hold the triangle id; the four
+        /// flag bits sit above them.
+        ID_BITS = 28;
+        /// Most cascades of a frame.
+        MAX_CASCADES = 4;
+        /// Cells along either side of one cascade's finest grid, at most.
+        MAX_GRID_SIDE = 4096;
+    }
+}
+
+shared_constants! {
+    /// Tolerances and grid rules, `f32` on both sides (exactness-critical:
+    /// every one is derived where its Rust user documents it).
+    pub mod tolerance: f32 as Float, prefix "" {
+        /// Depth test: the part scaled by the µQuad (2⁻⁸ of its longer
+        /// axis; `crate::frustum`).
+        DEPTH_TOLERANCE_MICROQUAD = 1.0 / 256.0;
+        /// Depth test: the part scaled by the triangle's distance from P
+        /// (16 ε₃₂).
+        DEPTH_TOLERANCE_ROUNDING = 16.0 * f32::EPSILON;
+        /// Relative margin of the saturated-edge shortcut (2⁻¹⁰).
+        SATURATION_MARGIN = 1.0 / 1024.0;
+        /// Relative margin of the behind-receivers cull (2⁻¹⁰).
+        BEHIND_MARGIN = 1.0 / 1024.0;
+        /// Padding of every cell box, in cells (1/64).
+        CELL_PADDING = 1.0 / 64.0;
+        /// Rounding bound of the triangle–cell overlap test (2⁻¹⁸).
+        TOUCH_ROUNDING = 1.0 / 262_144.0;
+        /// A projection thinner than this share of its edge products keeps
+        /// its whole rectangle (2⁻¹⁶).
+        SLIVER_RATIO = 1.0 / 65_536.0;
+        /// One grid suffices while the view-depth range stays within this
+        /// ratio per cascade.
+        AUTO_MAX_DEPTH_RATIO = 16.0;
+        /// Closest a receiver may come to the point light's image plane,
+        /// relative to its distance range, before the grid is given up.
+        MIN_PERSPECTIVE_DEPTH_RATIO = 1e-3;
+        /// Receivers per level-0 cell the default grid aims at.
+        RECEIVERS_PER_CELL = 6.0;
+        /// Triangles per level-0 cell the default grid aims at when the
+        /// scene has more triangles than receivers per cell allow.
+        TRIANGLES_PER_CELL = 16.0;
+        /// Fewest cells a cascade's share of the budget may get.
+        MIN_CASCADE_CELLS = 64.0;
+        /// Relative padding of the fitted light-NDC bounds.
+        BOUNDS_PADDING = 1e-4;
+    }
+}
+
+/// `contract.glsl`: every constant as a `#define` and every shared struct,
+/// in the order the shaders need them.
+pub fn glsl_header() -> String {
+    let mut out = String::from(
+        "// contract.glsl: generated by build.rs from the izb-contract crate\n\
+         // (contract/src). Do not edit: change the Rust declaration.\n\n",
+    );
+    let groups: [(&str, Vec<GlslConstant>); 9] = [
+        ("bindings", binding::glsl()),
+        ("counters", counter::glsl()),
+        ("workgroup sizes", workgroup::glsl()),
+        ("sample modes", mode::glsl()),
+        ("G-buffer flags", flags::glsl()),
+        ("skips", skip::glsl()),
+        ("words and sentinels", word::glsl()),
+        ("sizes", size::glsl()),
+        ("tolerances and grid rules", tolerance::glsl()),
+    ];
+    for (what, constants) in groups {
+        out += &format!("// ---- {what} ----\n");
+        for c in constants {
+            out += &format!("#define {} {}\n", c.name, c.literal);
+        }
+        out += "\n";
+    }
+    out += &format!("#define COUNTER_WORDS {}\n", counter::WORDS);
+    out += &format!("#define BINDING_COUNT {BINDING_COUNT}\n\n");
+    out += &glsl_struct::<FrameParams>();
+    out += &glsl_struct::<CascadeGrid>();
+    out += &glsl_struct::<LightState>();
+    out += &glsl_struct::<GpuTriangle>();
+    out += &glsl_struct::<BvhNode>();
+    out
+}
+
+/// The GLSL declaration of struct `S`.
+fn glsl_struct<S: SharedStruct>() -> String {
+    let mut out = format!("struct {} {{\n", S::GLSL_NAME);
+    for m in S::members() {
+        out += &format!("    {};\n", m.glsl);
+    }
+    out + "};\n\n"
+}
+
+/// All shared structs' member lists, by GLSL name (for the SPIR-V layout
+/// test).
+pub fn shared_structs() -> Vec<(&'static str, usize, Vec<macros::Member>)> {
+    fn entry<S: SharedStruct>() -> (&'static str, usize, Vec<macros::Member>) {
+        (S::GLSL_NAME, S::SIZE, S::members())
+    }
+    vec![
+        entry::<FrameParams>(),
+        entry::<CascadeGrid>(),
+        entry::<LightState>(),
+        entry::<GpuTriangle>(),
+        entry::<BvhNode>(),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_glsl_member_is_named_as_in_rust() {
+        let mut checked = 0;
+        for (name, size, members) in shared_structs() {
+            let mut end = 0;
+            for m in &members {
+                let declared = m
+                    .glsl
+                    .split_whitespace()
+                    .nth(1)
+                    .and_then(|s| s.split('[').next())
+                    .unwrap_or("");
+                assert_eq!(declared, m.name, "{name}: `{}`", m.glsl);
+                assert_eq!(
+                    m.offset, end,
+                    "{name}.{}: a gap (scalar layout has none)",
+                    m.name
+                );
+                end = m.offset + m.size;
+                checked += 1;
+            }
+            assert_eq!(end, size, "{name}: trailing padding");
+        }
+        assert_eq!(checked, 70, "members of the five shared structs");
+    }
+
+    #[test]
+    fn float_literals_are_exact() {
+        for v in [1.0f32 / 256.0, 16.0 * f32::EPSILON, 1e-3, 1e-4, 0.1] {
+            let l = macros::literal(macros::GlslKind::Float, v as f64);
+            let back = if let Some(hex) = l.strip_prefix("uintBitsToFloat(0x") {
+                f32::from_bits(u32::from_str_radix(&hex[..8], 16).unwrap())
+            } else {
+                l.parse::<f64>().unwrap() as f32
+            };
+            assert_eq!(back.to_bits(), v.to_bits(), "{l}");
+        }
+    }
+}

@@ -1,0 +1,171 @@
+//! The structs Rust and GLSL share (GLSL's scalar block layout: every
+//! member 4-byte aligned, `vec3` = `[f32; 3]`, no padding).
+
+use crate::macros::shared_struct;
+use crate::size::MAX_CASCADES;
+
+const CASCADES: usize = MAX_CASCADES as usize;
+
+shared_struct! {
+    /// `FrameParams`: per-frame constants, written by the host once per
+    /// frame.
+    pub struct FrameParams as "FrameParams" {
+        /// Unnormalised ray direction through image point (0, 0).
+        pub cam_corner: [f32; 3] => "vec3 cam_corner",
+        pub near: f32 => "float near",
+        /// d(direction)/dx per pixel.
+        pub cam_dx: [f32; 3] => "vec3 cam_dx",
+        pub far: f32 => "float far",
+        /// d(direction)/dy per pixel (y down).
+        pub cam_dy: [f32; 3] => "vec3 cam_dy",
+        /// The G-buffer's largest µQuad stretch.
+        pub max_stretch: f32 => "float max_stretch",
+        /// Directional: unit vector toward the light; point: eye-relative
+        /// position.
+        pub light_vec: [f32; 3] => "vec3 light_vec",
+        pub light_is_point: u32 => "uint light_is_point",
+        /// Directional light: light-view rows (f64 on the host, then f32).
+        pub rot_x: [f32; 3] => "vec3 rot_x",
+        pub width: u32 => "uint width",
+        pub rot_y: [f32; 3] => "vec3 rot_y",
+        pub height: u32 => "uint height",
+        pub rot_z: [f32; 3] => "vec3 rot_z",
+        pub triangle_count: u32 => "uint triangle_count",
+        /// `MODE_*`.
+        pub mode: u32 => "uint mode",
+        /// Cell budget as a square's side; 0: from the receiver count.
+        pub cells_hint: u32 => "uint cells_hint",
+        /// Cells per triangle and pyramid level; 0: the default.
+        pub level_cells: u32 => "uint level_cells",
+        /// Entries the cell list can hold.
+        pub cell_capacity: u32 => "uint cell_capacity",
+        pub lut_angle_scale: f32 => "float lut_angle_scale",
+        pub lut_distance_scale: f32 => "float lut_distance_scale",
+        pub lut_angles: u32 => "uint lut_angles",
+        pub lut_distances: u32 => "uint lut_distances",
+        /// `cell_start` capacity (all cascades' pyramids).
+        pub max_cells: u32 => "uint max_cells",
+        /// Loop iterations `evaluate` may run per pixel: lavapipe (gallivm)
+        /// silently ends a shader's loops after 65535 iterations in total,
+        /// so there the shader stops early and raises
+        /// `LOOP_BUDGET_EXCEEDED` instead of returning a wrong mask;
+        /// `u32::MAX` elsewhere.
+        pub loop_budget: u32 => "uint loop_budget",
+        /// `SKIP_*` bits.
+        pub skips: u32 => "uint skips",
+        /// Largest sample distance from the µQuad centre.
+        pub pattern_radius: f32 => "float pattern_radius",
+        /// Unit view direction (view depth = position · it).
+        pub cam_forward: [f32; 3] => "vec3 cam_forward",
+        /// 1..=4 cascades, 0 for auto.
+        pub cascades: u32 => "uint cascades",
+        /// Cascade split blend: 1 logarithmic, 0 uniform.
+        pub split_lambda: f32 => "float split_lambda",
+        /// Shadow-map frames: texels per side of each cascade's map; 0 in
+        /// an IZB frame.
+        pub map_side: u32 => "uint map_side",
+        /// 0 one tap, k for k×k PCF.
+        pub map_filter: u32 => "uint map_filter",
+        /// Texels the map reaches beyond the fitted bounds.
+        pub map_reach: u32 => "uint map_reach",
+        pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
+    }
+}
+
+shared_struct! {
+    /// `CascadeGrid`: one cascade's grid.
+    pub struct CascadeGrid as "CascadeGrid" {
+        pub ndc_min: [f32; 2] => "vec2 ndc_min",
+        pub ndc_max: [f32; 2] => "vec2 ndc_max",
+        /// 0 for a cascade without receivers.
+        pub cells_x: u32 => "uint cells_x",
+        pub cells_y: u32 => "uint cells_y",
+        /// First cell in the cell arrays (pyramids lie back to back).
+        pub cell_offset: u32 => "uint cell_offset",
+        /// A triangle is binned at the finest level where its rectangle
+        /// holds at most this many cells.
+        pub level_cells: u32 => "uint level_cells",
+        pub receivers: u32 => "uint receivers",
+        /// Reduction scratch (ordered bits): light-NDC bounds of its µQuads.
+        pub ndc_lo: [u32; 2] => "uint ndc_lo[2]",
+        pub ndc_hi: [u32; 2] => "uint ndc_hi[2]",
+        /// Pyramid levels, finest (cells_x × cells_y) to 1×1.
+        pub levels: u32 => "uint levels",
+    }
+}
+
+shared_struct! {
+    /// `LightState`: light view, cascades and grids, computed on the GPU
+    /// by `light_setup`.
+    pub struct LightState as "LightState" {
+        pub rot_x: [f32; 3] => "vec3 rot_x",
+        /// 0 orthographic (directional), 1 perspective (point).
+        pub projection: u32 => "uint projection",
+        pub rot_y: [f32; 3] => "vec3 rot_y",
+        pub grid_disabled: u32 => "uint grid_disabled",
+        pub rot_z: [f32; 3] => "vec3 rot_z",
+        pub receivers: u32 => "uint receivers",
+        pub origin: [f32; 3] => "vec3 origin",
+        pub cascade_count: u32 => "uint cascade_count",
+        pub receiver_z: [f32; 2] => "vec2 receiver_z",
+        pub behind_light: u32 => "uint behind_light",
+        /// Cells of all cascades.
+        pub total_cells: u32 => "uint total_cells",
+        /// Upper view depth per cascade.
+        pub split: [f32; CASCADES] => "float split[MAX_CASCADES]",
+        /// Near, far of the shadow-tested pixels.
+        pub view_depth: [f32; 2] => "vec2 view_depth",
+        /// Reduction scratch, floats in order-preserving uint encoding.
+        pub pos_lo: [u32; 3] => "uint pos_lo[3]",
+        pub pos_hi: [u32; 3] => "uint pos_hi[3]",
+        pub depth_lo: u32 => "uint depth_lo",
+        pub depth_hi: u32 => "uint depth_hi",
+        pub z_lo: u32 => "uint z_lo",
+        pub z_hi: u32 => "uint z_hi",
+        pub cascade: [CascadeGrid; CASCADES] => "CascadeGrid cascade[MAX_CASCADES]",
+    }
+}
+
+shared_struct! {
+    /// `Triangle`: three eye-relative vertices.
+    pub struct GpuTriangle as "Triangle" {
+        pub a: [f32; 3] => "vec3 a",
+        pub b: [f32; 3] => "vec3 b",
+        pub c: [f32; 3] => "vec3 c",
+    }
+}
+
+shared_struct! {
+    /// `BvhNode`: a node of the G-buffer pass's BVH2.
+    pub struct BvhNode as "BvhNode" {
+        pub lo: [f32; 3] => "vec3 lo",
+        /// 0 for an inner node.
+        pub prim_count: u32 => "uint prim_count",
+        pub hi: [f32; 3] => "vec3 hi",
+        /// Inner: left child (right = first + 1); leaf: first primitive
+        /// slot.
+        pub first: u32 => "uint first",
+    }
+}
+
+impl LightState {
+    /// The state before the reductions: every minimum at the largest
+    /// ordered value, every maximum at the smallest.
+    pub fn reset() -> Self {
+        let grid = CascadeGrid {
+            ndc_lo: [u32::MAX; 2],
+            ndc_hi: [0; 2],
+            ..bytemuck::Zeroable::zeroed()
+        };
+        LightState {
+            pos_lo: [u32::MAX; 3],
+            pos_hi: [0; 3],
+            depth_lo: u32::MAX,
+            depth_hi: 0,
+            z_lo: u32::MAX,
+            z_hi: 0,
+            cascade: [grid; CASCADES],
+            ..bytemuck::Zeroable::zeroed()
+        }
+    }
+}
