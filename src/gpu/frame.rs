@@ -173,14 +173,7 @@ impl GpuRenderer {
                 capacity = needed;
                 continue;
             }
-            let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
-            if trips != 0 {
-                return Err(GpuError::LoopCap {
-                    device: self.context.info().name.clone(),
-                    cap: LLVMPIPE_LOOP_CAP,
-                    trips,
-                });
-            }
+            self.check_loop_budget(&out)?;
             if out.counters[counter::CAPACITY_EXCEEDED] != 0 {
                 return Err(GpuError::Unsupported(format!(
                     "the cell list still overflowed after growing to {capacity} entries"
@@ -195,6 +188,19 @@ impl GpuRenderer {
                 bvh_build_seconds,
                 &upload,
             ));
+        }
+    }
+
+    /// A frame whose shader stopped at lavapipe's loop cap is refused
+    /// (its masks would be cut short), never returned.
+    pub(super) fn check_loop_budget(&self, out: &FrameOutput) -> Result<(), GpuError> {
+        match out.counters[counter::LOOP_BUDGET_EXCEEDED] {
+            0 => Ok(()),
+            trips => Err(GpuError::LoopCap {
+                device: self.context.info().name.clone(),
+                cap: LLVMPIPE_LOOP_CAP,
+                trips,
+            }),
         }
     }
 
@@ -226,7 +232,6 @@ impl GpuRenderer {
             lut_entries: lut.masks.len() as u64,
             shadow_map_texels: passes.shadow_map_texels(),
         });
-        debug_assert_eq!(descs.len(), super::shared::BINDING_COUNT as usize);
         let frame_buffers = FrameBuffers {
             buffers: descs
                 .into_iter()

@@ -4,7 +4,7 @@
 use super::frame_inputs::{grid_budget_side, SceneUpload};
 use super::frame_report::PassMemory;
 use super::resources::{BufferDesc, GpuBuffer};
-use super::shared::{counter, FrameParams, LightState};
+use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
 use super::GpuError;
 use crate::izb::IzbSettings;
 use crate::scene::Scene;
@@ -22,32 +22,85 @@ pub struct FrameSizes {
     pub shadow_map_texels: u64,
 }
 
-/// Every device buffer of a frame, in binding order (`shared::binding`),
-/// each with the pass it counts toward and its size.
-pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; super::shared::BINDING_COUNT as usize] {
+/// Bindings of the frame's descriptor set.
+const BINDINGS: usize = BINDING_COUNT as usize;
+
+/// Every device buffer of a frame, indexed by its binding
+/// (`shared::binding`), each with the pass it counts toward and its size.
+pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
     let (p, t, vec3) = (z.pixels, z.triangles, 12u64);
-    [
-        BufferDesc::device("frame", "frame_params", size_of::<FrameParams>() as u64),
-        BufferDesc::device("scene", "triangles", t * 36),
-        BufferDesc::device("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
-        BufferDesc::device("gbuffer", "bvh_prims", z.bvh_prims * 4),
-        BufferDesc::device("gbuffer", "g_position", p * vec3),
-        BufferDesc::device("gbuffer", "g_axis_x", p * vec3),
-        BufferDesc::device("gbuffer", "g_axis_y", p * vec3),
-        BufferDesc::device("gbuffer", "g_id_flags", p * 4),
-        BufferDesc::device("light_setup", "light_state", size_of::<LightState>() as u64),
-        BufferDesc::device("frame", "counters", counter::WORDS as u64 * 4),
-        BufferDesc::device("bin", "cell_cover", z.max_cells * 8),
-        BufferDesc::device("bin", "cell_start", (z.max_cells + 1) * 4),
-        BufferDesc::device("bin", "cell_triangles", z.cell_capacity * 4),
-        BufferDesc::device("bin", "overflow", t * 4),
-        BufferDesc::device("evaluate", "edge_lut", z.lut_entries * 4),
-        BufferDesc::device("evaluate", "masks", p * 4),
-        BufferDesc::device("resolve", "shaded_and_lit_samples", p * 4),
-        BufferDesc::device("scene", "triangle_normals", t * vec3),
-        BufferDesc::device("bin", "cell_receivers", z.max_cells * 8),
-        BufferDesc::device("shadow_map", "shadow_maps", z.shadow_map_texels.max(1) * 4),
-    ]
+    let d = BufferDesc::device;
+    by_binding([
+        (
+            binding::FRAME,
+            d("frame", "frame_params", size_of::<FrameParams>() as u64),
+        ),
+        (binding::TRIANGLES, d("scene", "triangles", t * 36)),
+        (
+            binding::BVH_NODES,
+            d("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
+        ),
+        (
+            binding::BVH_PRIMS,
+            d("gbuffer", "bvh_prims", z.bvh_prims * 4),
+        ),
+        (binding::G_POSITION, d("gbuffer", "g_position", p * vec3)),
+        (binding::G_AXIS_X, d("gbuffer", "g_axis_x", p * vec3)),
+        (binding::G_AXIS_Y, d("gbuffer", "g_axis_y", p * vec3)),
+        (binding::G_ID_FLAGS, d("gbuffer", "g_id_flags", p * 4)),
+        (
+            binding::LIGHT,
+            d("light_setup", "light_state", size_of::<LightState>() as u64),
+        ),
+        (
+            binding::COUNTERS,
+            d("frame", "counters", counter::WORDS as u64 * 4),
+        ),
+        (binding::CELL_COVER, d("bin", "cell_cover", z.max_cells * 8)),
+        (
+            binding::CELL_START,
+            d("bin", "cell_start", (z.max_cells + 1) * 4),
+        ),
+        (
+            binding::CELL_TRIANGLES,
+            d("bin", "cell_triangles", z.cell_capacity * 4),
+        ),
+        (binding::OVERFLOW, d("bin", "overflow", t * 4)),
+        (
+            binding::EDGE_LUT,
+            d("evaluate", "edge_lut", z.lut_entries * 4),
+        ),
+        (binding::MASKS, d("evaluate", "masks", p * 4)),
+        (
+            binding::SHADED,
+            d("resolve", "shaded_and_lit_samples", p * 4),
+        ),
+        (
+            binding::TRIANGLE_NORMALS,
+            d("scene", "triangle_normals", t * vec3),
+        ),
+        (
+            binding::CELL_RECEIVERS,
+            d("bin", "cell_receivers", z.max_cells * 8),
+        ),
+        (
+            binding::SHADOW_MAP,
+            d("shadow_map", "shadow_maps", z.shadow_map_texels.max(1) * 4),
+        ),
+    ])
+}
+
+/// Each description at its binding's index: every binding exactly once (a
+/// missing or repeated one panics in the first frame any test builds,
+/// not as a wrong buffer in a shader).
+fn by_binding(keyed: [(u32, BufferDesc); BINDINGS]) -> [BufferDesc; BINDINGS] {
+    let mut slots: [Option<BufferDesc>; BINDINGS] = std::array::from_fn(|_| None);
+    for (b, desc) in keyed {
+        let name = desc.name;
+        let previous = slots[b as usize].replace(desc);
+        assert!(previous.is_none(), "binding {b} has two buffers (`{name}`)");
+    }
+    slots.map(|d| d.expect("every binding has its buffer"))
 }
 
 /// The device memory a GPU frame of `scene` allocates before it runs (the

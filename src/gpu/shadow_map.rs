@@ -6,8 +6,7 @@
 //! ([`GpuRenderer::render_shadow_map`], below).
 
 use super::frame::{FramePasses, GBufferSource, GpuRenderer, GpuShadowMapRender};
-use super::frame_inputs::LLVMPIPE_LOOP_CAP;
-use super::shared::{self, counter};
+use super::shared;
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::ShadowMapSettings;
 use crate::gbuffer::flags;
@@ -75,14 +74,7 @@ impl GpuRenderer {
         };
         let max_cells = crate::izb::cascades::max_total_cells(8);
         let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
-        let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
-        if trips != 0 {
-            return Err(GpuError::LoopCap {
-                device: self.context.info().name.clone(),
-                cap: LLVMPIPE_LOOP_CAP,
-                trips,
-            });
-        }
+        self.check_loop_budget(&out)?;
         if out.light.grid_disabled != 0 {
             return Err(GpuError::Unsupported(format!(
                 "{map} on {}: the receivers surround the point light, which one shadow-map frustum cannot hold (a cube map would)",

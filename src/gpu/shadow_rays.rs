@@ -8,7 +8,7 @@
 
 use super::frame::{FramePasses, GBufferSource, GpuRenderer};
 use super::frame_report::GpuPassMillis;
-use super::shared::{self, counter};
+use super::shared;
 use super::{GpuError, Kernels, Recorder};
 use crate::gbuffer::flags;
 use crate::izb::IzbSettings;
@@ -63,14 +63,7 @@ impl GpuRenderer {
             1,
             FramePasses::ShadowRays,
         )?;
-        let trips = out.counters[counter::LOOP_BUDGET_EXCEEDED];
-        if trips != 0 {
-            return Err(GpuError::LoopCap {
-                device: self.context.info().name.clone(),
-                cap: super::frame::LLVMPIPE_LOOP_CAP,
-                trips,
-            });
-        }
+        self.check_loop_budget(&out)?;
         let visibility = out
             .shaded
             .iter()
