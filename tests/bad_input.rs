@@ -200,6 +200,24 @@ fn index_out_of_range() {
     );
 }
 
+/// Found by `examples/fuzz_loaders.rs`: the gltf crate's index reader hit
+/// `unreachable!()` on an index accessor of floats.
+#[test]
+fn index_accessor_of_floats() {
+    let dir = TempDir::new("float-indices");
+    let mut gltf = Gltf::default();
+    let positions = gltf.positions(&triangle_at(0.0));
+    let mesh = gltf.mesh(&[Primitive::triangles(positions, Some(positions))]);
+    let node = gltf.node(json!({ "name": "holder", "mesh": mesh }));
+    gltf.scene_roots = Some(vec![node]);
+    let path = gltf.write_glb(dir.path(), "floatindex");
+    expect_gltf_error(
+        &dir,
+        &path,
+        &["index accessor", "F32", "unsigned", "primitive 0"],
+    );
+}
+
 #[test]
 fn position_accessor_index_out_of_range() {
     let dir = TempDir::new("position-accessor");

@@ -21,21 +21,28 @@ pub struct GltfMeshes {
 /// Loads every mesh instance of the file's default scene (or its first
 /// scene; or every root node when it declares no scene).
 pub fn load_gltf(path: &Path) -> Result<GltfMeshes, SceneError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    load_gltf_bytes(&bytes, path)
+}
+
+/// [`load_gltf`] of the file's bytes, already read: `path` names it in
+/// messages and its folder resolves external buffers (the fuzz harness,
+/// `examples/fuzz_loaders.rs`, feeds it mutated files this way).
+pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<GltfMeshes, SceneError> {
     let shown = path.display().to_string();
     let gltf_error = |message: String| SceneError::Gltf {
         path: shown.clone(),
         message,
     };
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
-        path: shown.clone(),
-        source,
-    })?;
-    check_glb_header(&bytes).map_err(&gltf_error)?;
+    check_glb_header(bytes).map_err(&gltf_error)?;
     // Parsed without validation, then validated once the POSITION accessor
     // indices are known to exist: gltf-json 1.4's validation indexes the
     // accessor array with them unchecked and would panic.
     let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| gltf_error(e.to_string()))?;
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| gltf_error(e.to_string()))?;
     let json = document.into_json();
     check_position_accessor_indices(&json).map_err(&gltf_error)?;
     // Its validation message starts with "invalid glTF:", as ours does.
@@ -314,6 +321,23 @@ fn read_primitive(
     check_accessor_bounds(&positions_accessor, buffers, &what)?;
     if let Some(indices) = primitive.indices() {
         check_accessor_bounds(&indices, buffers, &what)?;
+        // The gltf crate's index reader assumes an unsigned component type
+        // (it has `unreachable!()` for the others): found by the fuzz
+        // harness, `examples/fuzz_loaders.rs`.
+        use gltf::accessor::{DataType, Dimensions};
+        let unsigned = matches!(
+            indices.data_type(),
+            DataType::U8 | DataType::U16 | DataType::U32
+        );
+        if !unsigned || indices.dimensions() != Dimensions::Scalar {
+            return Err(format!(
+                "{what}: index accessor {} is {:?} {:?}; glTF indices are unsigned byte, \
+                 short or int scalars",
+                indices.index(),
+                indices.data_type(),
+                indices.dimensions()
+            ));
+        }
     }
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
     let positions: Vec<DVec3> = reader

@@ -14,7 +14,7 @@ pub mod procedural;
 mod spec;
 
 pub use camera::{Camera, CameraFrame};
-pub use gltf_load::{load_gltf, GltfMeshes};
+pub use gltf_load::{load_gltf, load_gltf_bytes, GltfMeshes};
 pub use light::Light;
 pub use spec::{CameraSpec, LightSpec, SceneSpec, MAX_RESOLUTION};
 
