@@ -379,7 +379,7 @@ fn main() {
             a.seed
         );
         let mut top: Vec<_> = reasons.into_iter().collect();
-        top.sort_by(|x, y| y.1.cmp(&x.1));
+        top.sort_by_key(|r| std::cmp::Reverse(r.1));
         for (reason, count) in top.iter().take(6) {
             println!("  {count:>9}  {reason}");
         }
