@@ -469,7 +469,8 @@ pub fn bench_scene_vulkan(
                             "memory_total_bytes": out.memory_total_bytes,
                             "passes": "bin = shadow_map (raster), evaluate = shadow_lookup",
                         });
-                        (out.gpu_milliseconds, out.visibility, details)
+                        let ms = out.gpu_milliseconds.map(|m| m.as_pass_times());
+                        (ms, out.visibility, details)
                     }),
                 MethodKind::ShadowRays32 => {
                     gpu.render_shadow_rays(scene, GBufferSource::Gpu)

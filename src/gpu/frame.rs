@@ -95,7 +95,8 @@ impl GpuRenderer {
     ) -> Result<SceneUpload, GpuError> {
         let [w, h] = scene.resolution;
         let limits = &self.shared().limits;
-        let groups = [w.div_ceil(8), h.div_ceil(8)];
+        let [tile_x, tile_y] = shared::WORKGROUP_PIXELS;
+        let groups = [w.div_ceil(tile_x), h.div_ceil(tile_y)];
         if groups[0] > limits.max_compute_work_group_count[0]
             || groups[1] > limits.max_compute_work_group_count[1]
         {
@@ -137,14 +138,7 @@ impl GpuRenderer {
         let upload = self.prepare_frame(scene, source)?;
         let triangles = &upload.triangles;
         let bvh_start = Instant::now();
-        let bvh = match source {
-            GBufferSource::Gpu => super::gbuffer::build_bvh(triangles)?,
-            GBufferSource::Upload(_) => super::gbuffer::GpuBvh {
-                nodes: Vec::new(),
-                prims: Vec::new(),
-                depth: 0,
-            },
-        };
+        let bvh = super::gbuffer::frame_bvh(source, triangles)?;
         let bvh_build_seconds = bvh_start.elapsed().as_secs_f64();
 
         let side = grid_budget_side(pixels, triangles.len(), settings.cells);

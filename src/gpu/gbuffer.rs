@@ -27,14 +27,31 @@ pub struct GpuBvh {
     pub depth: usize,
 }
 
+impl GpuBvh {
+    /// No nodes: an empty scene, or a frame whose G-buffer is uploaded.
+    pub const EMPTY: GpuBvh = GpuBvh {
+        nodes: Vec::new(),
+        prims: Vec::new(),
+        depth: 0,
+    };
+}
+
+/// The BVH a frame uploads: built when the `gbuffer` pass casts the
+/// primary rays, empty when the CPU's G-buffer is uploaded instead.
+pub fn frame_bvh(
+    source: super::GBufferSource,
+    triangles: &[GpuTriangle],
+) -> Result<GpuBvh, GpuError> {
+    match source {
+        super::GBufferSource::Gpu => build_bvh(triangles),
+        super::GBufferSource::Upload(_) => Ok(GpuBvh::EMPTY),
+    }
+}
+
 /// Builds the BVH over eye-relative `f32` triangles.
 pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
     if triangles.is_empty() {
-        return Ok(GpuBvh {
-            nodes: Vec::new(),
-            prims: Vec::new(),
-            depth: 0,
-        });
+        return Ok(GpuBvh::EMPTY);
     }
     let boxes: Vec<Aabb> = triangles
         .iter()

@@ -6,6 +6,7 @@
 //! ([`GpuRenderer::render_shadow_map`], below).
 
 use super::frame::{FramePasses, GBufferSource, GpuRenderer, GpuShadowMapRender};
+use super::frame_report::ShadowMapMillis;
 use super::shared;
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::ShadowMapSettings;
@@ -57,14 +58,7 @@ impl GpuRenderer {
             )));
         }
         let upload = self.prepare_frame(scene, source)?;
-        let bvh = match source {
-            GBufferSource::Gpu => super::gbuffer::build_bvh(&upload.triangles)?,
-            GBufferSource::Upload(_) => super::gbuffer::GpuBvh {
-                nodes: Vec::new(),
-                prims: Vec::new(),
-                depth: 0,
-            },
-        };
+        let bvh = super::gbuffer::frame_bvh(source, &upload.triangles)?;
         // The light setup the CPU baseline asks for: `map.cascades` fixed
         // cascades; the 8×8 grid is unused.
         let settings = IzbSettings {
@@ -96,7 +90,7 @@ impl GpuRenderer {
             .collect();
         Ok(GpuShadowMapRender {
             visibility,
-            gpu_milliseconds: out.millis,
+            gpu_milliseconds: out.millis.as_ref().map(ShadowMapMillis::from_frame),
             wall_seconds: out.wall_seconds,
             map_bytes,
             memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
