@@ -95,8 +95,31 @@ fn bench_smoke_run_and_report_render_in_chromium() {
         "--out",
         bench.to_str().unwrap(),
     ]);
-    let doc: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&bench).unwrap()).unwrap();
+    // The report reads bench.json as one typed document (the bench's own
+    // type): a renamed field is a named error, not a chart of NaNs.
+    let text = std::fs::read_to_string(&bench).unwrap();
+    let typed = izb::bench::document::BenchDocument::read(&bench).unwrap();
+    assert_eq!(typed.results.len(), 6);
+    let renamed = dir.join("renamed.json");
+    std::fs::write(
+        &renamed,
+        text.replace("\"shadow_seconds\":", "\"shadow_secs\":"),
+    )
+    .unwrap();
+    let out = common::izb_cli(&[
+        "report",
+        renamed.to_str().unwrap(),
+        "--out",
+        report.to_str().unwrap(),
+    ]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && message.contains("shadow_seconds")
+            && message.contains("results[0]"),
+        "a renamed field must be refused by name: {message}"
+    );
+    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
     let results = doc["results"].as_array().unwrap();
     assert_eq!(results.len(), 6, "one row per method");
     for r in results {

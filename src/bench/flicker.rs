@@ -20,26 +20,32 @@ use glam::{DQuat, DVec3};
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct FlickerOptions {
     pub frames: usize,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub step_degrees: f64,
     #[serde(skip)]
     pub reference: ReferenceSettings,
 }
 
 /// One method's flicker.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct FlickerRow {
     pub method: String,
-    pub family: &'static str,
+    pub family: String,
     /// Mean |Δ visibility| per pixel per frame step.
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub mean_abs_delta: f64,
     /// `mean_abs_delta` over the ground truth's.
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub ratio_to_truth: f64,
     /// 95 % interval of `ratio_to_truth`: a moving-block bootstrap over
     /// frame steps ([`ratio_interval`]).
+    #[serde(deserialize_with = "crate::output::nan_pair_if_null")]
     pub ratio_ci95: [f64; 2],
     /// The same over smooth pixels (every sub-pixel hit on the centre's
     /// plane in both frames) and over edge pixels.
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub smooth_ratio_to_truth: f64,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub edge_ratio_to_truth: f64,
     pub frames: usize,
     pub step_degrees: f64,
@@ -170,7 +176,7 @@ pub fn flicker(
     let base = [truth.mean(ALL), truth.mean(SMOOTH), truth.mean(EDGE)];
     let row = |method: String, family: &'static str, d: &Delta| FlickerRow {
         method,
-        family,
+        family: family.to_string(),
         mean_abs_delta: d.mean(ALL),
         ratio_to_truth: d.mean(ALL) / base[ALL],
         ratio_ci95: ratio_interval(&d.steps, &truth.steps),

@@ -22,6 +22,7 @@
 //! `rt32` traces its own primary rays, so its shadow seconds are its whole
 //! run. `total_seconds` adds the G-buffer.
 
+pub mod document;
 pub mod flicker;
 mod methods;
 
@@ -206,18 +207,23 @@ fn embree_once(_: &Scene, _: &SceneTruth, _: &mut Runs) -> Result<(), String> {
 }
 
 /// Everything measured of one method on one scene.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct MethodRow {
     pub method: String,
-    pub family: &'static str,
-    pub backend: &'static str,
+    /// `izb`, `shadow-map` or `ray-traced`.
+    pub family: String,
+    /// `cpu` or `vulkan`.
+    pub backend: String,
     pub repeat: usize,
     /// Median of each pass (seconds; the last repetition's pass names).
     pub seconds: Value,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub shadow_seconds: f64,
     /// Fastest and slowest repetition: the run-to-run spread behind the
     /// median.
+    #[serde(deserialize_with = "crate::output::nan_pair_if_null")]
     pub shadow_seconds_range: [f64; 2],
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub total_seconds: f64,
     /// Against the ground truth.
     pub metrics: Metrics,
@@ -327,8 +333,8 @@ pub fn bench_scene_cpu(
         let seconds = median_passes(&r.seconds);
         rows.push(MethodRow {
             method: m.name.clone(),
-            family: m.kind.family(),
-            backend: "cpu",
+            family: m.kind.family().to_string(),
+            backend: "cpu".to_string(),
             repeat: r.shadow.len(),
             seconds,
             shadow_seconds: median(&r.shadow),
@@ -388,10 +394,10 @@ fn median_passes(runs: &[Value]) -> Value {
 /// Fills `shadow_seconds_over_izb32` from the `izb32` row of the same
 /// backend.
 pub fn set_izb32_ratios(rows: &mut [MethodRow]) {
-    let base: Vec<(&'static str, f64)> = rows
+    let base: Vec<(String, f64)> = rows
         .iter()
         .filter(|r| r.method == "izb32")
-        .map(|r| (r.backend, r.shadow_seconds))
+        .map(|r| (r.backend.clone(), r.shadow_seconds))
         .collect();
     for r in rows.iter_mut() {
         if let Some(&(_, b)) = base.iter().find(|(backend, _)| *backend == r.backend) {
@@ -521,8 +527,8 @@ pub fn bench_scene_vulkan(
         );
         rows.push(MethodRow {
             method: m.name.clone(),
-            family: m.kind.family(),
-            backend: "vulkan",
+            family: m.kind.family().to_string(),
+            backend: "vulkan".to_string(),
             repeat: r.millis.len(),
             seconds: gpu_seconds(&ms),
             shadow_seconds: ms.shadow() / 1e3,

@@ -5,6 +5,9 @@ use super::{
     load_scene, parse_resolution, progress_bar, scene_summary, thread_pool, BenchBackend, SceneArgs,
 };
 use crate::bench;
+use crate::bench::document::{
+    BenchDocument, FlickerSettings, ResultRow, Scaling, SceneEntry, SceneFlicker, TruthEntry,
+};
 use crate::gpu::{GpuOptions, GpuRenderer};
 use crate::izb::{CascadeCount, IzbSettings, Skips};
 use crate::output::write_json;
@@ -232,55 +235,54 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
                     r.edge_ratio_to_truth
                 );
             }
-            flicker_rows.push(serde_json::json!({ "scene": scene.name, "rows": f }));
+            flicker_rows.push(SceneFlicker {
+                scene: scene.name.clone(),
+                rows: f,
+            });
         }
-        scene_rows.push(serde_json::json!({
-            "summary": scene_summary(&scene),
-            "truth": {
-                "spp": reference_settings.spp(),
-                "seconds": stats.seconds,
-                "rays_per_second": stats.rays_per_second,
-                "bvh_build_seconds": shared.bvh_seconds,
-                "stats": stats,
-                "image": format!("{image_prefix}/{}/truth.exr", bench::file_stem(&scene.name)),
+        scene_rows.push(SceneEntry {
+            name: scene.name.clone(),
+            summary: scene_summary(&scene),
+            truth: TruthEntry {
+                spp: reference_settings.spp(),
+                seconds: stats.seconds,
+                rays_per_second: stats.rays_per_second,
+                bvh_build_seconds: shared.bvh_seconds,
+                stats: serde_json::to_value(stats)?,
+                image: format!("{image_prefix}/{}/truth.exr", bench::file_stem(&scene.name)),
             },
-            "gbuffer_seconds": shared.gbuffer_seconds,
-            "refused": refused,
+            gbuffer_seconds: shared.gbuffer_seconds,
+            refused,
+        });
+        rows.extend(scene_results.into_iter().map(|row| ResultRow {
+            scene: scene.name.clone(),
+            row,
         }));
-        for r in scene_results {
-            let mut v = serde_json::to_value(&r)?;
-            v["scene"] = serde_json::json!(scene.name);
-            rows.push(v);
-        }
     }
     let scaling = izb32_scaling(&rows);
     for s in &scaling {
-        let text = |k: &str| s[k].as_str().unwrap_or("?").to_string();
-        let number = |k: &str| s[k].as_f64().unwrap_or(f64::NAN);
         println!(
             "{} ({}): izb32 shadow time {:.2}x from {} to {} ({:.1}x the pixels)",
-            text("scene"),
-            text("backend"),
-            number("time_ratio"),
-            text("from"),
-            text("to"),
-            number("pixel_ratio")
+            s.scene, s.backend, s.time_ratio, s.from, s.to, s.pixel_ratio
         );
     }
-    let report = serde_json::json!({
-        "command": "bench",
-        "izb32_scaling": scaling,
-        "device": gpu.as_ref().map(|g| g.context.info().clone()),
-        "cpu": cpu_model(),
-        "threads": pool.current_num_threads(),
-        "logical_cores": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
-        "repeat": args.repeat,
-        "reference_spp": reference_settings.spp(),
-        "flicker_settings": args.flicker.then_some(flicker_options),
-        "scenes": scene_rows,
-        "results": rows,
-        "flicker": flicker_rows,
-    });
+    let report = BenchDocument {
+        command: "bench".into(),
+        izb32_scaling: scaling,
+        device: gpu.as_ref().map(|g| g.context.info().clone()),
+        cpu: cpu_model(),
+        threads: pool.current_num_threads(),
+        logical_cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        repeat: args.repeat,
+        reference_spp: reference_settings.spp(),
+        flicker_settings: args.flicker.then_some(FlickerSettings {
+            frames: flicker_options.frames,
+            step_degrees: flicker_options.step_degrees,
+        }),
+        scenes: scene_rows,
+        results: rows,
+        flicker: flicker_rows,
+    };
     write_json(&args.out, &report).with_context(|| format!("writing {}", args.out.display()))?;
     println!(
         "wrote {} (images in {})",
@@ -292,19 +294,12 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
 
 /// For every scene benchmarked at several resolutions: izb32's shadow
 /// time at the largest over the smallest, per backend.
-pub fn izb32_scaling(rows: &[serde_json::Value]) -> Vec<serde_json::Value> {
+pub fn izb32_scaling(rows: &[ResultRow]) -> Vec<Scaling> {
     // (scene, backend) -> (pixels, "WxH", shadow seconds) per resolution.
     type Runs = Vec<(u64, String, f64)>;
     let mut by_scene: std::collections::BTreeMap<(String, String), Runs> = Default::default();
-    for r in rows.iter().filter(|r| r["method"] == "izb32") {
-        let (Some(full), Some(backend), Some(t)) = (
-            r["scene"].as_str(),
-            r["backend"].as_str(),
-            r["shadow_seconds"].as_f64(),
-        ) else {
-            continue;
-        };
-        let Some((scene, size)) = full.rsplit_once('@') else {
+    for r in rows.iter().filter(|r| r.row.method == "izb32") {
+        let Some((scene, size)) = r.scene.rsplit_once('@') else {
             continue;
         };
         let pixels = size
@@ -312,9 +307,9 @@ pub fn izb32_scaling(rows: &[serde_json::Value]) -> Vec<serde_json::Value> {
             .and_then(|(w, h)| Some(w.parse::<u64>().ok()? * h.parse::<u64>().ok()?))
             .unwrap_or(0);
         by_scene
-            .entry((scene.to_string(), backend.to_string()))
+            .entry((scene.to_string(), r.row.backend.clone()))
             .or_default()
-            .push((pixels, size.to_string(), t));
+            .push((pixels, size.to_string(), r.row.shadow_seconds));
     }
     by_scene
         .into_iter()
@@ -322,14 +317,14 @@ pub fn izb32_scaling(rows: &[serde_json::Value]) -> Vec<serde_json::Value> {
         .map(|((scene, backend), mut v)| {
             v.sort_by_key(|e| e.0);
             let (lo, hi) = (&v[0], &v[v.len() - 1]);
-            serde_json::json!({
-                "scene": scene,
-                "backend": backend,
-                "from": lo.1,
-                "to": hi.1,
-                "pixel_ratio": hi.0 as f64 / lo.0.max(1) as f64,
-                "time_ratio": hi.2 / lo.2,
-            })
+            Scaling {
+                scene,
+                backend,
+                from: lo.1.clone(),
+                to: hi.1.clone(),
+                pixel_ratio: hi.0 as f64 / lo.0.max(1) as f64,
+                time_ratio: hi.2 / lo.2,
+            }
         })
         .collect()
 }

@@ -54,7 +54,7 @@ impl GpuOptions {
 }
 
 /// A suitable device as enumerated.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct DeviceInfo {
     pub index: usize,
     pub name: String,

@@ -11,14 +11,20 @@
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Metrics {
     pub pixels: usize,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub mae: f64,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub rmse: f64,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub max_error: f64,
     /// Percentage of pixels whose error exceeds 1/32 (one sample).
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub percent_over_one_sample: f64,
     pub smooth_penumbra_pixels: usize,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub smooth_penumbra_mae: f64,
     pub edge_pixels: usize,
+    #[serde(deserialize_with = "crate::output::nan_if_null")]
     pub edge_mae: f64,
     /// Samples that differ from the same-sample reference, over all
     /// samples of shadow-tested pixels (32-sample methods only).

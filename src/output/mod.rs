@@ -152,6 +152,20 @@ pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     })
 }
 
+/// Reads a JSON number that may have been written as `null`: JSON has no
+/// NaN or infinity, so `serde_json` writes them as `null`, and they come
+/// back as NaN (`#[serde(deserialize_with = "nan_if_null")]`).
+pub fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    use serde::Deserialize;
+    Option::<f64>::deserialize(d).map(|x| x.unwrap_or(f64::NAN))
+}
+
+/// [`nan_if_null`] for a pair.
+pub fn nan_pair_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+    use serde::Deserialize;
+    <[Option<f64>; 2]>::deserialize(d).map(|p| p.map(|x| x.unwrap_or(f64::NAN)))
+}
+
 /// Writes a serialisable value as pretty JSON, atomically.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
     let bytes = serde_json::to_vec_pretty(value)?;

@@ -8,11 +8,12 @@
 //! penumbra, each with its error heat map; and an `index.html` that shows it
 //! all with the numbers. Nothing here is committed: the command makes it.
 
+use crate::bench::document::{BenchDocument, ResultRow};
 use crate::metrics::error_heat_map;
+use crate::metrics::Metrics;
 use crate::output::{read_exr_channel, write_atomically, write_png, UNTESTED_RGB};
 use anyhow::{Context, Result};
 use plotters::prelude::*;
-use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Once;
@@ -21,12 +22,13 @@ use std::sync::Once;
 pub const CROP_SIDE: u32 = 64;
 pub const CROP_ZOOM: u32 = 4;
 
-/// The y axes of a Pareto chart: JSON key under `metrics`, label.
-const PANELS: [(&str, &str); 4] = [
-    ("mae", "MAE (all pixels)"),
-    ("smooth_penumbra_mae", "smooth-penumbra MAE"),
-    ("edge_mae", "edge MAE"),
-    ("percent_over_one_sample", "% pixels wrong by > 1/32"),
+/// The y axes of a Pareto chart: the metric, label.
+type Panel = (fn(&Metrics) -> f64, &'static str);
+const PANELS: [Panel; 4] = [
+    (|m| m.mae, "MAE (all pixels)"),
+    (|m| m.smooth_penumbra_mae, "smooth-penumbra MAE"),
+    (|m| m.edge_mae, "edge MAE"),
+    (|m| m.percent_over_one_sample, "% pixels wrong by > 1/32"),
 ];
 
 /// One plotted method.
@@ -35,7 +37,7 @@ struct Point {
     method: String,
     family: String,
     seconds: f64,
-    metrics: Value,
+    metrics: Metrics,
 }
 
 /// IZB 32 spp against one shadow-map setting on one scene and backend.
@@ -60,23 +62,20 @@ impl Verdict {
 
 /// IZB 32 spp (`izb32`) against every shadow-map row of the same scene and
 /// backend.
-pub fn verdicts(results: &[Value]) -> Vec<Verdict> {
-    let f = |r: &Value, k: &str| r["metrics"][k].as_f64().unwrap_or(f64::NAN);
+pub fn verdicts(results: &[ResultRow]) -> Vec<Verdict> {
     let mut out = Vec::new();
-    for izb in results.iter().filter(|r| r["method"] == "izb32") {
+    for izb in results.iter().filter(|r| r.row.method == "izb32") {
         for sm in results.iter().filter(|r| {
-            r["family"] == "shadow-map"
-                && r["scene"] == izb["scene"]
-                && r["backend"] == izb["backend"]
+            r.row.family == "shadow-map" && r.scene == izb.scene && r.row.backend == izb.row.backend
         }) {
+            let (s, i) = (&sm.row.metrics, &izb.row.metrics);
             out.push(Verdict {
-                scene: izb["scene"].as_str().unwrap_or("?").to_string(),
-                backend: izb["backend"].as_str().unwrap_or("?").to_string(),
-                shadow_map: sm["method"].as_str().unwrap_or("?").to_string(),
-                penumbra_mae_margin: f(sm, "smooth_penumbra_mae") - f(izb, "smooth_penumbra_mae"),
-                mae_margin: f(sm, "mae") - f(izb, "mae"),
-                time_ratio: sm["shadow_seconds"].as_f64().unwrap_or(f64::NAN)
-                    / izb["shadow_seconds"].as_f64().unwrap_or(f64::NAN),
+                scene: izb.scene.clone(),
+                backend: izb.row.backend.clone(),
+                shadow_map: sm.row.method.clone(),
+                penumbra_mae_margin: s.smooth_penumbra_mae - i.smooth_penumbra_mae,
+                mae_margin: s.mae - i.mae,
+                time_ratio: sm.row.shadow_seconds / izb.row.shadow_seconds,
             });
         }
     }
@@ -151,11 +150,8 @@ where
         (a.0.min(p.seconds), a.1.max(p.seconds))
     });
     let (t_lo, t_hi) = (t_lo.max(1e-9) / 1.6, t_hi.max(1e-9) * 4.0);
-    for ((key, label), panel) in PANELS.iter().zip(area.split_evenly((2, 2))) {
-        let ys: Vec<f64> = points
-            .iter()
-            .map(|p| p.metrics[key].as_f64().unwrap_or(f64::NAN))
-            .collect();
+    for ((metric, label), panel) in PANELS.iter().zip(area.split_evenly((2, 2))) {
+        let ys: Vec<f64> = points.iter().map(|p| metric(&p.metrics)).collect();
         let y_hi = ys
             .iter()
             .copied()
@@ -299,39 +295,29 @@ fn html_escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-fn num(v: &Value, digits: usize) -> String {
-    v.as_f64()
+/// `x` with `digits` decimals, or a dash when there is none.
+fn num(x: impl Into<Option<f64>>, digits: usize) -> String {
+    x.into()
+        .filter(|x| !x.is_nan())
         .map_or("–".to_string(), |x| format!("{x:.digits$}"))
 }
 
 /// Reads `bench` (a `bench.json`) and writes the report into `out`.
 pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
-    let text =
-        std::fs::read_to_string(bench).with_context(|| format!("reading {}", bench.display()))?;
-    let doc: Value =
-        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", bench.display()))?;
-    let results = doc["results"].as_array().with_context(|| {
-        format!(
-            "{}: no `results` array (not an `izb bench` output?)",
-            bench.display()
-        )
-    })?;
+    let doc = BenchDocument::read(bench)?;
+    let results = &doc.results;
     let base = bench.parent().unwrap_or(Path::new("."));
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut files = ReportFiles::default();
     let mut scene_names: Vec<String> = Vec::new();
     for r in results {
-        let s = r["scene"]
-            .as_str()
-            .context("a result without a scene")?
-            .to_string();
-        if !scene_names.contains(&s) {
-            scene_names.push(s);
+        if !scene_names.contains(&r.scene) {
+            scene_names.push(r.scene.clone());
         }
     }
     let mut html = String::new();
-    let device = doc["device"]["name"].as_str().unwrap_or("none (CPU only)");
-    let cpu = doc["cpu"].as_str().unwrap_or("unknown CPU");
+    let device = doc.device.as_ref().map_or("none (CPU only)", |d| &d.name);
+    let cpu = doc.cpu.as_deref().unwrap_or("unknown CPU");
     let _ = write!(
         html,
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>izb: run time against error</title>\n\
@@ -344,37 +330,34 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
          compare times only within one backend.</p>\n",
         html_escape(&bench.display().to_string()),
         html_escape(cpu),
-        doc["threads"],
-        doc["logical_cores"],
+        doc.threads,
+        doc.logical_cores,
         html_escape(device),
-        doc["reference_spp"],
-        doc["repeat"],
+        doc.reference_spp,
+        doc.repeat,
     );
     for scene in &scene_names {
         let stem = crate::bench::file_stem(scene);
-        let rows: Vec<&Value> = results
-            .iter()
-            .filter(|r| r["scene"] == scene.as_str())
-            .collect();
+        let rows: Vec<&ResultRow> = results.iter().filter(|r| &r.scene == scene).collect();
         let _ = writeln!(html, "<h2 id=\"{0}\">{0}</h2>", html_escape(scene));
         // The table.
         html.push_str("<table><tr><th>method</th><th>backend</th><th>shadow s, median (fastest–slowest)</th><th>/ izb32</th><th>MAE</th><th>smooth-penumbra MAE</th><th>edge MAE</th><th>% wrong</th><th>samples ≠ rt32</th></tr>\n");
-        for r in &rows {
-            let m = &r["metrics"];
+        for ResultRow { row: r, .. } in &rows {
+            let m = &r.metrics;
             let _ = writeln!(
                 html,
                 "<tr><td>{}</td><td>{}</td><td>{} <small>({}–{})</small></td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-                html_escape(r["method"].as_str().unwrap_or("?")),
-                html_escape(r["backend"].as_str().unwrap_or("?")),
-                num(&r["shadow_seconds"], 5),
-                num(&r["shadow_seconds_range"][0], 5),
-                num(&r["shadow_seconds_range"][1], 5),
-                num(&r["shadow_seconds_over_izb32"], 2),
-                num(&m["mae"], 5),
-                num(&m["smooth_penumbra_mae"], 4),
-                num(&m["edge_mae"], 4),
-                num(&m["percent_over_one_sample"], 3),
-                num(&r["sample_mismatch_rate"], 6),
+                html_escape(&r.method),
+                html_escape(&r.backend),
+                num(r.shadow_seconds, 5),
+                num(r.shadow_seconds_range[0], 5),
+                num(r.shadow_seconds_range[1], 5),
+                num(r.shadow_seconds_over_izb32, 2),
+                num(m.mae, 5),
+                num(m.smooth_penumbra_mae, 4),
+                num(m.edge_mae, 4),
+                num(m.percent_over_one_sample, 3),
+                num(r.sample_mismatch_rate, 6),
             );
         }
         html.push_str("</table>\n");
@@ -400,19 +383,17 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
             );
         }
         // One chart per backend.
-        let mut backends: Vec<&str> = rows.iter().filter_map(|r| r["backend"].as_str()).collect();
+        let mut backends: Vec<&str> = rows.iter().map(|r| r.row.backend.as_str()).collect();
         backends.dedup();
         for backend in backends {
             let points: Vec<Point> = rows
                 .iter()
-                .filter(|r| r["backend"] == backend)
-                .filter_map(|r| {
-                    Some(Point {
-                        method: r["method"].as_str()?.to_string(),
-                        family: r["family"].as_str()?.to_string(),
-                        seconds: r["shadow_seconds"].as_f64()?,
-                        metrics: r["metrics"].clone(),
-                    })
+                .filter(|r| r.row.backend == backend)
+                .map(|r| Point {
+                    method: r.row.method.clone(),
+                    family: r.row.family.clone(),
+                    seconds: r.row.shadow_seconds,
+                    metrics: r.row.metrics.clone(),
                 })
                 .collect();
             if points.is_empty() {
@@ -431,37 +412,37 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
             );
         }
         // Crops.
-        let truth_rel = doc["scenes"]
-            .as_array()
-            .and_then(|s| s.iter().find(|s| s["summary"]["name"] == scene.as_str()))
-            .and_then(|s| s["truth"]["image"].as_str());
-        let Some(truth_rel) = truth_rel else {
+        let Some(truth_rel) = doc
+            .scenes
+            .iter()
+            .find(|s| &s.name == scene)
+            .map(|s| &s.truth.image)
+        else {
             continue;
         };
         let (w, h, truth) = read_exr_channel(&base.join(truth_rel), "visibility")?;
         let side = CROP_SIDE.min(w).min(h);
         let corner = penumbra_window(&truth, w, h, side);
-        let cpu_rows: Vec<&&Value> = rows
+        let cpu_rows: Vec<&crate::bench::MethodRow> = rows
             .iter()
-            .filter(|r| r["backend"] == "cpu" && r["image"].is_string())
+            .map(|r| &r.row)
+            .filter(|r| r.backend == "cpu" && r.image.is_some())
             .collect();
         let best_sm = cpu_rows
             .iter()
-            .filter(|r| r["family"] == "shadow-map")
-            .min_by(|a, b| {
-                let f = |r: &Value| r["metrics"]["mae"].as_f64().unwrap_or(f64::INFINITY);
-                f(a).total_cmp(&f(b))
-            });
-        let pick = |name: &str| cpu_rows.iter().find(|r| r["method"] == name).copied();
-        let shown: Vec<(String, Option<&Value>)> = vec![
+            .filter(|r| r.family == "shadow-map")
+            .min_by(|a, b| a.metrics.mae.total_cmp(&b.metrics.mae))
+            .copied();
+        let pick = |name: &str| cpu_rows.iter().find(|r| r.method == name).copied();
+        let shown: Vec<(String, Option<&crate::bench::MethodRow>)> = vec![
             ("ground truth".to_string(), None),
-            ("izb32".to_string(), pick("izb32").copied()),
-            ("izb1".to_string(), pick("izb1").copied()),
+            ("izb32".to_string(), pick("izb32")),
+            ("izb1".to_string(), pick("izb1")),
             (
                 best_sm.map_or("best shadow map".to_string(), |r| {
-                    format!("best shadow map: {}", r["method"].as_str().unwrap_or("?"))
+                    format!("best shadow map: {}", r.method)
                 }),
-                best_sm.copied().copied(),
+                best_sm,
             ),
         ];
         let _ = writeln!(
@@ -474,7 +455,7 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
             let visibility = match row {
                 None => truth.clone(),
                 Some(r) => {
-                    let rel = r["image"].as_str().unwrap_or_default();
+                    let rel = r.image.as_deref().unwrap_or_default();
                     read_exr_channel(&base.join(rel), "visibility")?.2
                 }
             };
@@ -515,29 +496,29 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
         let _ = writeln!(html, "</div><div>{heat_row}</div>");
     }
     // Flicker.
-    if let Some(flicker) = doc["flicker"].as_array().filter(|f| !f.is_empty()) {
+    if let (false, Some(settings)) = (doc.flicker.is_empty(), doc.flicker_settings) {
         let _ = writeln!(
             html,
             "<h2 id=\"flicker\">Temporal stability</h2><p>Light turned by {}° per frame over {} frames; mean per-pixel |Δ visibility| \
              between frames, and its ratio to the ground truth's (1 = no shimmer beyond the shadow's real motion), with a 95 % \
              interval from a moving-block bootstrap over frame steps.</p>",
-            num(&doc["flicker_settings"]["step_degrees"], 3),
-            doc["flicker_settings"]["frames"]
+            num(settings.step_degrees, 3),
+            settings.frames
         );
         html.push_str(
             "<table><tr><th>scene</th><th>method</th><th>mean |Δ|</th><th>/ truth</th><th>95 % interval</th></tr>\n",
         );
-        for s in flicker {
-            for r in s["rows"].as_array().into_iter().flatten() {
+        for s in &doc.flicker {
+            for r in &s.rows {
                 let _ = writeln!(
                     html,
                     "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}–{}</td></tr>",
-                    html_escape(s["scene"].as_str().unwrap_or("?")),
-                    html_escape(r["method"].as_str().unwrap_or("?")),
-                    num(&r["mean_abs_delta"], 6),
-                    num(&r["ratio_to_truth"], 2),
-                    num(&r["ratio_ci95"][0], 2),
-                    num(&r["ratio_ci95"][1], 2)
+                    html_escape(&s.scene),
+                    html_escape(&r.method),
+                    num(r.mean_abs_delta, 6),
+                    num(r.ratio_to_truth, 2),
+                    num(r.ratio_ci95[0], 2),
+                    num(r.ratio_ci95[1], 2)
                 );
             }
         }
