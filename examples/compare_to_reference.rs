@@ -5,7 +5,7 @@
 //! `cargo run --release --example compare_to_reference -- [SCENE]`
 
 use izb::bvh::SceneBvh;
-use izb::izb::{render_cpu, IzbSettings, SampleMode};
+use izb::cpu::{render_cpu, IzbSettings, SampleMode};
 use izb::metrics::metrics;
 use izb::reference::{reference, ReferenceSettings};
 

@@ -5,8 +5,8 @@
 //! `cargo run --release --example render_mask -- [SCENE] [OUT.exr]`
 
 use izb::bvh::SceneBvh;
+use izb::cpu::{render_cpu, IzbSettings};
 use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
-use izb::izb::{render_cpu, IzbSettings};
 use izb::output::write_exr_with_masks;
 
 fn main() -> anyhow::Result<()> {

@@ -1,10 +1,10 @@
 #version 460
-// Pass 2, `bin` — GPU twin of `izb::izb::bin::bin`: a counting sort of
+// Pass 2, `bin` — GPU twin of `izb::cpu::bin::bin`: a counting sort of
 // triangles into every cascade's light-space grid pyramid ([Compute IZB]; the
 // pyramids lie back to back in the cell arrays, levels finest first; each
 // triangle at the finest level where its rectangle holds at most
 // level_cells cells, listed in the cells its projection touches:
-// izb::izb::footprint), in these dispatches:
+// izb::cpu::footprint), in these dispatches:
 //   STEP_RECEIVERS  (per pixel, behind-receivers skip only) per cell of
 //                   every level the farthest receiver and its reach
 //                   (bin::cell_receivers);

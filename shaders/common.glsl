@@ -41,7 +41,7 @@ vec3 receiver_normal(vec3 triangle_normal, uint word) {
     return (gbuffer_flags(word) & FLAG_NORMAL_FLIPPED) != 0u ? -triangle_normal : triangle_normal;
 }
 
-// izb::is_receiver: shadow-tested pixels, and with the facing-away skip
+// cpu::is_receiver: shadow-tested pixels, and with the facing-away skip
 // off every hit.
 bool is_receiver(uint flags, uint skips) {
     return (flags & FLAG_SHADOW_TESTED) != 0u

@@ -1,5 +1,5 @@
 #version 460
-// Pass 3, `evaluate` — GPU twin of `izb::izb::evaluate::evaluate`.
+// Pass 3, `evaluate` — GPU twin of `izb::cpu::evaluate::evaluate`.
 //
 // One thread per pixel, 8×8 tiles ([Compute IZB]). A shadow-tested pixel's
 // µQuad maps to a rectangle of cells on every level of its cascade's grid

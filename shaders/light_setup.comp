@@ -1,5 +1,5 @@
 #version 460
-// Pass 1, `light_setup` — GPU twin of `izb::izb::light_setup`, in four
+// Pass 1, `light_setup` — GPU twin of `izb::cpu::light_setup`, in four
 // dispatches so nothing is read back inside the frame:
 //   STEP_RECEIVERS (per pixel)  bounds and view-depth range of the
 //                               shadow-tested hit points;
@@ -68,7 +68,7 @@ void wg_reset() {
 }
 
 // The fit covers the shadow-tested pixels whatever the facing-away skip
-// says (see izb::is_receiver).
+// says (see cpu::is_receiver).
 bool receiver_pixel(out uint i) {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     i = pixel.y * frame.width + pixel.x;

@@ -1,5 +1,5 @@
 #version 460
-// Pass 4, `resolve` — GPU twin of `izb::izb::resolve` and
+// Pass 4, `resolve` — GPU twin of `izb::cpu::resolve` and
 // `izb::output::shade_pixel`: the shaded image (ambient + Lambert × lit
 // fraction, display gamma 2.2) as packed RGB8, with the lit fraction in
 // alpha as the count of lit samples, 32 − popcount(mask), exact (the host

@@ -13,11 +13,12 @@
 pub mod baseline;
 pub mod bench;
 pub mod bvh;
+pub mod cascades;
 pub mod cli;
+pub mod cpu;
 pub mod frustum;
 pub mod gbuffer;
 pub mod gpu;
-pub mod izb;
 pub mod lut;
 pub mod metrics;
 pub mod output;
@@ -25,6 +26,8 @@ pub mod peer;
 pub mod reference;
 pub mod report;
 pub mod scene;
+pub mod settings;
+pub mod skips;
 
 /// Visibility samples per pixel: one bit each in a `u32` occlusion mask.
 pub const SAMPLES_PER_PIXEL: usize = izb_lut::SAMPLES_PER_PIXEL;

@@ -10,7 +10,7 @@
 mod common;
 
 use izb::bvh::SceneBvh;
-use izb::izb::{render_cpu, IzbSettings, SampleMode};
+use izb::cpu::{render_cpu, IzbSettings, SampleMode};
 use izb::metrics::metrics;
 use izb::reference::{reference, ReferenceSettings};
 use izb::scene::{self, Scene};

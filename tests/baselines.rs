@@ -10,9 +10,9 @@ use common::gpu::{assert_no_validation_messages, lock, renderer};
 use izb::baseline::shadow_map::{shadow_map, CascadeMap, Filter};
 use izb::baseline::{render_shadow_map, ShadowMapSettings};
 use izb::bvh::SceneBvh;
+use izb::cpu::light_setup::Projection;
+use izb::cpu::{eye_relative_f32, light_setup, render_cpu, GridRequest, IzbSettings, SampleMode};
 use izb::gbuffer::gbuffer;
-use izb::izb::light_setup::Projection;
-use izb::izb::{eye_relative_f32, light_setup, render_cpu, GridRequest, IzbSettings, SampleMode};
 use izb::scene::{self, Scene};
 
 fn small(name: &str) -> Scene {
@@ -74,7 +74,7 @@ fn rasteriser_matches_brute_force_at_every_texel() {
             GridRequest {
                 cells: Some(8),
                 level_cells: None,
-                cascades: izb::izb::CascadeCount::Fixed(2),
+                cascades: izb::cpu::CascadeCount::Fixed(2),
                 split_lambda: 1.0,
             },
         );

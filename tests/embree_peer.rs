@@ -22,7 +22,7 @@ fn embree_masks_match_the_same_sample_reference() {
             .unwrap();
         let bvh = SceneBvh::build(&scene);
         let g = gbuffer(&scene, &bvh);
-        let embree = EmbreeScene::new(&izb::izb::eye_relative_f32(&scene)).unwrap();
+        let embree = EmbreeScene::new(&izb::cpu::eye_relative_f32(&scene)).unwrap();
         let got = rt32_embree_masks(&scene, &embree, &g, pattern);
         let want = same_sample_masks(&scene, &bvh, pattern);
         let tested = |i: usize| g.flags[i] & flags::SHADOW_TESTED != 0;

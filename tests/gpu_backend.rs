@@ -19,8 +19,8 @@ mod common;
 
 use common::gpu::{assert_no_validation_messages, renderer};
 use izb::bvh::SceneBvh;
+use izb::cpu::{render_cpu, CascadeCount, IzbSettings, SampleMode};
 use izb::gpu::{GBufferSource, GpuError, GpuRenderer};
-use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode};
 use izb::scene::{self, Scene};
 
 /// Test resolution; `IZB_GPU_TEST_RESOLUTION=scene` runs each scene at its
@@ -155,7 +155,7 @@ fn check_scene(r: &GpuRenderer, name: &str, scene: Scene) -> usize {
         compared += 1;
         // resolve: lit fraction bit for bit from the same masks, and the
         // shaded image within one 8-bit level of the CPU twin.
-        let cpu_visibility = izb::izb::resolve(&gpu.masks, &cpu.gbuffer);
+        let cpu_visibility = izb::cpu::resolve(&gpu.masks, &cpu.gbuffer);
         for (i, (g, c)) in gpu.visibility.iter().zip(&cpu_visibility).enumerate() {
             assert!(
                 g.to_bits() == c.to_bits() || (g.is_nan() && c.is_nan()),

@@ -8,8 +8,8 @@
 mod common;
 
 use common::gpu::{assert_no_validation_messages, own_renderer};
+use izb::cpu::IzbSettings;
 use izb::gpu::{GBufferSource, GpuOptions};
-use izb::izb::IzbSettings;
 
 #[test]
 fn two_threads_share_one_renderer() {

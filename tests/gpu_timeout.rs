@@ -8,8 +8,8 @@
 mod common;
 
 use common::gpu::{assert_no_validation_messages, own_renderer};
+use izb::cpu::IzbSettings;
 use izb::gpu::{GBufferSource, GpuError, GpuOptions};
-use izb::izb::IzbSettings;
 
 #[test]
 fn a_frame_past_its_time_limit_is_a_timeout_error() {

@@ -8,12 +8,12 @@
 mod common;
 
 use izb::bvh::SceneBvh;
-use izb::gbuffer::{flags, gbuffer};
-use izb::izb::bin::{bin, place, CellEntry, Placement};
-use izb::izb::evaluate::{for_each_candidate, triangle_mask_for_pixel};
-use izb::izb::{
+use izb::cpu::bin::{bin, place, CellEntry, Placement};
+use izb::cpu::evaluate::{for_each_candidate, triangle_mask_for_pixel};
+use izb::cpu::{
     eye_relative_f32, light_setup, CascadeCount, GridRequest, MaskRule, SampleMode, Skips,
 };
+use izb::gbuffer::{flags, gbuffer};
 use izb::scene::{self, Scene};
 use std::collections::HashSet;
 

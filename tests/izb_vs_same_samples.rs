@@ -12,8 +12,8 @@
 mod common;
 
 use izb::bvh::SceneBvh;
+use izb::cpu::{render_cpu, IzbSettings, SampleMode};
 use izb::gbuffer::{flags, pixel_surface};
-use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::reference::same_samples::{decision_margin, same_sample_masks, FLOAT_DECISION_TOLERANCE};
 use izb::scene::{self, Scene};
 

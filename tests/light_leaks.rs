@@ -5,8 +5,8 @@
 
 use glam::DVec3;
 use izb::bvh::SceneBvh;
+use izb::cpu::{render_cpu, IzbSettings, SampleMode};
 use izb::gbuffer::flags;
-use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::reference::same_samples::same_sample_masks;
 use izb::scene::procedural::shapes::{ground, sun_direction};
 use izb::scene::{Camera, Light, Scene};

@@ -14,8 +14,8 @@ mod common;
 
 use common::gpu::{lock, renderer};
 use izb::bvh::SceneBvh;
+use izb::cpu::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
 use izb::gpu::{GBufferSource, GpuError};
-use izb::izb::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
 use izb::scene::{self, Scene};
 
 const MODES: [SampleMode; 3] = [SampleMode::One, SampleMode::Lut32, SampleMode::Exact32];

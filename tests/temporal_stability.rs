@@ -19,8 +19,8 @@ mod common;
 
 use izb::bench::flicker::rotated_light;
 use izb::bvh::SceneBvh;
+use izb::cpu::{render_cpu, IzbSettings, SampleMode};
 use izb::gbuffer::flags;
-use izb::izb::{render_cpu, IzbSettings, SampleMode};
 use izb::reference::same_samples::same_sample_masks;
 use izb::scene::{self, Scene};
 

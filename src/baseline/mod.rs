@@ -15,9 +15,9 @@
 
 pub mod shadow_map;
 
+use crate::cascades::CascadeCount;
+use crate::cpu::{eye_relative_f32, light_setup, GridRequest};
 use crate::gbuffer::{flags, GBuffer};
-use crate::izb::cascades::CascadeCount;
-use crate::izb::{eye_relative_f32, light_setup, GridRequest};
 use crate::scene::Scene;
 pub use shadow_map::Filter;
 use std::fmt;
@@ -50,7 +50,7 @@ impl ShadowMapSettings {
         let mut cascades = 1;
         if let Some(c) = parts.first().and_then(|p| p.strip_prefix("csm")) {
             cascades = c.parse().map_err(|_| bad())?;
-            if !(1..=crate::izb::cascades::MAX_CASCADES as u32).contains(&cascades) {
+            if !(1..=crate::cascades::MAX_CASCADES as u32).contains(&cascades) {
                 return Err(bad());
             }
             parts.remove(0);

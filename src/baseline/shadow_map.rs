@@ -12,7 +12,7 @@
 
 use crate::gbuffer::{flags, GBuffer};
 // The GLSL twin's order-preserving float bits (for `fetch_min`).
-use crate::izb::light_setup::{CascadeGrid, LightSetup, Projection};
+use crate::cpu::light_setup::{CascadeGrid, LightSetup, Projection};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};

@@ -8,8 +8,8 @@
 
 use super::{Method, MethodKind, SceneTruth};
 use crate::baseline::render_shadow_map;
+use crate::cpu::{render_cpu, resolve};
 use crate::gbuffer::gbuffer;
-use crate::izb::{render_cpu, resolve};
 use crate::reference::reference;
 use crate::reference::same_samples::same_sample_masks;
 use crate::reference::ReferenceSettings;

@@ -1,7 +1,7 @@
 //! The methods `izb bench` measures, and how a list of names becomes them.
 
 use crate::baseline::ShadowMapSettings;
-use crate::izb::{IzbSettings, SampleMode};
+use crate::settings::{IzbSettings, SampleMode};
 
 /// What a benchmarked method is.
 #[derive(Clone, Copy, Debug)]

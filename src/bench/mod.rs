@@ -30,8 +30,8 @@ pub use methods::{parse_methods, Method, MethodKind, DEFAULT_MAP_SIDES};
 
 use crate::baseline::render_shadow_map;
 use crate::bvh::SceneBvh;
+use crate::cpu::{render_cpu, resolve, PassTimes};
 use crate::gbuffer::{gbuffer, GBuffer};
-use crate::izb::{render_cpu, resolve, PassTimes};
 use crate::metrics::{metrics, sample_mismatches, Metrics};
 use crate::output::write_exr;
 use crate::reference::same_samples::same_sample_masks;
@@ -183,7 +183,7 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
 #[cfg(feature = "embree")]
 fn embree_once(scene: &Scene, shared: &SceneTruth, r: &mut Runs) -> Result<(), String> {
     use crate::peer::embree::{rt32_embree_masks, EmbreeScene};
-    let embree = EmbreeScene::new(&crate::izb::eye_relative_f32(scene))?;
+    let embree = EmbreeScene::new(&crate::cpu::eye_relative_f32(scene))?;
     let t = Instant::now();
     let masks = rt32_embree_masks(
         scene,

@@ -8,10 +8,12 @@ use crate::bench;
 use crate::bench::document::{
     BenchDocument, FlickerSettings, ResultRow, Scaling, SceneEntry, SceneFlicker, TruthEntry,
 };
+use crate::cascades::CascadeCount;
 use crate::gpu::{GpuOptions, GpuRenderer};
-use crate::izb::{CascadeCount, IzbSettings, Skips};
 use crate::output::write_json;
 use crate::reference::ReferenceSettings;
+use crate::settings::IzbSettings;
+use crate::skips::Skips;
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::{Path, PathBuf};

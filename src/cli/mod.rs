@@ -9,9 +9,10 @@ pub mod render;
 pub mod tools;
 
 use crate::bvh::SceneBvh;
-use crate::izb::{CascadeCount, IzbSettings};
+use crate::cascades::CascadeCount;
 use crate::reference::{reference, ReferenceImage, ReferenceSettings};
 use crate::scene::{self, Scene};
+use crate::settings::IzbSettings;
 use anyhow::Result;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};

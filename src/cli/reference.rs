@@ -3,8 +3,8 @@
 
 use super::{load_scene, progress_bar, scene_summary, thread_pool, trace_reference, SceneArgs};
 use crate::bvh::SceneBvh;
+use crate::cpu::{render_cpu, IzbSettings, SampleMode};
 use crate::gbuffer::gbuffer;
-use crate::izb::{render_cpu, IzbSettings, SampleMode};
 use crate::metrics::{error_heat_map, metrics, sample_mismatches};
 use crate::output::{
     write_exr, write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
@@ -68,7 +68,7 @@ pub fn run_same_sample_reference(args: ReferenceArgs) -> Result<()> {
         )
     });
     let seconds = start.elapsed().as_secs_f64();
-    let visibility = crate::izb::resolve(&masks, &g);
+    let visibility = crate::cpu::resolve(&masks, &g);
     let [w, h] = scene.resolution;
     write_exr_with_masks(
         &args.out.join("visibility.exr"),

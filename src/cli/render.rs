@@ -2,8 +2,8 @@
 
 use super::{load_scene, scene_summary, thread_pool, Backend, GridArgs, SceneArgs};
 use crate::bvh::SceneBvh;
+use crate::cpu::{render_cpu, IzbSettings, SampleMode, Skips};
 use crate::gpu::{GBufferSource, GpuOptions, GpuRenderer};
-use crate::izb::{render_cpu, IzbSettings, SampleMode, Skips};
 use crate::output::{
     write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
 };

@@ -1,7 +1,7 @@
 //! The small commands: `izb lut`, `izb report`, `izb info`, `izb devices`.
 
 use super::{load_scene, scene_summary, SceneArgs};
-use crate::izb::IzbSettings;
+use crate::settings::IzbSettings;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;

@@ -3,7 +3,7 @@
 //! its level from its light-view vertices and counted in the cells its
 //! projection touches (the overflow list only for triangles crossing a
 //! point light's image plane), an in-place prefix sum, a scatter by atomic
-//! decrement — the twin of [`crate::izb::bin::bin`].
+//! decrement — the twin of [`crate::cpu::bin::bin`].
 //!
 //! The cell list's size is only known after the prefix sum, inside the
 //! frame. The host allocates a guess; the prefix sum compares the total
@@ -16,7 +16,7 @@ use super::{Kernels, Recorder};
 
 /// Records the pass over `triangles` triangles; with `pixels` (the
 /// behind-receivers skip) it first gathers each cell's receivers
-/// (`STEP_RECEIVERS`, [`crate::izb::bin::cell_receivers`]).
+/// (`STEP_RECEIVERS`, [`crate::cpu::bin::cell_receivers`]).
 pub fn bin(rec: &Recorder, kernels: &Kernels, triangles: u32, pixels: Option<u32>) {
     rec.begin_label("bin");
     if let Some(pixels) = pixels {

@@ -2,7 +2,7 @@
 //! pixel, the frustum-triangle test (paper-notes/frustum-test.md) against every candidate of
 //! the cells under its µQuad and the overflow list, in 8×8 tiles with
 //! cooperative shared-memory batches ([Compute IZB]) — the twin of
-//! [`crate::izb::evaluate::evaluate`]. Sample mode (1, 32 LUT, 32 exact)
+//! [`crate::cpu::evaluate::evaluate`]. Sample mode (1, 32 LUT, 32 exact)
 //! comes from `FrameParams::mode`; the LUT is the build-time table.
 
 use super::{Kernels, Recorder};

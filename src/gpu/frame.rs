@@ -21,8 +21,8 @@ use super::timestamps::TimestampPool;
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::ShadowMapSettings;
 use crate::gbuffer::GBuffer;
-use crate::izb::IzbSettings;
 use crate::scene::Scene;
+use crate::settings::IzbSettings;
 use ash::vk;
 use bytemuck::Pod;
 use glam::Vec3;
@@ -147,7 +147,7 @@ impl GpuRenderer {
                 "--cells {side}: the GPU's cell budget is at most 65535² cells"
             )));
         }
-        let max_cells = crate::izb::cascades::max_total_cells(side);
+        let max_cells = crate::cascades::max_total_cells(side);
         let mut capacity = initial_cell_capacity(triangles.len());
         let mut frames_run = 0;
         loop {

@@ -4,10 +4,10 @@
 
 use super::shared::{self, FrameParams, GpuTriangle};
 use super::GpuError;
+use crate::cpu::light_setup::directional_rotation;
 use crate::gbuffer::{flags, GBuffer, MAX_MICROQUAD_STRETCH};
-use crate::izb::light_setup::directional_rotation;
-use crate::izb::{IzbSettings, SampleMode};
 use crate::scene::{Light, Scene};
+use crate::settings::{IzbSettings, SampleMode};
 use glam::Vec3;
 
 /// The scene as the GPU receives it, built once per render (a capacity
@@ -105,7 +105,7 @@ pub(super) fn loop_budget(device_name: &str) -> u32 {
 /// The largest cell budget (as a square's side) the light setup may choose:
 /// its upper bound, every receiver being a pixel.
 pub(super) fn grid_budget_side(pixels: usize, triangles: usize, hint: Option<u32>) -> u32 {
-    hint.unwrap_or_else(|| crate::izb::light_setup::default_grid_side(pixels, triangles))
+    hint.unwrap_or_else(|| crate::cpu::light_setup::default_grid_side(pixels, triangles))
 }
 
 /// `FrameParams` for `scene`: camera rays as affine functions of the pixel

@@ -6,8 +6,8 @@ use super::frame_report::PassMemory;
 use super::resources::{BufferDesc, GpuBuffer};
 use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
 use super::GpuError;
-use crate::izb::IzbSettings;
 use crate::scene::Scene;
+use crate::settings::IzbSettings;
 
 /// The sizes that decide a frame's buffers.
 pub struct FrameSizes {
@@ -115,7 +115,7 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         triangles: triangles.len() as u64,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
-        max_cells: crate::izb::cascades::max_total_cells(side),
+        max_cells: crate::cascades::max_total_cells(side),
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
         shadow_map_texels: 0,

@@ -5,13 +5,13 @@
 use super::frame::{FrameOutput, GBufferSource, GpuRenderer};
 use super::frame_inputs::SceneUpload;
 use super::shared::{self, counter};
+use crate::cascades::CascadeChoice;
 use crate::gbuffer::{flags, GBuffer, GBufferStats};
-use crate::izb::cascades::CascadeChoice;
-use crate::izb::IzbSettings;
 use crate::scene::Scene;
+use crate::settings::IzbSettings;
 
 /// Per-pass GPU milliseconds from timestamp queries.
-pub type GpuPassMillis = crate::izb::PassTimes;
+pub type GpuPassMillis = crate::settings::PassTimes;
 
 /// Device memory of one pass's buffers.
 #[derive(Clone, Debug, serde::Serialize)]

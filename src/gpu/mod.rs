@@ -4,10 +4,10 @@
 //! | pass | GPU module | shader | CPU twin |
 //! |---|---|---|---|
 //! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
-//! | 1 | [`light_setup`] | `light_setup.comp` | [`crate::izb::light_setup`] |
-//! | 2 | [`bin`] | `bin.comp` | [`crate::izb::bin::bin`] |
-//! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::izb::evaluate::evaluate`] |
-//! | 4 | [`resolve`] | `resolve.comp` | [`crate::izb::resolve`], [`crate::output::shade_pixel`] |
+//! | 1 | [`light_setup`] | `light_setup.comp` | [`crate::cpu::light_setup`] |
+//! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
+//! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |
+//! | 4 | [`resolve`] | `resolve.comp` | [`crate::cpu::resolve`], [`crate::output::shade_pixel`] |
 //!
 //! A frame is one command buffer: uploads, the five passes with timestamps
 //! between them, and the read-backs; nothing is read back inside it (the

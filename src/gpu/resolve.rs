@@ -1,5 +1,5 @@
 //! GPU pass 4, `resolve` (`shaders/resolve.comp`): lit fraction from the
-//! mask and the shaded image — the twin of [`crate::izb::resolve`] and
+//! mask and the shaded image — the twin of [`crate::cpu::resolve`] and
 //! [`crate::output::shade_pixel`].
 
 use super::{Kernels, Recorder};

@@ -11,8 +11,8 @@ use super::shared;
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::ShadowMapSettings;
 use crate::gbuffer::flags;
-use crate::izb::IzbSettings;
 use crate::scene::Scene;
+use crate::settings::IzbSettings;
 
 /// Most workgroups along x (the Vulkan minimum of
 /// `maxComputeWorkGroupCount[0]`); more triangles go on in y.
@@ -63,10 +63,10 @@ impl GpuRenderer {
         // cascades; the 8×8 grid is unused.
         let settings = IzbSettings {
             cells: Some(8),
-            cascades: crate::izb::CascadeCount::Fixed(map.cascades),
+            cascades: crate::cascades::CascadeCount::Fixed(map.cascades),
             ..Default::default()
         };
-        let max_cells = crate::izb::cascades::max_total_cells(8);
+        let max_cells = crate::cascades::max_total_cells(8);
         let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
         self.check_loop_budget(&out)?;
         if out.light.grid_disabled != 0 {

@@ -11,8 +11,8 @@ use super::frame_report::GpuPassMillis;
 use super::shared;
 use super::{GpuError, Kernels, Recorder};
 use crate::gbuffer::flags;
-use crate::izb::IzbSettings;
 use crate::scene::Scene;
+use crate::settings::IzbSettings;
 
 /// Records the pass: one invocation per pixel.
 pub fn shadow_rays(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
@@ -49,10 +49,10 @@ impl GpuRenderer {
         // The smallest light setup: one 8×8 grid nobody reads.
         let settings = IzbSettings {
             cells: Some(8),
-            cascades: crate::izb::CascadeCount::Fixed(1),
+            cascades: crate::cascades::CascadeCount::Fixed(1),
             ..Default::default()
         };
-        let max_cells = crate::izb::cascades::max_total_cells(8);
+        let max_cells = crate::cascades::max_total_cells(8);
         let out = self.run_frame(
             scene,
             settings,

@@ -33,7 +33,7 @@ pub const FLAG_NORMAL_FLIPPED: u32 = izb_contract::flags::NORMAL_FLIPPED;
 pub const ALPHA_NOT_TESTED: u8 = izb_contract::word::ALPHA_NOT_TESTED as u8;
 
 /// The lit fraction a shaded pixel's alpha encodes: exact (k/32), NaN
-/// where not shadow-tested, as [`crate::izb::resolve`] gives it.
+/// where not shadow-tested, as [`crate::cpu::resolve`] gives it.
 pub fn lit_fraction_of_alpha(alpha: u8) -> f32 {
     if alpha == ALPHA_NOT_TESTED {
         f32::NAN

@@ -7,7 +7,7 @@
 //! (orthographic), `(x/z, y/z)` for a point light (perspective, z along the
 //! light's view axis).
 
-use super::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
+use crate::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
 use crate::frustum::LightRel;
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::{Light, Scene};
@@ -380,6 +380,18 @@ pub struct GridRequest {
     pub cascades: CascadeCount,
     /// Blend of logarithmic (1) and uniform (0) splits.
     pub split_lambda: f32,
+}
+
+impl From<&crate::settings::IzbSettings> for GridRequest {
+    /// What the light setup is asked for.
+    fn from(s: &crate::settings::IzbSettings) -> GridRequest {
+        GridRequest {
+            cells: s.cells,
+            level_cells: s.level_cells,
+            cascades: s.cascades,
+            split_lambda: s.split_lambda,
+        }
+    }
 }
 
 /// Fits the light view, the cascades and their grids to the shadow-tested

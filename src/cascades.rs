@@ -306,9 +306,9 @@ mod tests {
                         .iter()
                         .map(|&s| {
                             let cells = cascade_cells(side, s * 1000, all, 4, extent);
-                            let grid = crate::izb::light_setup::CascadeGrid {
+                            let grid = crate::cpu::light_setup::CascadeGrid {
                                 cells,
-                                levels: crate::izb::light_setup::pyramid_levels(cells),
+                                levels: crate::cpu::light_setup::pyramid_levels(cells),
                                 ..Default::default()
                             };
                             u64::from(grid.cell_count())
@@ -328,7 +328,7 @@ mod tests {
 
     #[test]
     fn pyramid_levels_halve_down_to_one_cell() {
-        use crate::izb::light_setup::{level_side, pyramid_levels, CascadeGrid};
+        use crate::cpu::light_setup::{level_side, pyramid_levels, CascadeGrid};
         assert_eq!(pyramid_levels([1, 1]), 1);
         assert_eq!(pyramid_levels([2, 1]), 2);
         assert_eq!(pyramid_levels([1024, 3]), 11);

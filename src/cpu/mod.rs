@@ -12,42 +12,22 @@
 //! The G-buffer (pass 0) comes from [`crate::gbuffer`].
 
 pub mod bin;
-pub mod cascades;
 pub mod evaluate;
 pub mod footprint;
 pub mod light_setup;
 pub mod receivers;
-pub mod skips;
 
-pub use cascades::CascadeCount;
-pub use evaluate::{MaskRule, SampleMode, FULL};
+// The settings the CPU twins take, declared below both backends.
+pub use crate::cascades::CascadeCount;
+pub use crate::settings::{IzbSettings, PassSeconds, PassTimes, SampleMode};
+pub use crate::skips::Skips;
+pub use evaluate::{MaskRule, FULL};
 pub use light_setup::{light_setup, GridRequest, LightSetup};
-pub use skips::Skips;
 
 use crate::bvh::SceneBvh;
 use crate::gbuffer::{flags, gbuffer, GBuffer, GBufferStats};
 use crate::scene::Scene;
 use std::time::Instant;
-
-/// How to render.
-#[derive(Clone, Copy, Debug, serde::Serialize)]
-pub struct IzbSettings {
-    pub mode: SampleMode,
-    /// The grids' cell budget as the side of a square (`--cells 200`: 40 000
-    /// cells), shared between the cascades (None: chosen from the receiver
-    /// and triangle counts).
-    pub cells: Option<u32>,
-    /// A triangle is binned at the finest pyramid level where its cell
-    /// rectangle holds at most this many cells (None:
-    /// [`cascades::DEFAULT_LEVEL_CELLS`]).
-    pub level_cells: Option<u32>,
-    /// Sample-distribution cascades (Wyman et al. 2015, §6.4).
-    pub cascades: CascadeCount,
-    /// Split blend: 1 logarithmic, 0 uniform.
-    pub split_lambda: f32,
-    /// Exact shortcuts to take (all by default).
-    pub skips: Skips,
-}
 
 /// Whether `evaluate` tests a pixel with G-buffer `flags`: shadow-tested
 /// pixels, and with the `facing_away` skip off also the hits that face away
@@ -56,71 +36,6 @@ pub struct IzbSettings {
 /// rounding of every test, and the skips must leave masks bit-identical.
 pub fn is_receiver(pixel_flags: u32, skips: Skips) -> bool {
     pixel_flags & flags::SHADOW_TESTED != 0 || (!skips.facing_away && pixel_flags & flags::HIT != 0)
-}
-
-impl IzbSettings {
-    /// What the light setup is asked for.
-    pub fn grid_request(&self) -> GridRequest {
-        GridRequest {
-            cells: self.cells,
-            level_cells: self.level_cells,
-            cascades: self.cascades,
-            split_lambda: self.split_lambda,
-        }
-    }
-}
-
-impl Default for IzbSettings {
-    fn default() -> Self {
-        IzbSettings {
-            mode: SampleMode::Lut32,
-            cells: None,
-            level_cells: None,
-            cascades: CascadeCount::Auto,
-            split_lambda: 1.0,
-            skips: Skips::ALL,
-        }
-    }
-}
-
-/// Time per pass, the same five passes on both backends; the unit is
-/// the caller's (the CPU reports seconds, the GPU timestamp milliseconds).
-#[derive(Clone, Debug, Default, serde::Serialize)]
-pub struct PassTimes {
-    pub gbuffer: f64,
-    pub light_setup: f64,
-    pub bin: f64,
-    pub evaluate: f64,
-    pub resolve: f64,
-    pub total: f64,
-}
-
-/// CPU wall seconds per pass.
-pub type PassSeconds = PassTimes;
-
-impl PassTimes {
-    /// The per-pass median of non-empty `runs` (the upper median for an
-    /// even count).
-    pub fn median<'a>(runs: impl Iterator<Item = &'a PassTimes> + Clone) -> PassTimes {
-        let pass = |f: fn(&PassTimes) -> f64| {
-            let mut v: Vec<f64> = runs.clone().map(f).collect();
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
-        PassTimes {
-            gbuffer: pass(|t| t.gbuffer),
-            light_setup: pass(|t| t.light_setup),
-            bin: pass(|t| t.bin),
-            evaluate: pass(|t| t.evaluate),
-            resolve: pass(|t| t.resolve),
-            total: pass(|t| t.total),
-        }
-    }
-
-    /// Everything but the G-buffer: the shadow passes proper.
-    pub fn shadow(&self) -> f64 {
-        self.total - self.gbuffer
-    }
 }
 
 /// Settings, timings and counters of one render (`report.json`).
@@ -186,7 +101,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     };
     let g = gbuffer(scene, bvh);
     seconds.gbuffer = lap();
-    let setup = light_setup(scene, &g, settings.grid_request());
+    let setup = light_setup(scene, &g, GridRequest::from(&settings));
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
     let boxes = setup.microquad_boxes(&g, settings.skips);

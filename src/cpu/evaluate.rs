@@ -15,7 +15,7 @@
 
 use super::bin::{cell_range, cell_range_at, Bins, NO_COVER};
 use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
-use super::{is_receiver, Skips};
+use super::{is_receiver, SampleMode, Skips};
 use crate::frustum::{
     above_tangent_plane, beyond_triangle_plane, edge_function, exact_edge_mask,
     microquad_tolerance, saturated_edge, winding, LightRel,
@@ -23,20 +23,6 @@ use crate::frustum::{
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-
-/// Samples per pixel and how each triangle's mask is formed.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum SampleMode {
-    /// One point test at the µQuad centre: the mask is all or nothing.
-    One,
-    /// 32 samples, each edge's mask from the edge LUT (Wyman et al. 2015, §4).
-    Lut32,
-    /// 32 samples, every edge function evaluated at every sample.
-    Exact32,
-}
 
 /// A full 32-sample mask.
 pub const FULL: u32 = izb_contract::word::FULL_MASK;

@@ -1,0 +1,93 @@
+//! What a render is asked for and how its time is reported: the settings
+//! both backends take (the CPU twins in [`crate::cpu`], the GPU passes in
+//! [`crate::gpu`]), below both.
+
+use crate::cascades::CascadeCount;
+use crate::skips::Skips;
+
+/// Samples per pixel and how each triangle's mask is formed.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum SampleMode {
+    /// One point test at the µQuad centre: the mask is all or nothing.
+    One,
+    /// 32 samples, each edge's mask from the edge LUT (Wyman et al. 2015, §4).
+    Lut32,
+    /// 32 samples, every edge function evaluated at every sample.
+    Exact32,
+}
+
+/// How to render.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct IzbSettings {
+    pub mode: SampleMode,
+    /// The grids' cell budget as the side of a square (`--cells 200`: 40 000
+    /// cells), shared between the cascades (None: chosen from the receiver
+    /// and triangle counts).
+    pub cells: Option<u32>,
+    /// A triangle is binned at the finest pyramid level where its cell
+    /// rectangle holds at most this many cells (None:
+    /// [`cascades::DEFAULT_LEVEL_CELLS`]).
+    pub level_cells: Option<u32>,
+    /// Sample-distribution cascades (Wyman et al. 2015, §6.4).
+    pub cascades: CascadeCount,
+    /// Split blend: 1 logarithmic, 0 uniform.
+    pub split_lambda: f32,
+    /// Exact shortcuts to take (all by default).
+    pub skips: Skips,
+}
+
+impl Default for IzbSettings {
+    fn default() -> Self {
+        IzbSettings {
+            mode: SampleMode::Lut32,
+            cells: None,
+            level_cells: None,
+            cascades: CascadeCount::Auto,
+            split_lambda: 1.0,
+            skips: Skips::ALL,
+        }
+    }
+}
+
+/// Time per pass, the same five passes on both backends; the unit is
+/// the caller's (the CPU reports seconds, the GPU timestamp milliseconds).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct PassTimes {
+    pub gbuffer: f64,
+    pub light_setup: f64,
+    pub bin: f64,
+    pub evaluate: f64,
+    pub resolve: f64,
+    pub total: f64,
+}
+
+/// CPU wall seconds per pass.
+pub type PassSeconds = PassTimes;
+
+impl PassTimes {
+    /// The per-pass median of non-empty `runs` (the upper median for an
+    /// even count).
+    pub fn median<'a>(runs: impl Iterator<Item = &'a PassTimes> + Clone) -> PassTimes {
+        let pass = |f: fn(&PassTimes) -> f64| {
+            let mut v: Vec<f64> = runs.clone().map(f).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        PassTimes {
+            gbuffer: pass(|t| t.gbuffer),
+            light_setup: pass(|t| t.light_setup),
+            bin: pass(|t| t.bin),
+            evaluate: pass(|t| t.evaluate),
+            resolve: pass(|t| t.resolve),
+            total: pass(|t| t.total),
+        }
+    }
+
+    /// Everything but the G-buffer: the shadow passes proper.
+    pub fn shadow(&self) -> f64 {
+        self.total - self.gbuffer
+    }
+}
