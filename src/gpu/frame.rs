@@ -491,3 +491,21 @@ pub(super) struct FrameOutput {
     pub(super) wall_seconds: f64,
     pub(super) memory: Vec<PassMemory>,
 }
+
+impl FrameOutput {
+    /// `value(words[i])` for every shadow-tested pixel i, NaN elsewhere.
+    pub(super) fn per_tested_pixel(&self, words: &[u32], value: impl Fn(u32) -> f32) -> Vec<f32> {
+        words
+            .iter()
+            .zip(&self.id_flags)
+            .map(|(&w, &id_flags)| {
+                let (_, f) = shared::unpack_id_flags(id_flags);
+                if f & crate::gbuffer::flags::SHADOW_TESTED != 0 {
+                    value(w)
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect()
+    }
+}

@@ -7,10 +7,8 @@
 
 use super::frame::{FramePasses, GBufferSource, GpuRenderer, GpuShadowMapRender};
 use super::frame_report::ShadowMapMillis;
-use super::shared;
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::ShadowMapSettings;
-use crate::gbuffer::flags;
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
 
@@ -75,19 +73,8 @@ impl GpuRenderer {
                 scene.name
             )));
         }
-        let visibility = out
-            .masks
-            .iter()
-            .zip(&out.id_flags)
-            .map(|(&m, &word)| {
-                let (_, flags) = shared::unpack_id_flags(word);
-                if flags & flags::SHADOW_TESTED != 0 {
-                    f32::from_bits(m)
-                } else {
-                    f32::NAN
-                }
-            })
-            .collect();
+        // The lookup writes the lit fraction's bits in the masks buffer.
+        let visibility = out.per_tested_pixel(&out.masks, f32::from_bits);
         Ok(GpuShadowMapRender {
             visibility,
             gpu_milliseconds: out.millis.as_ref().map(ShadowMapMillis::from_frame),

@@ -10,7 +10,6 @@ use super::frame::{FramePasses, GBufferSource, GpuRenderer};
 use super::frame_report::GpuPassMillis;
 use super::shared;
 use super::{GpuError, Kernels, Recorder};
-use crate::gbuffer::flags;
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
 
@@ -64,19 +63,9 @@ impl GpuRenderer {
             FramePasses::ShadowRays,
         )?;
         self.check_loop_budget(&out)?;
-        let visibility = out
-            .shaded
-            .iter()
-            .zip(&out.id_flags)
-            .map(|(&p, &word)| {
-                let (_, f) = shared::unpack_id_flags(word);
-                if f & flags::SHADOW_TESTED != 0 {
-                    shared::lit_fraction_of_alpha((p >> 24) as u8)
-                } else {
-                    f32::NAN
-                }
-            })
-            .collect();
+        let visibility = out.per_tested_pixel(&out.shaded, |p| {
+            shared::lit_fraction_of_alpha((p >> 24) as u8)
+        });
         Ok(GpuShadowRaysRender {
             masks: out.masks,
             visibility,
