@@ -3,12 +3,16 @@
 //! Analytic, antialiased hard shadows with a compute irregular z-buffer
 //! (IZB), and the ray-traced ground truth they are measured against.
 //!
-//! Module map (README, Layout): [`scene`] loads glTF, scene specs and procedural
-//! scenes; [`gbuffer`] computes primary visibility with µQuad footprints;
-//! [`reference`] traces supersampled ground truth; [`izb`] is the CPU
-//! irregular z-buffer and [`gpu`] its Vulkan twin; [`output`] writes images
-//! and reports atomically; [`baseline`] holds the shadow maps the IZB is
-//! measured against.
+//! Module map (README, Layout), each layer importing only those below it:
+//! [`scene`] loads glTF, scene specs and procedural scenes; [`bvh`] casts
+//! rays; [`gbuffer`] computes primary visibility with µQuad footprints;
+//! [`frustum`] is the shadow rule (depth test, edge functions);
+//! [`settings`], [`cascades`] and [`skips`] are what both backends take;
+//! [`cpu`] is the irregular z-buffer on the CPU and [`gpu`] its Vulkan
+//! twin (sharing `izb-contract` with the shaders); [`mod@reference`] traces
+//! the ground truth; [`baseline`] holds the shadow maps and [`peer`] the
+//! ray tracers the IZB is measured against; [`bench`], [`report`] and
+//! [`cli`] run and show it all; [`output`] writes files atomically.
 
 pub mod baseline;
 pub mod bench;

@@ -30,12 +30,12 @@ pub struct Skips {
     /// A cell does not list a triangle that lies behind (farther from the
     /// light than) every receiver that can test it there, nor anything at
     /// all when no receiver touches it (Wyman et al. 2015, §5.4): see
-    /// [`super::receivers::behind_receivers`]; directional and point lights.
+    /// [`crate::cpu::receivers::behind_receivers`]; directional and point lights.
     pub behind_receivers: bool,
     /// The conservative shadow-map early-out (Tokuyoshi 2018, [Compute IZB]),
     /// exact by construction: the bin pass records per cell the triangle
     /// whose shadow covers the whole cell with the highest floor
-    /// ([`super::bin::cover_floor`]); a pixel tests that one first, with
+    /// ([`crate::cpu::bin::cover_floor`]); a pixel tests that one first, with
     /// the ordinary test, and skips the rest of its loop when it alone
     /// fills the mask. Directional lights only.
     pub shadow_map: bool,

@@ -6,8 +6,8 @@
 //! surfaces facing away from the light count as shadowed, and pixels whose
 //! *centre* is not shadow-tested are NaN (excluded from every metric).
 //!
-//! Everything is `f64` and eye-relative; see [`bvh`] for the ray caster and
-//! [`bvh::self_hit_offset`] for how shadow rays leave their surface.
+//! Everything is `f64` and eye-relative; see [`crate::bvh`] for the ray caster and
+//! [`crate::bvh::self_hit_offset`] for how shadow rays leave their surface.
 
 pub mod analytic;
 pub mod same_samples;
