@@ -253,28 +253,17 @@ fn args() -> Args {
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         let value = it.next().unwrap_or_else(|| panic!("{flag} needs a value"));
+        let number = || {
+            value
+                .parse::<f64>()
+                .unwrap_or_else(|e| panic!("{flag} {value}: {e}"))
+        };
         match flag.as_str() {
-            "--target" => a.target = value,
-            "--inputs" => {
-                a.inputs = value
-                    .parse::<u64>()
-                    .unwrap_or_else(|e| panic!("{flag} {value}: {e}"))
-            }
-            "--seconds" => {
-                a.seconds = value
-                    .parse::<f64>()
-                    .unwrap_or_else(|e| panic!("{flag} {value}: {e}"))
-            }
-            "--seed" => {
-                a.seed = value
-                    .parse::<u64>()
-                    .unwrap_or_else(|e| panic!("{flag} {value}: {e}"))
-            }
-            "--hang-seconds" => {
-                a.hang_seconds = value
-                    .parse::<f64>()
-                    .unwrap_or_else(|e| panic!("{flag} {value}: {e}"))
-            }
+            "--target" => a.target = value.clone(),
+            "--inputs" => a.inputs = number() as u64,
+            "--seconds" => a.seconds = number(),
+            "--seed" => a.seed = number() as u64,
+            "--hang-seconds" => a.hang_seconds = number(),
             other => panic!("unknown flag {other}"),
         }
     }

@@ -23,15 +23,8 @@ pub struct ReferenceArgs {
     /// Sub-pixel samples per pixel, a perfect square k×k (stratified, jittered).
     #[arg(long, default_value_t = 256)]
     spp: u32,
-    /// Seed of the jitter: the same seed gives the same image.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Output folder.
-    #[arg(long, default_value = "out")]
-    out: PathBuf,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
+    #[command(flatten)]
+    run: TraceRunArgs,
     /// Trace exactly the 32 µQuad samples of each pixel (f64, the IZB's
     /// rule) and write their masks instead of the supersampled estimate.
     #[arg(long)]
@@ -48,17 +41,27 @@ pub struct CompareArgs {
     /// Sub-pixel samples per pixel of the ground truth (a perfect square).
     #[arg(long, default_value_t = 256)]
     reference_spp: u32,
+    #[command(flatten)]
+    run: TraceRunArgs,
+}
+
+/// The jitter seed, output folder and threads of a traced reference.
+#[derive(Args)]
+pub struct TraceRunArgs {
+    /// Seed of the jitter: the same seed gives the same image.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Output folder.
     #[arg(long, default_value = "out")]
     out: PathBuf,
+    /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
 }
 
 pub fn run_same_sample_reference(args: ReferenceArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
-    let pool = thread_pool(args.threads)?;
+    let pool = thread_pool(args.run.threads)?;
     let start = Instant::now();
     let (masks, g) = pool.install(|| {
         let bvh = SceneBvh::build(&scene);
@@ -71,13 +74,13 @@ pub fn run_same_sample_reference(args: ReferenceArgs) -> Result<()> {
     let visibility = crate::cpu::resolve(&masks, &g);
     let [w, h] = scene.resolution;
     write_exr_with_masks(
-        &args.out.join("visibility.exr"),
+        &args.run.out.join("visibility.exr"),
         w,
         h,
         &[("visibility", &visibility)],
         &[("mask", &masks)],
     )?;
-    write_visibility_png(&args.out.join("visibility.png"), w, h, &visibility)?;
+    write_visibility_png(&args.run.out.join("visibility.png"), w, h, &visibility)?;
     let report = serde_json::json!({
         "command": "reference --same-samples",
         "scene": scene_summary(&scene),
@@ -86,11 +89,11 @@ pub fn run_same_sample_reference(args: ReferenceArgs) -> Result<()> {
         "seconds": seconds,
         "gbuffer": g.stats,
     });
-    write_json(&args.out.join("report.json"), &report)?;
+    write_json(&args.run.out.join("report.json"), &report)?;
     println!(
         "same-sample reference {}: {w}x{h}, 32 µQuad samples per pixel, {seconds:.2} s -> {}",
         scene.name,
-        args.out.display()
+        args.run.out.display()
     );
     Ok(())
 }
@@ -100,21 +103,27 @@ pub fn run_reference(args: ReferenceArgs) -> Result<()> {
         return run_same_sample_reference(args);
     }
     let scene = load_scene(&args.scene)?;
-    let settings = ReferenceSettings::from_spp(args.spp, args.seed).map_err(anyhow::Error::msg)?;
-    let pool = thread_pool(args.threads)?;
+    let settings =
+        ReferenceSettings::from_spp(args.spp, args.run.seed).map_err(anyhow::Error::msg)?;
+    let pool = thread_pool(args.run.threads)?;
     let (image, bvh, bvh_seconds) = pool.install(|| trace_reference(&scene, settings));
     let [w, h] = scene.resolution;
     write_exr(
-        &args.out.join("visibility.exr"),
+        &args.run.out.join("visibility.exr"),
         w,
         h,
         &[("visibility", &image.visibility), ("smooth", &image.smooth)],
     )?;
-    write_visibility_png(&args.out.join("visibility.png"), w, h, &image.visibility)?;
+    write_visibility_png(
+        &args.run.out.join("visibility.png"),
+        w,
+        h,
+        &image.visibility,
+    )?;
     let gbuffer = pool.install(|| gbuffer(&scene, &bvh));
     let light = scene.light.relative_to(scene.camera.eye);
     write_shaded_png(
-        &args.out.join("shaded.png"),
+        &args.run.out.join("shaded.png"),
         &gbuffer,
         &light,
         &image.visibility,
@@ -131,7 +140,7 @@ pub fn run_reference(args: ReferenceArgs) -> Result<()> {
         "stats": image.stats,
         "gbuffer": gbuffer.stats,
     });
-    write_json(&args.out.join("report.json"), &report)?;
+    write_json(&args.run.out.join("report.json"), &report)?;
     println!(
         "reference {}: {}x{} at {} spp, {} triangles, {:.2} s ({:.2} Mrays/s on {} threads) -> {}",
         scene.name,
@@ -142,7 +151,7 @@ pub fn run_reference(args: ReferenceArgs) -> Result<()> {
         image.stats.seconds,
         image.stats.rays_per_second / 1e6,
         pool.current_num_threads(),
-        args.out.display()
+        args.run.out.display()
     );
     Ok(())
 }
@@ -163,9 +172,9 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
         .iter()
         .map(|m| parse_method(m).map(|mode| (m.clone(), mode)))
         .collect::<Result<_>>()?;
-    let settings =
-        ReferenceSettings::from_spp(args.reference_spp, args.seed).map_err(anyhow::Error::msg)?;
-    let pool = thread_pool(args.threads)?;
+    let settings = ReferenceSettings::from_spp(args.reference_spp, args.run.seed)
+        .map_err(anyhow::Error::msg)?;
+    let pool = thread_pool(args.run.threads)?;
     let [w, h] = scene.resolution;
     let (truth, bvh, _) = pool.install(|| trace_reference(&scene, settings));
     let bar = progress_bar(1, "same-sample reference");
@@ -203,7 +212,7 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
             render.report.seconds.total
         );
         write_png(
-            &args.out.join(format!("error_{name}.png")),
+            &args.run.out.join(format!("error_{name}.png")),
             &error_heat_map(&render.visibility, &truth.visibility, w, h, 0.25),
         )?;
         rows.push(serde_json::json!({
@@ -214,7 +223,7 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
         }));
     }
     write_exr(
-        &args.out.join("reference.exr"),
+        &args.run.out.join("reference.exr"),
         w,
         h,
         &[("visibility", &truth.visibility), ("smooth", &truth.smooth)],
@@ -227,7 +236,7 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
         "threads": pool.current_num_threads(),
         "methods": rows,
     });
-    write_json(&args.out.join("compare.json"), &report)?;
-    println!("wrote {}", args.out.join("compare.json").display());
+    write_json(&args.run.out.join("compare.json"), &report)?;
+    println!("wrote {}", args.run.out.join("compare.json").display());
     Ok(())
 }

@@ -129,7 +129,7 @@ pub fn print_render_summary(
     mode: SampleMode,
     backend: &str,
     [binned, overflow, culled]: [u64; 3],
-    grids: &[([u32; 2], u32)],
+    grids: impl Iterator<Item = ([u32; 2], u32)>,
     cascade_reason: &str,
     tests: u64,
     timing: &str,
@@ -137,7 +137,6 @@ pub fn print_render_summary(
 ) {
     let [w, h] = scene.resolution;
     let grids: Vec<String> = grids
-        .iter()
         .map(|([x, y], cap)| format!("{x}x{y} pyramid (≤ {cap} cells per triangle)"))
         .collect();
     println!(
@@ -194,11 +193,7 @@ pub fn render_on_gpu(
         settings.mode,
         "vulkan",
         [c.triangles_binned, c.overflow, c.culled].map(u64::from),
-        &r.light
-            .cascades
-            .iter()
-            .map(|g| (g.cells, g.level_cells))
-            .collect::<Vec<_>>(),
+        r.light.cascades.iter().map(|g| (g.cells, g.level_cells)),
         &r.light.cascade_choice.reason,
         c.tests_spawned,
         &format!(
@@ -241,11 +236,7 @@ pub fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) ->
         settings.mode,
         "cpu",
         [r.bin.binned, r.bin.overflow, r.bin.culled].map(|n| n as u64),
-        &r.light
-            .cascades
-            .iter()
-            .map(|g| (g.cells, g.level_cells))
-            .collect::<Vec<_>>(),
+        r.light.cascades.iter().map(|g| (g.cells, g.level_cells)),
         &r.light.cascade_choice.reason,
         r.evaluate.tests_spawned,
         &format!(
