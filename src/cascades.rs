@@ -1,7 +1,7 @@
 //! Sample-distribution cascades (Lauritzen et al. 2011, Wyman et al. 2015, §6.4):
 //! the shadow-tested pixels are split by view depth into 1–4 cascades, and
 //! each cascade gets its own light-space grid fitted to its own pixels'
-//! µQuads (see [`crate::cpu::light_setup`]).
+//! µQuads (see [`mod@crate::cpu::light_setup`]).
 //!
 //! Why an IZB wants them: a pixel's µQuad grows with its view depth, so one
 //! grid sized for the average pixel puts hundreds of far pixels in one cell

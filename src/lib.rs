@@ -11,7 +11,7 @@
 //! [`cpu`] is the irregular z-buffer on the CPU and [`gpu`] its Vulkan
 //! twin (sharing `izb-contract` with the shaders); [`mod@reference`] traces
 //! the ground truth; [`baseline`] holds the shadow maps and [`peer`] the
-//! ray tracers the IZB is measured against; [`bench`], [`report`] and
+//! ray tracers the IZB is measured against; [`mod@bench`], [`report`] and
 //! [`cli`] run and show it all; [`output`] writes files atomically.
 
 pub mod baseline;

@@ -77,7 +77,7 @@ pub fn regenerate(angles: u32, distances: u32, out_dir: &Path) -> Result<LutStat
 /// a faint tint, a hash of the mask, tells neighbouring distinct masks
 /// apart, so the curves d = −(cos θ·x_i + sin θ·y_i) along which sample i
 /// changes sides show as the borders between tinted regions. Scaled up by
-/// a whole factor to at least [`PICTURE_MIN_SIDE`] pixels on the longer
+/// a whole factor to at least `PICTURE_MIN_SIDE` pixels on the longer
 /// side.
 pub fn lut_picture(lut: &EdgeLut) -> image::RgbImage {
     const TINT: f64 = 0.3;

@@ -29,7 +29,7 @@ pub struct IzbSettings {
     pub cells: Option<u32>,
     /// A triangle is binned at the finest pyramid level where its cell
     /// rectangle holds at most this many cells (None:
-    /// [`cascades::DEFAULT_LEVEL_CELLS`]).
+    /// [`crate::cascades::DEFAULT_LEVEL_CELLS`]).
     pub level_cells: Option<u32>,
     /// Sample-distribution cascades (Wyman et al. 2015, §6.4).
     pub cascades: CascadeCount,

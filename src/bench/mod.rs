@@ -11,7 +11,7 @@
 //!   Vulkan a compute pass (what a GPU without ray-tracing cores runs), on
 //!   the CPU its twin ([`crate::peer::shadow_rays`]);
 //! - `rt32-embree` (cargo feature `embree`): Intel Embree tracing those
-//!   samples' shadow rays ([`crate::peer::embree`]): what a user would run
+//!   samples' shadow rays (`crate::peer::embree`): what a user would run
 //!   instead; its shadow seconds are the tracing, its BVH build is in
 //!   `details`;
 //! - shadow maps, [`crate::baseline`] (`sm-R`, `pcf3-R`, `pcf5-R`,

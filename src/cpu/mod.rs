@@ -1,7 +1,7 @@
 //! The compute irregular z-buffer on the CPU (rayon): the CPU twin of the
 //! GPU passes, one function per pass with the pass's name.
 //!
-//! 1. [`light_setup`]: light-view frame, cascades ([`crate::cascades`]), one grid
+//! 1. [`light_setup`](mod@light_setup): light-view frame, cascades ([`crate::cascades`]), one grid
 //!    per cascade fitted to its pixels' µQuads;
 //! 2. [`bin`](bin::bin): count, prefix sum, scatter into every cascade's
 //!    grid; overflow; the conservative shadow map;

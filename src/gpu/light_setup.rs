@@ -1,7 +1,7 @@
 //! GPU pass 1, `light_setup` (`shaders/light_setup.comp`): the light-view
 //! frame and the grid fitted to the shadow-tested µQuads, computed by
 //! reductions on the GPU (no read-back inside the frame) — the twin of
-//! [`crate::cpu::light_setup`].
+//! [`mod@crate::cpu::light_setup`].
 //!
 //! Four dispatches: receiver bounds (atomic min/max of order-preserving
 //! float bits), the light frame (1 thread), the µQuads' light-NDC extent,

@@ -4,7 +4,7 @@
 //! | pass | GPU module | shader | CPU twin |
 //! |---|---|---|---|
 //! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
-//! | 1 | [`light_setup`] | `light_setup.comp` | [`crate::cpu::light_setup`] |
+//! | 1 | [`light_setup`] | `light_setup.comp` | [`mod@crate::cpu::light_setup`] |
 //! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
 //! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |
 //! | 4 | [`resolve`] | `resolve.comp` | [`crate::cpu::resolve`], [`crate::output::shade_pixel`] |

@@ -5,7 +5,7 @@
 //!   pixel as plain shadow rays, the `rt32-rays` method: a compute pass on
 //!   Vulkan (BVH traversal without ray-tracing hardware), its CPU twin
 //!   here;
-//! - [`embree`] (cargo feature `embree`, Debian's `libembree-dev`): Intel
+//! - `embree` (cargo feature `embree`, Debian's `libembree-dev`): Intel
 //!   Embree 3 tracing the same rays with occlusion queries, the
 //!   `rt32-embree` method.
 

@@ -5,7 +5,7 @@
 //! pass's BVH and watertight triangle test, stopping at the first
 //! occluder); this is its CPU twin, tracing the same rays with the CPU BVH
 //! in `f64` ([`SceneBvh::any_hit`]). Embree traces the same rays
-//! ([`super::embree`]).
+//! (`super::embree`, feature `embree`).
 //!
 //! A ray starts at sample S = P + (u − ½)·Ex + (v − ½)·Ey of the G-buffer's
 //! µQuad, 2⁻⁸ µQuad along its way to the light (the scale of the IZB's own

@@ -91,7 +91,7 @@ impl AnalyticShadow {
         })
     }
 
-    /// Exact shadowed fraction of the axis-aligned rectangle [x0,x1]×[y0,y1].
+    /// Exact shadowed fraction of the axis-aligned rectangle \[x0, x1\] × \[y0, y1\].
     pub fn shadowed_fraction(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> f64 {
         clipped_area(&self.shadow, x0, y0, x1, y1) / ((x1 - x0) * (y1 - y0))
     }
