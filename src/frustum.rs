@@ -125,8 +125,8 @@ pub fn may_shadow<V: Vector>(
 /// ([`DEPTH_TOLERANCE_MICROQUAD`] × `microquad_size`): the same for every
 /// triangle a pixel tests, so callers may compute it once per pixel.
 #[inline]
-pub fn microquad_tolerance<S: Vector>(microquad_size: S::Scalar) -> S::Scalar {
-    S::from_f64(DEPTH_TOLERANCE_MICROQUAD) * microquad_size
+pub fn microquad_tolerance<V: Vector>(microquad_size: V::Scalar) -> V::Scalar {
+    V::from_f64(DEPTH_TOLERANCE_MICROQUAD) * microquad_size
 }
 
 /// Condition 1 of [`may_shadow`] against the µQuad part of the tolerance

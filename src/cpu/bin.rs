@@ -281,8 +281,9 @@ pub fn bin(
             })
         })
         .collect();
-    let receivers =
-        cull_behind.and_then(|(g, boxes)| cell_receivers(setup, g, boxes, skips, Some(&levels)));
+    let level_cells = setup.level_tables();
+    let receivers = cull_behind
+        .and_then(|(g, boxes)| cell_receivers(setup, g, boxes, skips, &levels, &level_cells));
     let covers = skips.shadow_map && setup.projection == Projection::Orthographic;
     let blocks: Vec<BlockEntries> = (0..triangles.len())
         .step_by(TRIANGLE_BLOCK)
@@ -351,11 +352,7 @@ pub fn bin(
         cell_triangles,
         overflow,
         levels,
-        level_cells: setup
-            .cascades
-            .iter()
-            .map(CascadeGrid::level_table)
-            .collect(),
+        level_cells,
         cover,
         stats,
     }

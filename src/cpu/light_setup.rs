@@ -231,6 +231,12 @@ impl LightSetup {
             .min(self.cascades.len() - 1)
     }
 
+    /// [`CascadeGrid::level_table`] of every cascade, computed once per
+    /// frame for the loops that visit levels per receiver and per pixel.
+    pub fn level_tables(&self) -> Vec<Vec<LevelCells>> {
+        self.cascades.iter().map(CascadeGrid::level_table).collect()
+    }
+
     /// Cells of all cascades together.
     pub fn total_cells(&self) -> usize {
         self.cascades.iter().map(|c| c.cell_count() as usize).sum()

@@ -6,7 +6,9 @@
 //! `STEP_RECEIVERS` and `behind_receivers` in `shaders/bin.comp`.
 
 use super::footprint::{cell_range_at, CELL_PADDING};
-use super::light_setup::{level_scale, CascadeGrid, LightSetup, MicroquadBoxes, Projection};
+use super::light_setup::{
+    level_scale, CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection,
+};
 use super::{is_receiver, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -55,16 +57,18 @@ impl CellReceivers {
 }
 
 /// [`CellReceivers`] of the receivers of `g` (`None` for a disabled
-/// grid), their µQuads' boxes taken from `boxes`, on each level of each receiver's own cascade's pyramid that
-/// `levels` (per cascade, bit l = level l) names, every level with `None`:
-/// at level l a receiver's µQuad box and reach are those of level 0 scaled
-/// by 2⁻ˡ. Cells of other levels stay empty (the bin never reads them).
+/// grid), their µQuads' boxes taken from `boxes`, on each level of each
+/// receiver's own cascade's pyramid that `levels` (per cascade, bit l =
+/// level l) names; `level_cells` is [`LightSetup::level_tables`]. At level
+/// l a receiver's µQuad box and reach are those of level 0 scaled by 2⁻ˡ.
+/// Cells of other levels stay empty (the bin never reads them).
 pub fn cell_receivers(
     setup: &LightSetup,
     g: &GBuffer,
     boxes: &MicroquadBoxes,
     skips: Skips,
-    levels: Option<&[u32]>,
+    levels: &[u32],
+    level_cells: &[Vec<LevelCells>],
 ) -> Option<CellReceivers> {
     if setup.grid_disabled {
         return None;
@@ -82,11 +86,6 @@ pub fn cell_receivers(
         .filter(|&i| is_receiver(g.flags[i], skips))
         .collect();
     let per_thread = list.len().div_ceil(rayon::current_num_threads()).max(1);
-    let level_cells: Vec<_> = setup
-        .cascades
-        .iter()
-        .map(CascadeGrid::level_table)
-        .collect();
     let receivers = list
         .par_chunks(per_thread)
         .map(|chunk| {
@@ -94,7 +93,7 @@ pub fn cell_receivers(
             for &i in chunk {
                 let k = setup.cascade_of(g.position[i]);
                 let grid = &setup.cascades[k];
-                let wanted = levels.map_or(u32::MAX, |l| l[k]);
+                let wanted = levels[k];
                 let (lo, hi) = boxes.grid_box(grid, i);
                 let z = receiver_key(projection, setup.to_light_view(g.position[i]));
                 for level in (0..grid.levels).filter(|l| wanted & (1 << l) != 0) {

@@ -151,6 +151,8 @@ impl Drop for DeviceShared {
 /// # Safety
 /// Called by the Vulkan loader only, with `data` valid for the call and
 /// `user_data` the messenger's `Mutex<Vec<String>>` (see `GpuContext::new`).
+// SAFETY: only the loader calls it, with the arguments its signature
+// promises (`# Safety` above); the body checks both pointers for null.
 unsafe extern "system" fn debug_callback(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
     kind: vk::DebugUtilsMessageTypeFlagsEXT,
@@ -232,8 +234,8 @@ struct Candidate {
 }
 
 fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
-    // SAFETY (this function): `instance` is a live instance and each
-    // `physical` comes from it; the out-structures outlive the calls.
+    // SAFETY: `instance` is a live instance (here and in the calls below,
+    // each `physical` comes from it); the out-structures outlive the calls.
     let physicals = unsafe { instance.enumerate_physical_devices() }.map_err(GpuError::vk)?;
     let mut out = Vec::new();
     for physical in physicals {
@@ -471,8 +473,8 @@ impl GpuContext {
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(shared.queue_family)
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        // SAFETY: the queue family is the device's own.
         let command_pool =
+            // SAFETY: the queue family is the device's own.
             unsafe { shared.device.create_command_pool(&pool_info, None) }.map_err(GpuError::vk)?;
         Ok(GpuContext {
             shared,
