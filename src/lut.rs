@@ -17,8 +17,8 @@ pub use izb_lut::{
     candidate_patterns, coverage_error, edge_line, exact_mask, exact_mask_f32, inside_area,
     lut_statistics, signed_distance, CoverageError, EdgeComparison, EdgeLine, EdgeLut, LutCell,
     LutDecodeError, LutStats, PatternCandidate, SamplePattern, ALL_SAMPLES, DEFAULT_ANGLES,
-    DEFAULT_DISTANCES, HALF_DIAGONAL, LOOKUP_SLACK, LUT_HEADER_BYTES, LUT_MAGIC, MAX_RESOLUTION,
-    SAMPLE_PATTERN_NAME,
+    DEFAULT_DISTANCES, HALF_DIAGONAL, LIGHT_DISK_RADIUS, LIGHT_PATTERN_NAME, LOOKUP_SLACK,
+    LUT_HEADER_BYTES, LUT_MAGIC, MAX_RESOLUTION, SAMPLE_PATTERN_NAME,
 };
 
 /// The default table, as `build.rs` serialised it.
@@ -27,6 +27,29 @@ static EMBEDDED_EDGE_LUT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/edge
 /// The pattern the embedded table was built for.
 static EMBEDDED_SAMPLE_PATTERN: SamplePattern =
     include!(concat!(env!("OUT_DIR"), "/sample_pattern.rs"));
+
+/// The light-sample table, as `build.rs` serialised it.
+static EMBEDDED_LIGHT_LUT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/light_lut.bin"));
+
+/// The light pattern the embedded light table was built for.
+static EMBEDDED_LIGHT_PATTERN: SamplePattern =
+    include!(concat!(env!("OUT_DIR"), "/light_pattern.rs"));
+
+/// The embedded light-sample LUT (soft shadows; decoded once): the same
+/// generator as [`edge_lut`], for [`light_pattern`].
+pub fn light_lut() -> &'static EdgeLut {
+    static LUT: OnceLock<EdgeLut> = OnceLock::new();
+    LUT.get_or_init(|| {
+        EdgeLut::from_bytes(EMBEDDED_LIGHT_LUT)
+            .unwrap_or_else(|e| panic!("build.rs wrote an invalid light LUT: {e}"))
+    })
+}
+
+/// The 32 light samples (u, v) in the disk inscribed in [0, 1)², bit i =
+/// sample i of a soft-shadow mask ([`crate::scene::LightDisk`]).
+pub fn light_pattern() -> &'static SamplePattern {
+    &EMBEDDED_LIGHT_PATTERN
+}
 
 /// Random edges behind the statistics [`regenerate`] returns.
 pub const REGENERATE_STATISTICS_LINES: usize = 1_000_000;

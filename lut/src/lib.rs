@@ -13,6 +13,7 @@
 //!   misclassification bound and [`lut_statistics`].
 
 pub mod edge;
+pub mod light;
 pub mod pattern;
 mod rng;
 pub mod table;
@@ -21,6 +22,7 @@ pub use edge::{
     edge_line, exact_mask, exact_mask_f32, inside_area, line_mask, line_signed_distance,
     signed_distance, EdgeLine, ALL_SAMPLES, HALF_DIAGONAL,
 };
+pub use light::{light_pattern, LIGHT_DISK_RADIUS, LIGHT_PATTERN_NAME};
 pub use pattern::{
     candidate_patterns, coverage_error, sample_pattern, CoverageError, PatternCandidate,
     SamplePattern, PATTERN_EVALUATION_LINES, SAMPLE_PATTERN_NAME,

@@ -168,6 +168,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         let mut scene = load_scene(&SceneArgs {
             scene: name.clone(),
             resolution,
+            light_size: None,
         })?;
         if resolutions.len() > 1 {
             let [w, h] = scene.resolution;

@@ -27,6 +27,11 @@ pub struct SceneArgs {
     /// Image size WxH, overriding the scene's.
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<[u32; 2]>,
+    /// The light's size, overriding the scene's: a directional light's
+    /// angular radius in degrees (the sun: 0.27), a point light's sphere
+    /// radius in scene units; 0 for hard shadows.
+    #[arg(long)]
+    light_size: Option<f64>,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -102,6 +107,9 @@ pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
     if let Some(r) = args.resolution {
         scene = scene.with_resolution(r)?;
     }
+    if let Some(size) = args.light_size {
+        scene = scene.with_light_size(size)?;
+    }
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
@@ -155,5 +163,6 @@ pub fn scene_summary(scene: &Scene) -> serde_json::Value {
         "skipped_non_triangle_primitives": scene.stats.skipped_non_triangle_primitives,
         "camera": scene.camera,
         "light": scene.light,
+        "light_radius": scene.light_radius,
     })
 }

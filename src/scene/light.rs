@@ -1,4 +1,11 @@
-use glam::DVec3;
+use glam::{DVec3, Vec3};
+
+/// Largest accepted angular radius of a directional light's disk, in
+/// degrees. The soft-shadow construction treats the sun as a disk on the
+/// plane one unit along its centre direction, radius tan r; far below 90°
+/// so that plane stays a faithful stand-in for the cone (the real sun:
+/// 0.27°; the widest setting the bench uses: 3°).
+pub const MAX_ANGULAR_RADIUS_DEG: f64 = 30.0;
 
 /// The light of a scene. `direction` of a directional light is the way the
 /// light travels (from the light into the scene), normalised on load.
@@ -37,6 +44,44 @@ impl Light {
         Ok(())
     }
 
+    /// Checks a light size in the units of [`LightSize`]'s constructor
+    /// for this kind of light: `angular_radius_deg` (directional) or
+    /// `radius` (point), finite, ≥ 0, and for a directional light at most
+    /// [`MAX_ANGULAR_RADIUS_DEG`].
+    pub(crate) fn validate_size(&self, size: f64) -> Result<(), String> {
+        let field = self.size_field();
+        if !size.is_finite() || size < 0.0 {
+            return Err(format!(
+                "`light.{field}` must be a finite number ≥ 0, got {size}"
+            ));
+        }
+        if matches!(self, Light::Directional { .. }) && size > MAX_ANGULAR_RADIUS_DEG {
+            return Err(format!(
+                "`light.{field}` is {size}°: at most {MAX_ANGULAR_RADIUS_DEG}° is supported \
+                 (the sun is 0.27°)"
+            ));
+        }
+        Ok(())
+    }
+
+    /// The spec field that sizes this kind of light.
+    pub fn size_field(&self) -> &'static str {
+        match self {
+            Light::Directional { .. } => "angular_radius_deg",
+            Light::Point { .. } => "radius",
+        }
+    }
+
+    /// The light's radius in the units every pass uses (see
+    /// [`Scene::light_radius`](super::Scene::light_radius)) from the spec's
+    /// unit: degrees become radians for a directional light.
+    pub fn radius_from_spec(&self, size: f64) -> f64 {
+        match self {
+            Light::Directional { .. } => size.to_radians(),
+            Light::Point { .. } => size,
+        }
+    }
+
     /// The light expressed relative to `origin` (positions shift, directions
     /// do not): the eye-relative form every pass uses.
     pub fn relative_to(&self, origin: DVec3) -> Light {
@@ -62,5 +107,58 @@ impl Light {
                 (d / len, len)
             }
         }
+    }
+}
+
+/// A light of finite size as seen from one receiver point P: a disk, its
+/// samples at `centre + (u − ½)·axis_u + (v − ½)·axis_v` for (u, v) in
+/// the disk inscribed in [0, 1)² (the light pattern,
+/// [`crate::lut::light_pattern`]), every vector relative to P.
+///
+/// - Directional light of angular radius r: the disk of radius tan r on
+///   the plane one unit from P along the unit vector toward the light,
+///   perpendicular to it; a sample is a *direction* (the sun at infinity).
+/// - Point light of radius R (a sphere): the disk of radius R through its
+///   centre, facing P; a sample is the offset from P to a *point*.
+///
+/// The axes are the orthonormal basis of Duff et al. 2017 (branchless,
+/// continuous except where the centre direction crosses z = 0), scaled to
+/// the disk's diameter, so a µQuad-style edge function over (u, v)
+/// reads the same as the pixel's and the same LUT machinery applies.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightDisk<V> {
+    pub centre: V,
+    pub axis_u: V,
+    pub axis_v: V,
+}
+
+macro_rules! light_disk_impl {
+    ($v:ty, $s:ty, $name:ident) => {
+        /// The disk of a light with centre vector `centre` (toward a
+        /// directional light, unit; or the point light minus P) and disk
+        /// radius `radius` (tan r, or R). See [`LightDisk`].
+        pub fn $name(centre: $v, radius: $s) -> LightDisk<$v> {
+            let n = centre.normalize();
+            let sign = (1.0 as $s).copysign(n.z);
+            let a = -1.0 / (sign + n.z);
+            let b = n.x * n.y * a;
+            let u = <$v>::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+            let v = <$v>::new(b, sign + n.y * n.y * a, -n.y);
+            let diameter = 2.0 * radius;
+            LightDisk {
+                centre,
+                axis_u: u * diameter,
+                axis_v: v * diameter,
+            }
+        }
+    };
+}
+light_disk_impl!(DVec3, f64, light_disk);
+light_disk_impl!(Vec3, f32, light_disk_f32);
+
+impl LightDisk<DVec3> {
+    /// The vector from P to the light sample at `uv` of the pattern.
+    pub fn sample(&self, uv: [f32; 2]) -> DVec3 {
+        self.centre + (uv[0] as f64 - 0.5) * self.axis_u + (uv[1] as f64 - 0.5) * self.axis_v
     }
 }

@@ -15,7 +15,7 @@ mod spec;
 
 pub use camera::{Camera, CameraFrame};
 pub use gltf_load::{load_gltf, load_gltf_bytes, GltfMeshes};
-pub use light::Light;
+pub use light::{light_disk, light_disk_f32, Light, LightDisk, MAX_ANGULAR_RADIUS_DEG};
 pub use spec::{CameraSpec, LightSpec, SceneSpec, MAX_RESOLUTION};
 
 use glam::DVec3;
@@ -73,6 +73,11 @@ pub struct Scene {
     pub stats: GeometryStats,
     pub camera: Camera,
     pub light: Light,
+    /// The light's size: the angular radius in radians of a directional
+    /// light's disk (spec: `angular_radius_deg`), the radius of a point
+    /// light's sphere (spec: `radius`). 0, the default, is a point-like
+    /// light: hard shadows, every pass exactly as without this field.
+    pub light_radius: f64,
     /// Image width and height in pixels.
     pub resolution: [u32; 2],
     /// Warnings from loading (skipped primitives, ...), printed once by the CLI.
@@ -115,6 +120,7 @@ impl Scene {
             stats,
             camera,
             light,
+            light_radius: 0.0,
             resolution,
             warnings: Vec::new(),
         };
@@ -133,7 +139,31 @@ impl Scene {
         spec::check_resolution(self.resolution).map_err(SceneError::Invalid)?;
         self.camera.validate().map_err(SceneError::Invalid)?;
         self.light.validate().map_err(SceneError::Invalid)?;
+        let radius = self.light_radius;
+        let spec_units = match self.light {
+            Light::Directional { .. } => radius.to_degrees(),
+            Light::Point { .. } => radius,
+        };
+        self.light
+            .validate_size(spec_units)
+            .map_err(SceneError::Invalid)?;
         Ok(())
+    }
+
+    /// Same scene under a light of another size, in the spec's units
+    /// (`--light-size`: degrees for a directional light, scene units for
+    /// a point light; 0 for hard shadows).
+    pub fn with_light_size(mut self, size: f64) -> Result<Self, SceneError> {
+        self.light
+            .validate_size(size)
+            .map_err(|m| SceneError::Invalid(format!("--light-size: {m}")))?;
+        self.light_radius = self.light.radius_from_spec(size);
+        Ok(self)
+    }
+
+    /// Whether the light has a size: soft shadows.
+    pub fn has_area_light(&self) -> bool {
+        self.light_radius > 0.0
     }
 
     /// Same scene at another image size (the CLI's `--resolution`).

@@ -44,8 +44,19 @@ fn default_up() -> [f64; 3] {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum LightSpec {
-    Directional { direction: [f64; 3] },
-    Point { position: [f64; 3] },
+    Directional {
+        direction: [f64; 3],
+        /// The sun as a disk of this angular radius around `direction`
+        /// (degrees; the real sun: 0.27). Absent or 0: hard shadows.
+        #[serde(default)]
+        angular_radius_deg: f64,
+    },
+    Point {
+        position: [f64; 3],
+        /// A sphere light of this radius. Absent or 0: hard shadows.
+        #[serde(default)]
+        radius: f64,
+    },
 }
 
 pub(crate) fn check_resolution(resolution: [u32; 2]) -> Result<(), String> {
@@ -72,10 +83,20 @@ impl CameraSpec {
 }
 
 impl LightSpec {
+    /// The light's size as written: degrees or scene units.
+    pub fn size(&self) -> f64 {
+        match self {
+            LightSpec::Directional {
+                angular_radius_deg, ..
+            } => *angular_radius_deg,
+            LightSpec::Point { radius, .. } => *radius,
+        }
+    }
+
     pub fn to_light(&self) -> Light {
         match self {
-            LightSpec::Directional { direction } => Light::directional(DVec3::from(*direction)),
-            LightSpec::Point { position } => Light::Point {
+            LightSpec::Directional { direction, .. } => Light::directional(DVec3::from(*direction)),
+            LightSpec::Point { position, .. } => Light::Point {
                 position: DVec3::from(*position),
             },
         }
@@ -125,6 +146,8 @@ impl SceneSpec {
         camera.validate().map_err(spec_error)?;
         let light = self.light.to_light();
         light.validate().map_err(spec_error)?;
+        light.validate_size(self.light.size()).map_err(spec_error)?;
+        let light_radius = light.radius_from_spec(self.light.size());
         let name = self
             .path
             .file_name()
@@ -139,6 +162,7 @@ impl SceneSpec {
                 let base = self.path.parent().unwrap_or(Path::new("."));
                 let meshes = super::load_gltf(&base.join(gltf))?;
                 let mut scene = Scene::new(name, meshes.triangles, camera, light, self.resolution)?;
+                scene.light_radius = light_radius;
                 scene.stats.skipped_non_triangle_primitives = meshes.skipped_non_triangle_primitives;
                 scene.warnings = meshes.warnings;
                 Ok(scene)
@@ -150,7 +174,9 @@ impl SceneSpec {
                         super::procedural::NAMES.join(", ")
                     ))
                 })?;
-                Scene::new(name, geometry, camera, light, self.resolution)
+                let mut scene = Scene::new(name, geometry, camera, light, self.resolution)?;
+                scene.light_radius = light_radius;
+                Ok(scene)
             }
             (Some(_), Some(_)) => Err(spec_error(
                 "fields `gltf` and `procedural` are exclusive: give one".into(),

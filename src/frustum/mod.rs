@@ -9,6 +9,8 @@
 //! both the IZB (`crate::izb`) and the reference (`crate::reference`),
 //! which import it; it imports neither.
 
+pub mod soft;
+
 use glam::{DVec3, Vec3};
 
 /// The part of the depth tolerance scaled by the µQuad: a triangle must lie
@@ -185,7 +187,7 @@ pub fn beyond_triangle_plane<V: Vector>(
 }
 
 #[inline]
-fn max3<S: PartialOrd>(a: S, b: S, c: S) -> S {
+pub(crate) fn max3<S: PartialOrd>(a: S, b: S, c: S) -> S {
     let m = if a > b { a } else { b };
     if m > c {
         m
