@@ -228,6 +228,12 @@ shared_constants! {
         MIN_CASCADE_CELLS = 64.0;
         /// Relative padding of the fitted light-NDC bounds.
         BOUNDS_PADDING = 1e-4;
+        /// Relative margin of a triangle's penumbra pad in the bin (2⁻¹⁰;
+        /// `crate::cpu::bin::penumbra_pad`).
+        PENUMBRA_MARGIN = 1.0 / 1024.0;
+        /// Largest tan φ · tan θ a point light's penumbra pad accepts
+        /// before the triangle overflows.
+        MAX_PENUMBRA_TAN_PRODUCT = 0.5;
     }
 }
 

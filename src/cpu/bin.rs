@@ -156,10 +156,69 @@ fn triangle_ndc(setup: &LightSetup, tri: &[Vec3; 3]) -> Result<[Vec2; 3], Placem
     match setup.projection {
         Projection::Orthographic => Ok(tri.map(|v| Vec2::new(v.x, v.y))),
         Projection::Perspective => match tri.iter().filter(|v| v.z > 0.0).count() {
+            // A sphere light's samples reach z = −R behind its image plane:
+            // a segment from a receiver to one of them passes there.
+            0 if tri.iter().any(|v| v.z > -setup.light_radius) => Err(Placement::Overflow),
             0 => Err(Placement::Culled),
             3 => Ok(tri.map(|v| Vec2::new(v.x / v.z, v.y / v.z))),
             _ => Err(Placement::Overflow),
         },
+    }
+}
+
+/// Relative margin on a penumbra pad (2⁻¹⁰): ~10⁴ times the `f32`
+/// rounding of the few operations that form it.
+const PENUMBRA_MARGIN: f32 = izb_contract::tolerance::PENUMBRA_MARGIN;
+
+/// Largest tan φ · tan θ a point light's pad accepts (φ the widest
+/// vertex angle from the light's axis, θ the penumbra's angle): beyond,
+/// φ + θ nears 90° and the pad grows without bound; such a triangle
+/// overflows instead.
+const MAX_PENUMBRA_TAN_PRODUCT: f32 = izb_contract::tolerance::MAX_PENUMBRA_TAN_PRODUCT;
+
+/// The penumbra triangle `tri` (light view, NDC `ndc`) may cast on any
+/// receiver, in light NDC: how far beyond its own projection a receiver
+/// it hides part of the light from can lie (0 for a point-like light);
+/// `None` when it must go to the overflow list instead.
+///
+/// - Directional light of angular radius r (`light_radius` = tan r): a
+///   ray toward a light sample climbs 1 in z per at most tan r sideways,
+///   so an occluding point at height z_Q hides light from receivers
+///   within tan r · (z_Q − z_P) of it; z_Q ≤ the triangle's top vertex,
+///   z_P ≥ the lowest receiver ([`LightSetup::receiver_z`]).
+/// - Point light of radius R: an occluding point Q on the segment from P
+///   to a light sample lies at depth z ≥ z_min (the triangle's nearest
+///   vertex), which bounds the angle at the light between Q and P by
+///   tan θ ≤ R / (z_min − 2R) (paper-notes/soft-shadows.md derives it);
+///   seen from the light a cone of half-angle θ around a direction at
+///   tan φ = ρ from the axis spans at most tan(φ + θ) − tan φ =
+///   tan θ (1 + ρ²) / (1 − ρ tan θ) in NDC, largest at the triangle's
+///   widest vertex. Triangles within 2R of the light overflow.
+pub fn penumbra_pad(setup: &LightSetup, tri: &[Vec3; 3], ndc: &[Vec2; 3]) -> Option<f32> {
+    let r = setup.light_radius;
+    if r == 0.0 {
+        return Some(0.0);
+    }
+    let grow = 1.0 + PENUMBRA_MARGIN;
+    match setup.projection {
+        Projection::Orthographic => {
+            let top = tri[0].z.max(tri[1].z).max(tri[2].z);
+            Some(r * (top - setup.receiver_z[0]).max(0.0) * grow)
+        }
+        Projection::Perspective => {
+            let z_min = tri[0].z.min(tri[1].z).min(tri[2].z);
+            let clearance = z_min - 2.0 * r * grow;
+            if !(clearance > 0.0) {
+                return None;
+            }
+            let tan_theta = r / clearance * grow;
+            let rho = ndc[0].length().max(ndc[1].length()).max(ndc[2].length()) * grow;
+            let product = rho * tan_theta;
+            if !(product <= MAX_PENUMBRA_TAN_PRODUCT) {
+                return None;
+            }
+            Some(tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow)
+        }
     }
 }
 
@@ -177,7 +236,13 @@ pub fn place(
         Ok(n) => n,
         Err(p) => return (p, None),
     };
-    match footprint(grid, ndc.map(|n| grid.grid_coords(n))) {
+    let Some(pad) = penumbra_pad(setup, tri, &ndc) else {
+        return (Placement::Overflow, None);
+    };
+    // Light NDC to level-0 cells, per axis.
+    let cells = Vec2::new(grid.cells[0] as f32, grid.cells[1] as f32);
+    let pad = pad * cells / (grid.ndc_max - grid.ndc_min);
+    match footprint(grid, ndc.map(|n| grid.grid_coords(n)), pad) {
         None => (Placement::Culled, None),
         Some(f) => {
             let [x0, y0, x1, y1] = f.rect;

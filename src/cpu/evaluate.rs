@@ -14,6 +14,7 @@
 //! projection touches.
 
 use super::bin::{cell_range, cell_range_at, Bins, NO_COVER};
+use super::light_samples::{below_horizon, occluded_light_samples, LightView};
 use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
 use super::{is_receiver, SampleMode, Skips};
 use crate::frustum::{
@@ -77,11 +78,21 @@ struct PixelFrustum {
     /// Level-0 grid coordinates of the µQuad centre (the conservative
     /// shadow map's texel), when it has any.
     centre: Option<Vec2>,
+    /// The light's disk seen from P, when the light has a size: the mask
+    /// is then over the light's samples (`light_samples`).
+    soft: Option<LightView>,
 }
 
 /// Pixel `i`'s frustum; `ndc_box` its µQuad's light-NDC box
-/// ([`LightSetup::microquad_ndc_box`]).
-fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize, ndc_box: (Vec2, Vec2)) -> PixelFrustum {
+/// ([`LightSetup::microquad_ndc_box`]); the light's disk when `rule` is
+/// over light samples.
+fn pixel_frustum(
+    setup: &LightSetup,
+    g: &GBuffer,
+    i: usize,
+    ndc_box: (Vec2, Vec2),
+    rule: &MaskRule,
+) -> PixelFrustum {
     let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
     let cascade = setup.cascade_of(p);
     let grid = &setup.cascades[cascade];
@@ -108,6 +119,14 @@ fn pixel_frustum(setup: &LightSetup, g: &GBuffer, i: usize, ndc_box: (Vec2, Vec2
         cascade,
         grid_box,
         centre,
+        soft: rule
+            .light_samples
+            .then(|| setup.light_disk_from(p))
+            .flatten()
+            .map(|disk| LightView {
+                disk,
+                finite: setup.projection == super::light_setup::Projection::Perspective,
+            }),
     }
 }
 
@@ -150,9 +169,13 @@ pub struct MaskRule<'a> {
     pub skips: Skips,
     /// [`crate::frustum::pattern_radius`] of `pattern`.
     pub radius: f32,
+    /// The samples are the light's (an area light, [`Self::for_light`]),
+    /// not the µQuad's.
+    pub light_samples: bool,
 }
 
 impl<'a> MaskRule<'a> {
+    /// The µQuad's 32 samples and their LUT.
     pub fn new(mode: SampleMode, skips: Skips) -> MaskRule<'static> {
         let pattern = crate::lut::sample_pattern();
         MaskRule {
@@ -161,6 +184,24 @@ impl<'a> MaskRule<'a> {
             lut: crate::lut::edge_lut(),
             skips,
             radius: crate::frustum::pattern_radius(pattern),
+            light_samples: false,
+        }
+    }
+
+    /// The light's 32 samples and their LUT (soft shadows), or the
+    /// µQuad's for a point-like light.
+    pub fn for_light(mode: SampleMode, skips: Skips, soft: bool) -> MaskRule<'static> {
+        if !soft {
+            return Self::new(mode, skips);
+        }
+        let pattern = crate::lut::light_pattern();
+        MaskRule {
+            mode,
+            pattern,
+            lut: crate::lut::light_lut(),
+            skips,
+            radius: crate::frustum::pattern_radius(pattern),
+            light_samples: true,
         }
     }
 
@@ -169,7 +210,7 @@ impl<'a> MaskRule<'a> {
     /// side. For the LUT that is exactly its own saturation branch; for
     /// exact evaluation [`saturated_edge`]; one sample is always cheap.
     #[inline]
-    fn edge_mask(&self, e: [f32; 3]) -> (u32, bool) {
+    pub(super) fn edge_mask(&self, e: [f32; 3]) -> (u32, bool) {
         match self.mode {
             SampleMode::One => (if e[0] >= 0.0 { FULL } else { 0 }, true),
             SampleMode::Lut32 => {
@@ -187,10 +228,10 @@ impl<'a> MaskRule<'a> {
 
 /// Counters one pixel's triangle tests add to.
 #[derive(Default)]
-struct TestCounters {
-    depth_passed: u64,
-    saturated_masks: u64,
-    masks_nonempty: u64,
+pub(super) struct TestCounters {
+    pub(super) depth_passed: u64,
+    pub(super) saturated_masks: u64,
+    pub(super) masks_nonempty: u64,
 }
 
 /// Occluded samples of `tri` (eye-relative, not yet relative to P) for
@@ -221,7 +262,12 @@ fn triangle_mask(
     // in the candidate loop, the rest of the test is called.
     match above_tangent_plane(&t, px.normal, px.microquad_part) {
         None => 0,
-        Some(height) => occluded_samples(px, &t, height, rule, counters),
+        Some(height) => match &px.soft {
+            None => occluded_samples(px, &t, height, rule, counters),
+            Some(view) => {
+                occluded_light_samples(&t, height, px.microquad_part, view, rule, counters)
+            }
+        },
     }
 }
 
@@ -279,7 +325,13 @@ pub fn for_each_candidate(
     visit: impl FnMut(u32) -> bool,
 ) -> (u64, u64) {
     let ndc_box = setup.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i]);
-    candidates_of(setup, bins, &pixel_frustum(setup, g, i, ndc_box), visit)
+    let hard = MaskRule::new(SampleMode::One, Skips::ALL);
+    candidates_of(
+        setup,
+        bins,
+        &pixel_frustum(setup, g, i, ndc_box, &hard),
+        visit,
+    )
 }
 
 fn candidates_of(
@@ -331,7 +383,12 @@ fn evaluate_pixel(
     rule: &MaskRule,
     stats: &mut EvaluateStats,
 ) -> (u32, u64) {
-    let mut mask = 0u32;
+    // An area light's samples below the receiver's horizon are hidden by
+    // the receiver itself.
+    let mut mask = px
+        .soft
+        .as_ref()
+        .map_or(0, |view| below_horizon(px.normal, view, rule));
     let mut tests = 0u64;
     let mut counters = TestCounters::default();
     // The conservative shadow map: the cover triangle of the centre's cell
@@ -346,7 +403,7 @@ fn evaluate_pixel(
     };
     if cover != NO_COVER && cover != px.receiver {
         tests += 1;
-        mask = triangle_mask(px, &triangles[cover as usize], rule, &mut counters);
+        mask |= triangle_mask(px, &triangles[cover as usize], rule, &mut counters);
     }
     let (cells, levels) = if mask == FULL {
         stats.shadow_map_early_outs += 1;
@@ -384,7 +441,7 @@ pub fn triangle_mask_for_pixel(
     rule: &MaskRule,
 ) -> u32 {
     let ndc_box = setup.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i]);
-    let px = pixel_frustum(setup, g, i, ndc_box);
+    let px = pixel_frustum(setup, g, i, ndc_box, rule);
     if id == px.receiver {
         return 0;
     }
@@ -428,7 +485,7 @@ pub fn evaluate(
                         return 0;
                     }
                     stats.pixels_tested += 1;
-                    let px = pixel_frustum(setup, g, i, boxes.ndc[i]);
+                    let px = pixel_frustum(setup, g, i, boxes.ndc[i], rule);
                     let (mask, tests) =
                         evaluate_pixel(setup, bins, triangles, &px, rule, &mut stats);
                     let group = &mut longest[(i % w) / GROUP[0]];

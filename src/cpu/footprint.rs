@@ -86,16 +86,22 @@ pub struct Footprint {
     /// +1 or −1: the side of each edge the triangle lies on; 0 for a
     /// sliver (every cell of the rectangle counts as touched).
     orientation: f32,
+    /// The penumbra it may cast (an area light, [`penumbra_pad`]), in
+    /// this level's cells along x and y: every cell box is grown by it,
+    /// so the triangle is listed where its projection grown by that box
+    /// (a superset of the disk of its penumbra) touches.
+    pad: Vec2,
 }
 
 /// Where a triangle whose vertices have level-0 grid coordinates `g` is
 /// binned in `grid`: `None` when its padded box misses level 0 (it can
 /// shadow no receiver of the cascade), else the finest level whose
 /// rectangle holds at most `grid.level_cells` cells (the 1×1 top always
-/// does).
-pub fn footprint(grid: &CascadeGrid, g: [Vec2; 3]) -> Option<Footprint> {
-    let lo = g[0].min(g[1]).min(g[2]);
-    let hi = g[0].max(g[1]).max(g[2]);
+/// does). `pad` (level-0 cells along x and y; zero for a point-like
+/// light) grows the projection by the penumbra the triangle may cast.
+pub fn footprint(grid: &CascadeGrid, g: [Vec2; 3], pad: Vec2) -> Option<Footprint> {
+    let lo = g[0].min(g[1]).min(g[2]) - pad;
+    let hi = g[0].max(g[1]).max(g[2]) + pad;
     cell_range(grid, lo, hi)?;
     let top = grid.levels.saturating_sub(1);
     let limit = u64::from(grid.level_cells.max(1));
@@ -116,6 +122,7 @@ pub fn footprint(grid: &CascadeGrid, g: [Vec2; 3]) -> Option<Footprint> {
         rect,
         v,
         orientation,
+        pad: pad * level_scale(level),
     })
 }
 
@@ -134,8 +141,9 @@ impl Footprint {
         if self.orientation == 0.0 {
             return true;
         }
-        let (lo_x, lo_y) = (x as f32 - CELL_PADDING, y as f32 - CELL_PADDING);
-        let (hi_x, hi_y) = (x as f32 + 1.0 + CELL_PADDING, y as f32 + 1.0 + CELL_PADDING);
+        let grow = self.pad + CELL_PADDING;
+        let (lo_x, lo_y) = (x as f32 - grow.x, y as f32 - grow.y);
+        let (hi_x, hi_y) = (x as f32 + 1.0 + grow.x, y as f32 + 1.0 + grow.y);
         let corners = [(lo_x, lo_y), (hi_x, lo_y), (hi_x, hi_y), (lo_x, hi_y)];
         (0..3).all(|k| {
             let (a, b) = (self.v[k], self.v[(k + 1) % 3]);

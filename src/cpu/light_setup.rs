@@ -10,7 +10,7 @@
 use crate::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
 use crate::frustum::LightRel;
 use crate::gbuffer::{flags, GBuffer};
-use crate::scene::{Light, Scene};
+use crate::scene::{light_disk, light_disk_f32, Light, LightDisk, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -189,6 +189,15 @@ pub struct LightSetup {
     /// the point light (they surround it): the grid is then disabled and
     /// every triangle goes to the overflow list (still exact, only slower).
     pub grid_disabled: bool,
+    /// The light's size as the passes use it: tan of a directional
+    /// light's angular radius, or a point light's sphere radius; 0 for a
+    /// point-like light (hard shadows).
+    pub light_radius: f32,
+    /// A directional light's disk, the same from every receiver (host
+    /// `f64`, then `f32`; the GPU frame receives these very floats), when
+    /// the light has a size.
+    #[serde(skip)]
+    pub sun_disk: Option<LightDisk<Vec3>>,
 }
 
 /// Closest a receiver may come to the point light's image plane, relative
@@ -302,6 +311,19 @@ impl LightSetup {
         match self.projection {
             Projection::Orthographic => LightRel::Toward(self.rotation.row(2)),
             Projection::Perspective => LightRel::At(self.origin - p),
+        }
+    }
+
+    /// The light's disk seen from the eye-relative point `p`
+    /// ([`LightDisk`]), or `None` for a point-like light: the sun's disk
+    /// for a directional light, the sphere's disk facing `p` for a point
+    /// light (f32, the arithmetic the GPU repeats).
+    #[inline]
+    pub fn light_disk_from(&self, p: Vec3) -> Option<LightDisk<Vec3>> {
+        match self.projection {
+            Projection::Orthographic => self.sun_disk,
+            Projection::Perspective => (self.light_radius > 0.0)
+                .then(|| light_disk_f32(self.origin - p, self.light_radius)),
         }
     }
 }
@@ -462,7 +484,24 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
         receiver_z: [0.0, 0.0],
         receivers: tested.len(),
         grid_disabled: false,
+        light_radius: 0.0,
+        sun_disk: None,
     };
+    if scene.has_area_light() {
+        match light {
+            Light::Directional { direction } => {
+                let tan_r = scene.light_radius.tan();
+                let disk = light_disk(-direction, tan_r);
+                setup.light_radius = tan_r as f32;
+                setup.sun_disk = Some(LightDisk {
+                    centre: setup.rotation.row(2),
+                    axis_u: disk.axis_u.as_vec3(),
+                    axis_v: disk.axis_v.as_vec3(),
+                });
+            }
+            Light::Point { .. } => setup.light_radius = scene.light_radius as f32,
+        }
+    }
     if tested.is_empty() {
         return setup;
     }

@@ -14,6 +14,7 @@
 pub mod bin;
 pub mod evaluate;
 pub mod footprint;
+pub mod light_samples;
 pub mod light_setup;
 pub mod receivers;
 
@@ -90,6 +91,17 @@ pub fn eye_relative_f32(scene: &Scene) -> Vec<[glam::Vec3; 3]> {
 /// Renders the shadow mask of `scene` on the CPU.
 pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> ShadowRender {
     let start = Instant::now();
+    // One sample per pixel tests P against the light's centre alone: a
+    // hard shadow, whatever the light's size.
+    let soft = scene.has_area_light() && settings.mode != SampleMode::One;
+    let settings = if soft {
+        IzbSettings {
+            skips: settings.skips.for_area_light(),
+            ..settings
+        }
+    } else {
+        settings
+    };
     let mut seconds = PassSeconds::default();
     let mut lap = {
         let mut t = Instant::now();
@@ -108,7 +120,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
-    let rule = MaskRule::new(settings.mode, settings.skips);
+    let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
     let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule);
     seconds.evaluate = lap();
     let visibility = resolve(&masks, &g);

@@ -11,6 +11,7 @@
 
 pub mod analytic;
 pub mod same_samples;
+pub mod soft_samples;
 
 use crate::bvh::{self_hit_offset, SceneBvh};
 use crate::gbuffer::{faces_light, pixel_surface, trace_primary};

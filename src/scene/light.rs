@@ -138,7 +138,9 @@ macro_rules! light_disk_impl {
         /// directional light, unit; or the point light minus P) and disk
         /// radius `radius` (tan r, or R). See [`LightDisk`].
         pub fn $name(centre: $v, radius: $s) -> LightDisk<$v> {
-            let n = centre.normalize();
+            // Spelled out (not `normalize`): the GPU repeats these very
+            // operations, in this order, for a point light's disk.
+            let n = centre * (1.0 / centre.length());
             let sign = (1.0 as $s).copysign(n.z);
             let a = -1.0 / (sign + n.z);
             let b = n.x * n.y * a;
