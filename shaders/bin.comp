@@ -172,13 +172,15 @@ struct Footprint {
     vec2 v1;
     vec2 v2;
     float orientation;
+    vec2 pad;   // the penumbra pad in this level's cells (0: a point-like light)
 };
 
 // footprint::footprint from the vertices' level-0 grid coordinates; false
 // when the padded box misses level 0 (culled).
-bool footprint(uint k, vec2 g0, vec2 g1, vec2 g2, out Footprint f) {
-    f = Footprint(0u, uvec4(0u), vec2(0.0), vec2(0.0), vec2(0.0), 0.0);
-    vec2 lo = min(min(g0, g1), g2), hi = max(max(g0, g1), g2);
+bool footprint(uint k, vec2 g0, vec2 g1, vec2 g2, vec2 pad, out Footprint f) {
+    f = Footprint(0u, uvec4(0u), vec2(0.0), vec2(0.0), vec2(0.0), 0.0, vec2(0.0));
+    precise vec2 lo = min(min(g0, g1), g2) - pad;
+    precise vec2 hi = max(max(g0, g1), g2) + pad;
     uvec4 r;
     if (!cell_range(k, lo, hi, r)) return false;
     uint levels = light.cascade[k].levels;
@@ -205,6 +207,7 @@ bool footprint(uint k, vec2 g0, vec2 g1, vec2 g2, out Footprint f) {
     precise float winding = d1.x * d2.y - d1.y * d2.x;
     precise float scale = (abs(d1.x) + abs(d1.y)) * (abs(d2.x) + abs(d2.y));
     f.orientation = abs(winding) > SLIVER_RATIO * scale ? sign(winding) : 0.0;
+    f.pad = ldexp(pad, e);
     return true;
 }
 
@@ -233,8 +236,9 @@ bool touches(Footprint f, int x, int y) {
     ivec4 r = ivec4(f.rect);
     if (x < r.x || x > r.z || y < r.y || y > r.w) return false;
     if (f.orientation == 0.0) return true;
-    precise float lo_x = float(x) - CELL_PADDING, lo_y = float(y) - CELL_PADDING;
-    precise float hi_x = float(x) + 1.0 + CELL_PADDING, hi_y = float(y) + 1.0 + CELL_PADDING;
+    precise vec2 grow = f.pad + CELL_PADDING;
+    precise float lo_x = float(x) - grow.x, lo_y = float(y) - grow.y;
+    precise float hi_x = float(x) + 1.0 + grow.x, hi_y = float(y) + 1.0 + grow.y;
     return edge_reaches(f.v0, f.v1, f.orientation, lo_x, lo_y, hi_x, hi_y)
         && edge_reaches(f.v1, f.v2, f.orientation, lo_x, lo_y, hi_x, hi_y)
         && edge_reaches(f.v2, f.v0, f.orientation, lo_x, lo_y, hi_x, hi_y);
@@ -243,19 +247,54 @@ bool touches(Footprint f, int x, int y) {
 // bin::place in cascade k: PLACEMENT_CULLED, PLACEMENT_OVERFLOW, or
 // PLACEMENT_CELLS with the footprint.
 #define PLACEMENT_CELLS 0u
+
+// bin::penumbra_pad: how far beyond its projection (light NDC) the
+// triangle may hide part of an area light; false: it overflows.
+bool penumbra_pad(Triangle t, vec2 n0, vec2 n1, vec2 n2, out float pad) {
+    float r = frame.light_radius;
+    pad = 0.0;
+    if (r == 0.0) return true;
+    precise float grow = 1.0 + PENUMBRA_MARGIN;
+    if (light.projection == 0u) {
+        float top = max(max(t.a.z, t.b.z), t.c.z);
+        precise float p = r * max(top - light.receiver_z.x, 0.0) * grow;
+        pad = p;
+        return true;
+    }
+    float z_min = min(min(t.a.z, t.b.z), t.c.z);
+    precise float clearance = z_min - 2.0 * r * grow;
+    if (!(clearance > 0.0)) return false;
+    precise float tan_theta = r / clearance * grow;
+    precise float rho = max(max(length(n0), length(n1)), length(n2)) * grow;
+    precise float product = rho * tan_theta;
+    if (!(product <= MAX_PENUMBRA_TAN_PRODUCT)) return false;
+    precise float p = tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow;
+    pad = p;
+    return true;
+}
+
 uint place(Triangle t, uint k, out Footprint f) {
-    f = Footprint(0u, uvec4(0u), vec2(0.0), vec2(0.0), vec2(0.0), 0.0);
+    f = Footprint(0u, uvec4(0u), vec2(0.0), vec2(0.0), vec2(0.0), 0.0, vec2(0.0));
     if (light.grid_disabled != 0u) return PLACEMENT_OVERFLOW;
     vec2 n0, n1, n2;
     if (light.projection == 0u) {
         n0 = t.a.xy; n1 = t.b.xy; n2 = t.c.xy;
     } else {
         uint in_front = uint(t.a.z > 0.0) + uint(t.b.z > 0.0) + uint(t.c.z > 0.0);
-        if (in_front == 0u) return PLACEMENT_CULLED;   // wholly behind the light
+        if (in_front == 0u) {
+            // A sphere light's samples reach z = -R behind its image plane.
+            bool reaches = max(max(t.a.z, t.b.z), t.c.z) > -frame.light_radius;
+            return reaches ? PLACEMENT_OVERFLOW : PLACEMENT_CULLED;   // wholly behind the light
+        }
         if (in_front < 3u) return PLACEMENT_OVERFLOW;  // crosses the light's plane
         n0 = t.a.xy / t.a.z; n1 = t.b.xy / t.b.z; n2 = t.c.xy / t.c.z;
     }
-    if (!footprint(k, grid_coords(k, n0), grid_coords(k, n1), grid_coords(k, n2), f)) return PLACEMENT_CULLED;
+    float pad_ndc;
+    if (!penumbra_pad(t, n0, n1, n2, pad_ndc)) return PLACEMENT_OVERFLOW;
+    CascadeGrid grid = light.cascade[k];
+    precise vec2 pad = pad_ndc * vec2(float(grid.cells_x), float(grid.cells_y))
+        / (grid.ndc_max - grid.ndc_min);
+    if (!footprint(k, grid_coords(k, n0), grid_coords(k, n1), grid_coords(k, n2), pad, f)) return PLACEMENT_CULLED;
     return PLACEMENT_CELLS;
 }
 

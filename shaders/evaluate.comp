@@ -66,6 +66,10 @@ uint px_cascade;
 vec2 px_lo, px_hi; // the µQuad's level-0 grid box
 bool px_has_cells;
 uint px_cover;    // the centre cell's cover triangle, or NO_COVER
+// Soft shadows (frame.light_samples): the light's disk seen from P
+// (LightSetup::light_disk_from), its samples at c + (u-1/2) du + (v-1/2) dv.
+bool px_soft;
+vec3 px_disk_c, px_disk_u, px_disk_v;
 
 // frustum::may_shadow: the per-pixel depth test at P (t = vertices − P).
 bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
@@ -158,6 +162,69 @@ uint edge_mask(vec3 e, out bool cheap) {
     return cheap ? m : exact_mask(e);
 }
 
+// LightSetup::light_disk_from: the sun's disk, or a sphere light's disk
+// facing P (scene::light_disk_f32: Duff et al. 2017's basis, the same
+// operations in the same order).
+void light_disk_from(vec3 p) {
+    if (light.projection == 0u) {
+        px_disk_c = light.rot_z;
+        px_disk_u = frame.sun_axis_u;
+        px_disk_v = frame.sun_axis_v;
+        return;
+    }
+    precise vec3 c = light.origin - p;
+    precise float len = length(c);
+    precise vec3 n = c * (1.0 / len);
+    float s = (floatBitsToUint(n.z) & 0x80000000u) != 0u ? -1.0 : 1.0;   // copysign(1, n.z)
+    precise float a = -1.0 / (s + n.z);
+    precise float b = n.x * n.y * a;
+    precise vec3 u = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    precise vec3 v = vec3(b, s + n.y * n.y * a, -n.y);
+    precise float diameter = 2.0 * frame.light_radius;
+    px_disk_c = c;
+    px_disk_u = u * diameter;
+    px_disk_v = v * diameter;
+}
+
+// frustum::soft::light_edge_function: the plane through P and edge x→y,
+// as a line across the light's disk.
+vec3 light_edge_function(vec3 x, vec3 y, bool flip) {
+    precise vec3 n = cross(x, y);
+    if (flip) n = -n;
+    precise vec3 e = vec3(dot(n, px_disk_c), dot(n, px_disk_u), dot(n, px_disk_v));
+    return e;
+}
+
+// frustum::soft::beyond_plane_function: a sphere light's samples beyond
+// the triangle's plane, seen from P.
+vec3 beyond_plane_function(vec3 t0, vec3 t1, vec3 t2) {
+    precise vec3 m = cross(t1 - t0, t2 - t0);
+    if (dot(m, t0) < 0.0) m = -m;
+    precise vec3 e = vec3(dot(m, px_disk_c - t0), dot(m, px_disk_u), dot(m, px_disk_v));
+    return e;
+}
+
+// frustum::soft::below_horizon_function: the samples the receiver hides.
+vec3 below_horizon_function() {
+    precise vec3 e = vec3(-dot(px_normal, px_disk_c), -dot(px_normal, px_disk_u),
+                          -dot(px_normal, px_disk_v));
+    return e;
+}
+
+// frustum::soft::may_shadow_soft: above the tangent plane, and P off the
+// triangle's plane (either side), each by the tolerance.
+bool may_shadow_soft(vec3 t0, vec3 t1, vec3 t2) {
+    precise float height = max_of3(dot(px_normal, t0), dot(px_normal, t1), dot(px_normal, t2));
+    precise float microquad_part = float(DEPTH_TOLERANCE_MICROQUAD) * px_size;
+    if (!(height > microquad_part)) return false;
+    precise float reach = max_of3(length(t0), length(t1), length(t2));
+    precise float tolerance = microquad_part + float(DEPTH_TOLERANCE_ROUNDING) * reach;
+    if (!(height > tolerance)) return false;
+    precise vec3 n = cross(t1 - t0, t2 - t0);
+    precise float distance = abs(dot(n, t0));
+    return distance > tolerance * length(n);
+}
+
 uint tests_spawned = 0u, depth_passed = 0u, cells_visited = 0u, saturated_masks = 0u;
 uint levels_visited = 0u, masks_nonempty = 0u;
 bool stop_when_full;   // the full-mask skip
@@ -170,11 +237,42 @@ bool done(uint mask) {
 #define LOOP_BUDGET_SLOTS WORKGROUP_PIXELS
 #include "loop_budget.glsl"
 
+// light_samples::occluded_light_samples: the light samples triangle
+// (t0, t1, t2) hides from P, the AND of its edges (and for a sphere light
+// its plane) over the light's disk. Unrolled: no loop trips to count.
+uint soft_triangle_mask(vec3 t0, vec3 t1, vec3 t2) {
+    if (!may_shadow_soft(t0, t1, t2)) return 0u;
+    depth_passed += 1u;
+    precise float o = dot(cross(t0, t1), t2);
+    if (!(o != 0.0)) return 0u;   // P in the triangle's plane (or NaN)
+    bool flip = o < 0.0;
+    bool saturate = (frame.skips & SKIP_SATURATED_EDGES) != 0u;
+    bool cheap;
+    uint mask = edge_mask(light_edge_function(t0, t1, flip), cheap);
+    bool all_cheap = cheap;
+    if (mask != 0u || !saturate) {
+        mask &= edge_mask(light_edge_function(t1, t2, flip), cheap);
+        all_cheap = all_cheap && cheap;
+    }
+    if (mask != 0u || !saturate) {
+        mask &= edge_mask(light_edge_function(t2, t0, flip), cheap);
+        all_cheap = all_cheap && cheap;
+    }
+    if (light.projection != 0u && (mask != 0u || !saturate)) {
+        mask &= edge_mask(beyond_plane_function(t0, t1, t2), cheap);
+        all_cheap = all_cheap && cheap;
+    }
+    if (saturate && all_cheap) saturated_masks += 1u;
+    if (mask != 0u) masks_nonempty += 1u;
+    return mask;
+}
+
 // Occluded samples of one eye-relative triangle for this pixel.
 uint triangle_mask(Triangle tri) {
     precise vec3 t0 = tri.a - px_p;
     precise vec3 t1 = tri.b - px_p;
     precise vec3 t2 = tri.c - px_p;
+    if (px_soft) return soft_triangle_mask(t0, t1, t2);
     vec3 light_rel = px_light;
     if (!may_shadow(t0, t1, t2, light_rel)) return 0u;
     depth_passed += 1u;
@@ -251,6 +349,8 @@ void pixel_frustum(uint i) {
     px_ey = ey;
     precise float size = max(length(px_ex), length(px_ey));
     px_size = size;
+    px_soft = frame.light_samples != 0u;
+    if (px_soft) light_disk_from(p);
     px_has_cells = false;
     px_cover = NO_COVER;
     if (light.grid_disabled != 0u) return;
@@ -302,15 +402,20 @@ void main() {
     if (live) {
         pixel_frustum(i);
         if (!grid_usable) px_cover = NO_COVER;
+        // An area light's samples below the horizon: the receiver's own.
+        if (px_soft) {
+            bool cheap;
+            mask = edge_mask(below_horizon_function(), cheap);
+        }
         // 0. The conservative shadow map: its mask is 0 unless the cover
         // triangle is one of the pixel's candidates (the grid offers every
         // triangle able to shadow a sample), so ORing it in first and not
         // testing it again leaves the mask as it was.
         if (px_cover != NO_COVER && px_cover != px_receiver) {
             tests_spawned += 1u;
-            mask = triangle_mask(triangles[px_cover]);
-            covered = mask == FULL_MASK;
+            mask |= triangle_mask(triangles[px_cover]);
         }
+        covered = mask == FULL_MASK;
     }
 
     // 1. The overflow list, through shared memory.

@@ -39,6 +39,29 @@ pub struct IzbSettings {
     pub skips: Skips,
 }
 
+impl IzbSettings {
+    /// Whether a render of `scene` with these settings forms its masks
+    /// over the light's samples (soft shadows): the light has a size and
+    /// the mode has 32 samples. One sample per pixel tests P against the
+    /// light's centre alone, a hard shadow whatever the light's size.
+    pub fn light_samples(&self, scene: &crate::scene::Scene) -> bool {
+        scene.has_area_light() && self.mode != SampleMode::One
+    }
+
+    /// The settings a render of `scene` runs with: under an area light
+    /// the skips that stay exact there ([`Skips::for_area_light`]).
+    pub fn for_scene(self, scene: &crate::scene::Scene) -> IzbSettings {
+        if self.light_samples(scene) {
+            IzbSettings {
+                skips: self.skips.for_area_light(),
+                ..self
+            }
+        } else {
+            self
+        }
+    }
+}
+
 impl Default for IzbSettings {
     fn default() -> Self {
         IzbSettings {

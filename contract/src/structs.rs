@@ -68,6 +68,17 @@ shared_struct! {
         pub map_filter: u32 => "uint map_filter",
         /// Texels the map reaches beyond the fitted bounds.
         pub map_reach: u32 => "uint map_reach",
+        /// The light's size (`LightSetup::light_radius`): tan of a
+        /// directional light's angular radius, a point light's sphere
+        /// radius; 0 for a point-like light.
+        pub light_radius: f32 => "float light_radius",
+        /// 1 when masks are over the light's samples (soft shadows): then
+        /// `pattern`, `pattern_radius` and the LUT buffer are the light's.
+        pub light_samples: u32 => "uint light_samples",
+        /// A directional light's disk axes (`LightSetup::sun_disk`, host
+        /// `f64` then `f32`).
+        pub sun_axis_u: [f32; 3] => "vec3 sun_axis_u",
+        pub sun_axis_v: [f32; 3] => "vec3 sun_axis_v",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
     }
 }

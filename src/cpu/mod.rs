@@ -91,17 +91,8 @@ pub fn eye_relative_f32(scene: &Scene) -> Vec<[glam::Vec3; 3]> {
 /// Renders the shadow mask of `scene` on the CPU.
 pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> ShadowRender {
     let start = Instant::now();
-    // One sample per pixel tests P against the light's centre alone: a
-    // hard shadow, whatever the light's size.
-    let soft = scene.has_area_light() && settings.mode != SampleMode::One;
-    let settings = if soft {
-        IzbSettings {
-            skips: settings.skips.for_area_light(),
-            ..settings
-        }
-    } else {
-        settings
-    };
+    let soft = settings.light_samples(scene);
+    let settings = settings.for_scene(scene);
     let mut seconds = PassSeconds::default();
     let mut lap = {
         let mut t = Instant::now();

@@ -135,6 +135,7 @@ impl GpuRenderer {
         source: GBufferSource,
     ) -> Result<GpuRender, GpuError> {
         let pixels = scene.pixel_count();
+        let settings = settings.for_scene(scene);
         let upload = self.prepare_frame(scene, source)?;
         let triangles = &upload.triangles;
         let bvh_start = Instant::now();
@@ -215,7 +216,7 @@ impl GpuRenderer {
         let [w, h] = scene.resolution;
         let pixels = scene.pixel_count() as u64;
         let t = triangles.len() as u64;
-        let lut = crate::lut::edge_lut();
+        let (lut, _) = super::frame_inputs::frame_lut(settings.light_samples(scene));
         let descs = frame_buffer_descs(&FrameSizes {
             pixels,
             triangles: t,

@@ -128,8 +128,20 @@ pub(super) fn frame_params(
         }
         Light::Point { position } => (position.as_vec3(), 1, glam::Mat3::IDENTITY),
     };
-    let lut = crate::lut::edge_lut();
+    let soft = settings.light_samples(scene);
+    let (lut, pattern) = frame_lut(soft);
     let rows = rotation.transpose();
+    let (mut sun_axis_u, mut sun_axis_v) = (glam::Vec3::ZERO, glam::Vec3::ZERO);
+    let light_radius = match light {
+        Light::Directional { direction } if scene.has_area_light() => {
+            // LightSetup's sun disk: the same f64 basis, then f32.
+            let tan_r = scene.light_radius.tan();
+            let disk = crate::scene::light_disk(-direction, tan_r);
+            (sun_axis_u, sun_axis_v) = (disk.axis_u.as_vec3(), disk.axis_v.as_vec3());
+            tan_r as f32
+        }
+        _ => scene.light_radius as f32,
+    };
     FrameParams {
         cam_corner: corner.as_vec3().to_array(),
         near: scene.camera.near as f32,
@@ -156,13 +168,29 @@ pub(super) fn frame_params(
         max_cells: max_cells as u32,
         loop_budget,
         skips: settings.skips.bits(),
-        pattern_radius: crate::frustum::pattern_radius(crate::lut::sample_pattern()),
+        pattern_radius: crate::frustum::pattern_radius(pattern),
         cam_forward: frame.forward.as_vec3().to_array(),
         cascades: settings.cascades.code(),
         split_lambda: settings.split_lambda,
         map_side: 0,
         map_filter: 0,
         map_reach: 0,
-        pattern: *crate::lut::sample_pattern(),
+        light_radius,
+        light_samples: soft as u32,
+        sun_axis_u: sun_axis_u.to_array(),
+        sun_axis_v: sun_axis_v.to_array(),
+        pattern: *pattern,
+    }
+}
+
+/// The table and the 32 samples a frame's masks are over: the light's
+/// (soft shadows) or the µQuad's.
+pub(super) fn frame_lut(
+    light_samples: bool,
+) -> (&'static crate::lut::EdgeLut, &'static [[f32; 2]; 32]) {
+    if light_samples {
+        (crate::lut::light_lut(), crate::lut::light_pattern())
+    } else {
+        (crate::lut::edge_lut(), crate::lut::sample_pattern())
     }
 }
