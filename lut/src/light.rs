@@ -14,16 +14,23 @@
 //! choice is stale (numbers: `paper-notes/light-pattern.md`).
 
 use crate::edge::signed_distance;
-use crate::pattern::{candidate_patterns, CoverageError, PatternCandidate, ORIENTATION_BINS};
+use crate::pattern::{CoverageError, PatternCandidate, ORIENTATION_BINS};
 use crate::rng::SplitMix64;
 use crate::table::{EdgeLut, LutStats, LOOKUP_SLACK};
 use crate::{SamplePattern, SAMPLES_PER_PIXEL};
-use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+mod constructions;
+
+pub use constructions::{
+    concentric_map, line_optimised, relaxed_disk, vogel_spiral, OPTIMISED_LLOYD_32,
+};
+use constructions::{concentric_of_pixel_candidate, random_disk_points, RELAX_SEED};
 
 /// Name of the light pattern the renderer uses: the lowest RMS
 /// [`disk_coverage_error`] of [`light_candidates`] over
 /// [`LIGHT_EVALUATION_LINES`] random lines.
-pub const LIGHT_PATTERN_NAME: &str = "vogel_spiral";
+pub const LIGHT_PATTERN_NAME: &str = "optimised_lloyd";
 
 /// The disk's radius in (u, v): the disk inscribed in the unit square.
 pub const LIGHT_DISK_RADIUS: f64 = 0.5;
@@ -36,24 +43,11 @@ pub const LIGHT_EVALUATION_LINES: usize = 1_000_000;
 /// measurement's seed, so that the two rankings do not share their noise.
 const DISK_COVERAGE_SEED: u64 = 0x5EED_D15C_0002_0004;
 
-/// Seed of the random starting points of the relaxed candidate.
-const RELAX_SEED: u64 = 0x11C4_7D15_C000_0032;
-
 /// Seed of the random edges of [`light_lut_statistics`].
 const LIGHT_STATISTICS_SEED: u64 = 0x0E06_D15C_0002_0004;
 
-/// Lloyd iterations of [`relaxed_disk`]: the movement per step has fallen
-/// below 10⁻⁴ (a 50th of a density-grid cell) by then.
-const RELAX_ITERATIONS: usize = 64;
-
-/// Density points per side of the grid [`relaxed_disk`] integrates over
-/// (≈ 12 900 of the 16 384 cell centres fall in the disk, ≈ 400 per
-/// sample). Small enough that `build.rs`, unoptimised, computes it in well
-/// under a second.
-const RELAX_GRID: usize = 128;
-
 /// Every light candidate's name, in a fixed order.
-pub const LIGHT_CANDIDATE_NAMES: [&str; 10] = [
+pub const LIGHT_CANDIDATE_NAMES: [&str; 12] = [
     "vogel_spiral",
     "vogel_spiral_rot_90",
     "vogel_spiral_rot_60",
@@ -64,6 +58,8 @@ pub const LIGHT_CANDIDATE_NAMES: [&str; 10] = [
     "concentric_multijitter_8x4",
     "lloyd_vogel",
     "lloyd_random",
+    "optimised_vogel",
+    "optimised_lloyd",
 ];
 
 /// The light pattern the renderer uses: the candidate named
@@ -139,122 +135,23 @@ pub fn light_candidate(name: &str) -> Option<PatternCandidate> {
             "32 uniform random points of the disk (SplitMix64, fixed seed), 64 Lloyd steps",
             relaxed_disk(random_disk_points(n, RELAX_SEED)),
         ),
+        "optimised_vogel" => (
+            "optimised_vogel",
+            "vogel_spiral moved by 400 gradient steps on the mean squared disk coverage error itself (512 angles, d integrated exactly)",
+            line_optimised(vogel_spiral(n, 0.0)),
+        ),
+        "optimised_lloyd" => (
+            "optimised_lloyd",
+            "lloyd_vogel, then the same 400 gradient steps (baked: OPTIMISED_LLOYD_32)",
+            OPTIMISED_LLOYD_32.to_vec(),
+        ),
         _ => return None,
     };
     Some(PatternCandidate {
         name,
         construction,
-        points: points
-            .try_into()
-            .expect("32 points per light candidate"),
+        points: points.try_into().expect("32 points per light candidate"),
     })
-}
-
-/// `n` points of a Vogel (golden-angle) spiral in the light disk, rotated
-/// by `rotation` radians: point i at radius ½·√((i + ½)/n), angle
-/// i·π(3 − √5) + rotation. Equal-area rings, and no two points on one
-/// line through the centre.
-pub fn vogel_spiral(n: usize, rotation: f64) -> Vec<[f32; 2]> {
-    let golden_angle = PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let r = LIGHT_DISK_RADIUS * ((i as f64 + 0.5) / n as f64).sqrt();
-            disk_point(r, i as f64 * golden_angle + rotation)
-        })
-        .collect()
-}
-
-/// Shirley and Chiu's concentric map of (u, v) ∈ (0, 1)² onto the light
-/// disk: concentric squares go to concentric circles, area-preserving and
-/// with little distortion, so a stratified square set stays stratified.
-pub fn concentric_map([u, v]: [f64; 2]) -> [f32; 2] {
-    let (a, b) = (2.0 * u - 1.0, 2.0 * v - 1.0);
-    if a == 0.0 && b == 0.0 {
-        return disk_point(0.0, 0.0);
-    }
-    let (r, phi) = if a.abs() > b.abs() {
-        (a, FRAC_PI_4 * (b / a))
-    } else {
-        (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
-    };
-    disk_point(LIGHT_DISK_RADIUS * r, phi)
-}
-
-/// The concentric map of the pixel candidate `name` of
-/// [`candidate_patterns`].
-fn concentric_of_pixel_candidate(name: &str) -> Vec<[f32; 2]> {
-    let candidate = candidate_patterns()
-        .into_iter()
-        .find(|c| c.name == name)
-        .expect("a pixel candidate of that name");
-    candidate
-        .points
-        .iter()
-        .map(|p| concentric_map(p.map(f64::from)))
-        .collect()
-}
-
-/// `n` uniform random points of the disk (rejection from the square).
-fn random_disk_points(n: usize, seed: u64) -> Vec<[f32; 2]> {
-    let mut rng = SplitMix64::new(seed);
-    let mut points = Vec::with_capacity(n);
-    while points.len() < n {
-        let (x, y) = (rng.next_f64() - 0.5, rng.next_f64() - 0.5);
-        if x.hypot(y) < 0.98 * LIGHT_DISK_RADIUS {
-            points.push([(0.5 + x) as f32, (0.5 + y) as f32]);
-        }
-    }
-    points
-}
-
-/// Lloyd relaxation of `points` toward a centroidal Voronoi tessellation of
-/// the light disk (each point moved to the centroid of the part of the disk
-/// nearest to it, [`RELAX_ITERATIONS`] times), the density integrated on a
-/// [`RELAX_GRID`]² grid of cell centres. Blue-noise-like: even spacing, no
-/// preferred direction beyond what the start had. Centroids of disk regions
-/// lie strictly inside the disk.
-pub fn relaxed_disk(points: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
-    let density: Vec<[f64; 2]> = (0..RELAX_GRID * RELAX_GRID)
-        .map(|k| {
-            let cell = |c: usize| (c as f64 + 0.5) / RELAX_GRID as f64 - 0.5;
-            [cell(k % RELAX_GRID), cell(k / RELAX_GRID)]
-        })
-        .filter(|p| p[0].hypot(p[1]) < LIGHT_DISK_RADIUS)
-        .collect();
-    let mut sites: Vec<[f64; 2]> = points
-        .iter()
-        .map(|p| [f64::from(p[0]) - 0.5, f64::from(p[1]) - 0.5])
-        .collect();
-    for _ in 0..RELAX_ITERATIONS {
-        let mut sums = vec![[0.0f64; 3]; sites.len()];
-        for q in &density {
-            let nearest = (0..sites.len())
-                .min_by(|&i, &j| {
-                    let d = |s: [f64; 2]| (s[0] - q[0]).powi(2) + (s[1] - q[1]).powi(2);
-                    d(sites[i]).total_cmp(&d(sites[j]))
-                })
-                .expect("at least one site");
-            sums[nearest][0] += q[0];
-            sums[nearest][1] += q[1];
-            sums[nearest][2] += 1.0;
-        }
-        for (site, sum) in sites.iter_mut().zip(&sums) {
-            // A site with no density point keeps its place.
-            if sum[2] > 0.0 {
-                *site = [sum[0] / sum[2], sum[1] / sum[2]];
-            }
-        }
-    }
-    sites
-        .iter()
-        .map(|s| [(0.5 + s[0]) as f32, (0.5 + s[1]) as f32])
-        .collect()
-}
-
-/// The point at radius `r` and angle `phi` from the disk centre (½, ½),
-/// rounded to f32.
-fn disk_point(r: f64, phi: f64) -> [f32; 2] {
-    [(0.5 + r * phi.cos()) as f32, (0.5 + r * phi.sin()) as f32]
 }
 
 /// Fraction of the light disk's area with d + cos θ·(u−½) + sin θ·(v−½)
