@@ -296,7 +296,7 @@ fn regenerate_writes_table_and_picture_and_measures_them() {
 fn light_table_misclassifies_only_within_the_bound() {
     const EDGES: usize = 1_000_000;
     let (pattern, lut) = (light_pattern(), light_lut());
-    let mut rng = Pcg64::seed_from_u64(0x11647_2015);
+    let mut rng = Pcg64::seed_from_u64(0x1164_2015);
     let (mut checked, mut split, mut mismatched, mut worst_excess) =
         (0usize, 0usize, 0usize, f64::MIN);
     for n in 0..EDGES {

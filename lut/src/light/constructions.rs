@@ -123,8 +123,8 @@ pub(super) fn random_disk_points(n: usize, seed: u64) -> Vec<[f32; 2]> {
 
 /// Lloyd relaxation of `points` toward a centroidal Voronoi tessellation of
 /// the light disk (each point moved to the centroid of the part of the disk
-/// nearest to it, [`RELAX_ITERATIONS`] times), the density integrated on a
-/// [`RELAX_GRID`]² grid of cell centres. Blue-noise-like: even spacing, no
+/// nearest to it, 64 times, `RELAX_ITERATIONS`), the density integrated on a
+/// 128² grid of cell centres (`RELAX_GRID`). Blue-noise-like: even spacing, no
 /// preferred direction beyond what the start had. Centroids of disk regions
 /// lie strictly inside the disk.
 pub fn relaxed_disk(points: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
@@ -173,10 +173,10 @@ const OPTIMISE_ANGLES: usize = 512;
 /// Gradient steps of [`line_optimised`].
 const OPTIMISE_ITERATIONS: usize = 400;
 
-/// Gradient descent on the very quantity [`disk_coverage_error`] ranks by:
+/// Gradient descent on the very quantity [`super::disk_coverage_error`] ranks by:
 /// the mean over lines crossing the disk of (fraction of points inside −
-/// fraction of area inside)², with θ on [`OPTIMISE_ANGLES`] equally spaced
-/// angles and d integrated exactly.
+/// fraction of area inside)², with θ on 512 equally spaced angles
+/// (`OPTIMISE_ANGLES`) and d integrated exactly.
 ///
 /// For one θ let s_i = −(cos θ·x_i + sin θ·y_i) be the offset at which
 /// point i changes sides; the estimate F(d) = #{s_i ≤ d}/n is a step
