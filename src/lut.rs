@@ -3,10 +3,12 @@
 //!
 //! `build.rs` runs [`izb_lut`] at compile time and this module embeds what
 //! it wrote: [`edge_lut`] is the `DEFAULT_ANGLES × DEFAULT_DISTANCES` table
-//! for [`sample_pattern`]. [`regenerate`] (the `izb lut` command) runs the
-//! same generator at any resolution, writes the table and a picture of it,
-//! and measures it against the exact classifier. Why this pattern and this
-//! resolution: `paper-notes/edge-lut.md`.
+//! for [`sample_pattern`], and [`light_lut`] the same-size table for the
+//! soft shadows' [`light_pattern`]. [`regenerate_tables`] (the `izb lut`
+//! command) runs the same generator at any resolution, writes both tables
+//! and a picture of each, and measures them against the exact classifier.
+//! Why these patterns and this resolution: `paper-notes/edge-lut.md`,
+//! `paper-notes/light-pattern.md`.
 
 use crate::output::{write_atomically, write_png};
 use anyhow::{ensure, Result};
@@ -14,7 +16,8 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 pub use izb_lut::{
-    candidate_patterns, coverage_error, edge_line, exact_mask, exact_mask_f32, inside_area,
+    candidate_patterns, coverage_error, disk_coverage_error, disk_inside_area, edge_line,
+    exact_mask, exact_mask_f32, inside_area, light_candidates, light_lut_statistics,
     lut_statistics, signed_distance, CoverageError, EdgeComparison, EdgeLine, EdgeLut, LutCell,
     LutDecodeError, LutStats, PatternCandidate, SamplePattern, ALL_SAMPLES, DEFAULT_ANGLES,
     DEFAULT_DISTANCES, HALF_DIAGONAL, LIGHT_DISK_RADIUS, LIGHT_PATTERN_NAME, LOOKUP_SLACK,
@@ -51,10 +54,11 @@ pub fn light_pattern() -> &'static SamplePattern {
     &EMBEDDED_LIGHT_PATTERN
 }
 
-/// Random edges behind the statistics [`regenerate`] returns.
+/// Random edges behind each table's statistics [`regenerate_tables`]
+/// returns.
 pub const REGENERATE_STATISTICS_LINES: usize = 1_000_000;
 
-/// Shortest side, in pixels, of `edge_lut.png`: small tables are scaled up
+/// Shortest side, in pixels, of `edge_lut.png` and `light_lut.png`: small tables are scaled up
 /// by a whole factor until their longer side reaches it.
 const PICTURE_MIN_SIDE: u32 = 512;
 
@@ -73,24 +77,53 @@ pub fn sample_pattern() -> &'static SamplePattern {
     &EMBEDDED_SAMPLE_PATTERN
 }
 
-/// Generates the `angles × distances` table for [`sample_pattern`] with
-/// the code `build.rs` uses, writes `edge_lut.bin` ([`EdgeLut::to_bytes`])
-/// and `edge_lut.png` ([`lut_picture`]) into `out_dir` (atomically), and
-/// returns its statistics over [`REGENERATE_STATISTICS_LINES`] random edges.
-pub fn regenerate(angles: u32, distances: u32, out_dir: &Path) -> Result<LutStats> {
+/// Both tables [`regenerate_tables`] wrote, measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RegeneratedTables {
+    /// The pixel table ([`sample_pattern`]): [`lut_statistics`], random
+    /// edges crossing the pixel, distances in pixels.
+    pub edge: LutStats,
+    /// The light table ([`light_pattern`]): [`light_lut_statistics`],
+    /// random edges crossing the light disk, coverage against the disk's
+    /// area, distances in light-disk diameters.
+    pub light: LutStats,
+}
+
+/// Generates the `angles × distances` tables for [`sample_pattern`] and
+/// [`light_pattern`] with the code `build.rs` uses, writes `edge_lut.bin`,
+/// `light_lut.bin` ([`EdgeLut::to_bytes`]) and `edge_lut.png`,
+/// `light_lut.png` ([`lut_picture`]) into `out_dir` (atomically), and
+/// returns both tables' statistics over [`REGENERATE_STATISTICS_LINES`]
+/// random edges each. A resolution outside 1..=[`MAX_RESOLUTION`] is
+/// refused before anything is written.
+pub fn regenerate_tables(angles: u32, distances: u32, out_dir: &Path) -> Result<RegeneratedTables> {
     let valid = 1..=MAX_RESOLUTION;
     ensure!(
         valid.contains(&angles) && valid.contains(&distances),
         "edge LUT resolution {angles}x{distances}: both must lie in 1..={MAX_RESOLUTION}"
     );
-    let pattern = sample_pattern();
-    let lut = EdgeLut::generate(angles, distances, pattern);
-    let bytes = lut.to_bytes();
-    write_atomically(&out_dir.join("edge_lut.bin"), |tmp| {
-        Ok(std::fs::write(tmp, &bytes)?)
-    })?;
-    write_png(&out_dir.join("edge_lut.png"), &lut_picture(&lut))?;
-    Ok(lut_statistics(&lut, pattern, REGENERATE_STATISTICS_LINES))
+    let write_table = |name: &str, lut: &EdgeLut| -> Result<()> {
+        let bytes = lut.to_bytes();
+        write_atomically(&out_dir.join(format!("{name}.bin")), |tmp| {
+            Ok(std::fs::write(tmp, &bytes)?)
+        })?;
+        write_png(&out_dir.join(format!("{name}.png")), &lut_picture(lut))
+    };
+    let edge = EdgeLut::generate(angles, distances, sample_pattern());
+    write_table("edge_lut", &edge)?;
+    let light = EdgeLut::generate(angles, distances, light_pattern());
+    write_table("light_lut", &light)?;
+    Ok(RegeneratedTables {
+        edge: lut_statistics(&edge, sample_pattern(), REGENERATE_STATISTICS_LINES),
+        light: light_lut_statistics(&light, light_pattern(), REGENERATE_STATISTICS_LINES),
+    })
+}
+
+/// [`regenerate_tables`], returning the pixel table's statistics only:
+/// writes the same four files. Kept for callers that predate the light
+/// table (`examples/regenerate_lut.rs`).
+pub fn regenerate(angles: u32, distances: u32, out_dir: &Path) -> Result<LutStats> {
+    Ok(regenerate_tables(angles, distances, out_dir)?.edge)
 }
 
 /// A picture of the table: one block per cell, A rows (θ from −π at the

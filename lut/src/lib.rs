@@ -11,6 +11,10 @@
 //!   (θ, d) ([`edge_line`]).
 //! - [`table`]: the (θ, d) table [`EdgeLut`], its lookup, its proven
 //!   misclassification bound and [`lut_statistics`].
+//! - [`light`]: the 32 light samples of soft shadows on the light's disk,
+//!   their coverage error on lines across the disk
+//!   ([`disk_coverage_error`]), the chosen [`light_pattern`] and
+//!   [`light_lut_statistics`] for its table.
 
 pub mod edge;
 pub mod light;
@@ -22,7 +26,12 @@ pub use edge::{
     edge_line, exact_mask, exact_mask_f32, inside_area, line_mask, line_signed_distance,
     signed_distance, EdgeLine, ALL_SAMPLES, HALF_DIAGONAL,
 };
-pub use light::{light_pattern, LIGHT_DISK_RADIUS, LIGHT_PATTERN_NAME};
+pub use light::{
+    concentric_map, disk_coverage_error, disk_coverage_error_of, disk_inside_area, light_candidate,
+    light_candidates, light_lut_statistics, light_pattern, line_optimised, relaxed_disk,
+    vogel_spiral, LIGHT_CANDIDATE_NAMES, LIGHT_DISK_RADIUS, LIGHT_EVALUATION_LINES,
+    LIGHT_PATTERN_NAME, OPTIMISED_LLOYD_32,
+};
 pub use pattern::{
     candidate_patterns, coverage_error, sample_pattern, CoverageError, PatternCandidate,
     SamplePattern, PATTERN_EVALUATION_LINES, SAMPLE_PATTERN_NAME,

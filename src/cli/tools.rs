@@ -18,10 +18,10 @@ pub struct InfoArgs {
 
 #[derive(Args)]
 pub struct LutArgs {
-    /// Angle cells of the table.
+    /// Angle cells of both tables (pixel and light).
     #[arg(long, default_value_t = crate::lut::DEFAULT_ANGLES)]
     angles: u32,
-    /// Signed-distance cells of the table.
+    /// Signed-distance cells of both tables.
     #[arg(long, default_value_t = crate::lut::DEFAULT_DISTANCES)]
     distances: u32,
     #[arg(long, default_value = "out")]
@@ -66,13 +66,26 @@ pub fn run_report(args: ReportArgs) -> Result<()> {
 }
 
 pub fn run_lut(args: LutArgs) -> Result<()> {
-    let stats = crate::lut::regenerate(args.angles, args.distances, &args.out)?;
-    println!("{stats:#?}");
+    let stats = crate::lut::regenerate_tables(args.angles, args.distances, &args.out)?;
     println!(
-        "wrote {} and {}",
-        args.out.join("edge_lut.bin").display(),
-        args.out.join("edge_lut.png").display()
+        "pixel table ({}), edges crossing the pixel, distances in pixels:",
+        crate::lut::SAMPLE_PATTERN_NAME
     );
+    println!("{:#?}", stats.edge);
+    println!(
+        "light table ({}), edges crossing the light disk, coverage against the disk's area, \
+         distances in light-disk diameters:",
+        crate::lut::LIGHT_PATTERN_NAME
+    );
+    println!("{:#?}", stats.light);
+    for name in [
+        "edge_lut.bin",
+        "edge_lut.png",
+        "light_lut.bin",
+        "light_lut.png",
+    ] {
+        println!("wrote {}", args.out.join(name).display());
+    }
     Ok(())
 }
 
