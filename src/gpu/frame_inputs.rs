@@ -163,6 +163,8 @@ pub(super) fn frame_params(
         map_side: 0,
         map_filter: 0,
         map_reach: 0,
+        map_light_size: 0.0,
+        map_near: 0.0,
         pattern: *crate::lut::sample_pattern(),
     }
 }
