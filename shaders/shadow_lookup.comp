@@ -3,7 +3,8 @@
 // `baseline::shadow_map::shadow_lookup`: each shadow-tested pixel's lit
 // fraction from its cascade's map (the cascade light_setup stored in the
 // pixel's `masks` word), one tap with slope-scaled bias ([Shadow mapping mechanics]) or k×k
-// bilinear PCF with receiver-plane depth bias ([Shadow acne notes]). The lit
+// bilinear PCF with receiver-plane depth bias ([Shadow acne notes]), or PCSS
+// (Fernando 2005; pcss.glsl). The lit
 // fraction's float bits replace the word: a shadow-map frame has no
 // occlusion masks.
 #extension GL_GOOGLE_include_directive : require
@@ -88,6 +89,8 @@ float pcf(uint k, vec2 origin, vec2 texel, vec3 p, vec3 n, vec2 ndc, uint size) 
     return lit / float(size * size);
 }
 
+#include "pcss.glsl"
+
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (pixel.x >= frame.width || pixel.y >= frame.height) return;
@@ -106,9 +109,13 @@ void main() {
         vec2 ndc = ndc_of(p);
         vec2 origin, texel;
         map_frame(k, origin, texel);
-        lit = frame.map_filter == 0u
-            ? one_tap(k, origin, texel, p, n, ndc)
-            : pcf(k, origin, texel, p, n, ndc, frame.map_filter);
+        if (frame.map_filter == 0u) {
+            lit = one_tap(k, origin, texel, p, n, ndc);
+        } else if (frame.map_filter == PCSS_FILTER) {
+            lit = pcss(k, origin, texel, position, p, n, ndc);
+        } else {
+            lit = pcf(k, origin, texel, p, n, ndc, frame.map_filter);
+        }
     }
     masks[i] = floatBitsToUint(lit);
 }

@@ -64,7 +64,7 @@ shared_struct! {
         /// Shadow-map frames: texels per side of each cascade's map; 0 in
         /// an IZB frame.
         pub map_side: u32 => "uint map_side",
-        /// 0 one tap, k for k×k PCF.
+        /// 0 one tap, k for k×k PCF, `PCSS_FILTER` for PCSS.
         pub map_filter: u32 => "uint map_filter",
         /// Texels the map reaches beyond the fitted bounds.
         pub map_reach: u32 => "uint map_reach",
@@ -79,6 +79,14 @@ shared_struct! {
         /// `f64` then `f32`).
         pub sun_axis_u: [f32; 3] => "vec3 sun_axis_u",
         pub sun_axis_v: [f32; 3] => "vec3 sun_axis_v",
+        /// PCSS: the light's size in the lookup's units, tan r of a
+        /// directional light's angular radius r or a point light's radius;
+        /// 0 otherwise.
+        pub map_light_size: f32 => "float map_light_size",
+        /// PCSS, directional light: the highest scene vertex along the
+        /// direction toward the light (eye-relative), the near end of the
+        /// map's depth range; 0 otherwise.
+        pub map_near: f32 => "float map_near",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
     }
 }

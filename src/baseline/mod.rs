@@ -7,12 +7,16 @@
 //!   bias, one comparison depth per texel ([Shadow acne notes]'s Gather variant);
 //! - `csmN-pcf3-R`: N cascaded maps on the IZB cascades' logarithmic splits,
 //!   each fitted to its own receivers (Agenjo 2020, Lauritzen's sample
-//!   distribution), 3×3 PCF.
+//!   distribution), 3×3 PCF;
+//! - `pcss-R`: percentage-closer soft shadows (Fernando 2005) for area
+//!   lights: a blocker search sized by the light, a penumbra estimate, a
+//!   PCF disk of that size ([`pcss`]).
 //!
 //! `R` is the side of each map in texels. The passes are
-//! [`shadow_map::shadow_map`] and [`shadow_map::shadow_lookup`], CPU only
-//! (see `paper-notes/baselines.md` for why there is no Vulkan twin yet).
+//! [`shadow_map::shadow_map`] and [`shadow_map::shadow_lookup`]; their
+//! Vulkan twins are `crate::gpu::shadow_map` (see `paper-notes/baselines.md`).
 
+pub mod pcss;
 pub mod shadow_map;
 
 use crate::cascades::CascadeCount;
@@ -26,6 +30,11 @@ use std::time::Instant;
 /// Largest map side accepted (8192² · 4 B = 256 MiB per cascade).
 pub const MAX_MAP_SIDE: u32 = 8192;
 
+/// Smallest side of a `pcss-R` map: its margin of
+/// [`izb_contract::pcss::MAX_RADIUS_TEXELS`] texels on every side then
+/// takes at most a quarter of the map.
+pub const PCSS_MIN_SIDE: u32 = 8 * izb_contract::pcss::MAX_RADIUS_TEXELS;
+
 /// One shadow-map configuration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct ShadowMapSettings {
@@ -37,10 +46,11 @@ pub struct ShadowMapSettings {
 }
 
 impl ShadowMapSettings {
-    /// Parses a method name: `sm-R`, `pcf3-R`, `pcf5-R`, `csmN-pcfK-R`.
+    /// Parses a method name: `sm-R`, `pcf3-R`, `pcf5-R`, `csmN-pcfK-R`,
+    /// `pcss-R` (one map, R ≥ [`PCSS_MIN_SIDE`]).
     pub fn parse(name: &str) -> Result<ShadowMapSettings, String> {
         let bad = || {
-            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R; R a side 16..={MAX_MAP_SIDE})")
+            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R, pcss-R; R a side 16..={MAX_MAP_SIDE})")
         };
         let mut parts: Vec<&str> = name.split('-').collect();
         let side: u32 = parts.pop().and_then(|s| s.parse().ok()).ok_or_else(bad)?;
@@ -57,6 +67,21 @@ impl ShadowMapSettings {
         }
         let filter = match parts.as_slice() {
             ["sm"] => Filter::OneTap,
+            ["pcss"] => {
+                if cascades > 1 {
+                    return Err(format!(
+                        "`{name}`: PCSS runs on one map (pcss-R); cascaded PCSS is not offered"
+                    ));
+                }
+                if side < PCSS_MIN_SIDE {
+                    return Err(format!(
+                        "`{name}`: pcss-R needs R ≥ {PCSS_MIN_SIDE}: the map keeps a margin of {} texels \
+                         on every side for the widest blocker search",
+                        Filter::Pcss.reach()
+                    ));
+                }
+                Filter::Pcss
+            }
             [p] => match p.strip_prefix("pcf").and_then(|k| k.parse::<u32>().ok()) {
                 Some(k) if k % 2 == 1 && (3..=9).contains(&k) => Filter::Pcf(k),
                 _ => return Err(bad()),
@@ -79,6 +104,7 @@ impl fmt::Display for ShadowMapSettings {
         match self.filter {
             Filter::OneTap => write!(f, "sm-{}", self.side),
             Filter::Pcf(k) => write!(f, "pcf{k}-{}", self.side),
+            Filter::Pcss => write!(f, "pcss-{}", self.side),
         }
     }
 }
@@ -138,11 +164,12 @@ pub fn render_shadow_map(
     let light_setup_s = start.elapsed().as_secs_f64();
     let t = Instant::now();
     let triangles = eye_relative_f32(scene);
+    let pcss_light = pcss::PcssLight::new(scene, triangles.iter().flatten().copied());
     let maps = shadow_map::shadow_map(&setup, &triangles, settings.side, settings.filter);
     let shadow_map_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let visibility = if g.flags.iter().any(|f| f & flags::SHADOW_TESTED != 0) {
-        shadow_map::shadow_lookup(&setup, &maps, g, settings.filter)
+        shadow_map::shadow_lookup(&setup, &maps, g, settings.filter, &pcss_light)
     } else {
         vec![f32::NAN; g.flags.len()]
     };
@@ -178,6 +205,8 @@ mod tests {
             "csm4-pcf3-1024",
             "csm2-pcf5-64",
             "csm3-sm-256",
+            "pcss-512",
+            "pcss-2048",
         ] {
             let s = ShadowMapSettings::parse(name).unwrap();
             assert_eq!(s.to_string(), name);
@@ -190,6 +219,9 @@ mod tests {
             "csm2-pcf-512",
             "izb32",
             "pcf3-x",
+            "pcss-256",
+            "csm2-pcss-1024",
+            "pcss",
         ] {
             assert!(ShadowMapSettings::parse(bad).is_err(), "{bad} parsed");
         }

@@ -25,6 +25,10 @@ pub enum Filter {
     /// `k`×`k` bilinear taps (each a Gather-style 2×2 with its own
     /// comparison depth), receiver-plane depth bias ([Shadow acne notes]).
     Pcf(u32),
+    /// Percentage-closer soft shadows (Fernando 2005): blocker search,
+    /// penumbra estimate, Poisson-disk PCF of that width
+    /// ([`super::pcss`]).
+    Pcss,
 }
 
 impl Filter {
@@ -33,6 +37,7 @@ impl Filter {
         match self {
             Filter::OneTap => 0,
             Filter::Pcf(k) => k / 2 + 1,
+            Filter::Pcss => izb_contract::pcss::MAX_RADIUS_TEXELS,
         }
     }
 }
@@ -118,7 +123,7 @@ impl ShadowMaps {
 
 /// Distance to the light of a light-view point: smaller is nearer.
 #[inline]
-fn light_distance(projection: Projection, p: Vec3) -> f32 {
+pub(super) fn light_distance(projection: Projection, p: Vec3) -> f32 {
     match projection {
         Projection::Orthographic => -p.z,
         Projection::Perspective => p.z,
@@ -140,7 +145,12 @@ fn ray_direction(projection: Projection, n: Vec2) -> (Vec3, Vec3) {
 /// through `point` with normal `normal` (light view); `None` when the ray
 /// runs along the plane.
 #[inline]
-fn plane_distance(projection: Projection, n: Vec2, point: Vec3, normal: Vec3) -> Option<f32> {
+pub(super) fn plane_distance(
+    projection: Projection,
+    n: Vec2,
+    point: Vec3,
+    normal: Vec3,
+) -> Option<f32> {
     let (origin, dir) = ray_direction(projection, n);
     let denom = normal.dot(dir);
     let t = normal.dot(point - origin) / denom;
@@ -315,7 +325,7 @@ fn draw_triangle(
 /// World size of one texel of `map` at light-view point `p` (the larger
 /// axis: texels follow the fitted bounds' aspect).
 #[inline]
-fn texel_world(map: &CascadeMap, projection: Projection, p: Vec3) -> f32 {
+pub(super) fn texel_world(map: &CascadeMap, projection: Projection, p: Vec3) -> f32 {
     let s = map.texel_ndc.max_element();
     match projection {
         Projection::Orthographic => s,
@@ -324,12 +334,14 @@ fn texel_world(map: &CascadeMap, projection: Projection, p: Vec3) -> f32 {
 }
 
 /// Pass `shadow_lookup`: lit fraction of every shadow-tested pixel (NaN
-/// elsewhere), looked up at the pixel centre in its cascade's map.
+/// elsewhere), looked up at the pixel centre in its cascade's map. `light`
+/// is read by [`Filter::Pcss`] only.
 pub fn shadow_lookup(
     setup: &LightSetup,
     maps: &ShadowMaps,
     g: &GBuffer,
     filter: Filter,
+    light: &super::pcss::PcssLight,
 ) -> Vec<f32> {
     (0..g.flags.len())
         .into_par_iter()
@@ -346,6 +358,7 @@ pub fn shadow_lookup(
             match filter {
                 Filter::OneTap => one_tap(setup.projection, map, p, n, ndc),
                 Filter::Pcf(k) => pcf(setup.projection, map, p, n, ndc, k),
+                Filter::Pcss => super::pcss::pcss(setup, light, map, g.position[i], p, n, ndc),
             }
         })
         .collect()

@@ -51,8 +51,9 @@ pub struct Method {
 pub const DEFAULT_MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
 
 /// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5` and
-/// `csm4-pcf3` at every side of `map_sides`; `reference` (the ground
-/// truth's own timing) is always measured and skipped here.
+/// `csm4-pcf3` at every side of `map_sides` (not `pcss`: under a hard light
+/// it is only a narrow PCF; name `pcss-R` to time it); `reference` (the
+/// ground truth's own timing) is always measured and skipped here.
 pub fn parse_methods(
     names: &[String],
     map_sides: &[u32],
@@ -103,4 +104,26 @@ pub fn parse_methods(
         .into_iter()
         .map(|(name, kind)| Method { name, kind })
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pcss_is_a_shadow_map_method() {
+        let names = vec!["pcss-2048".to_string()];
+        let methods = parse_methods(&names, &DEFAULT_MAP_SIDES, IzbSettings::default()).unwrap();
+        assert_eq!(methods.len(), 1);
+        assert_eq!(methods[0].name, "pcss-2048");
+        assert_eq!(methods[0].kind.family(), "shadow-map");
+        assert!(!methods[0].kind.masks_32());
+        let err = parse_methods(
+            &["pcss-128".to_string()],
+            &DEFAULT_MAP_SIDES,
+            IzbSettings::default(),
+        )
+        .unwrap_err();
+        assert!(err.contains("pcss-128") && err.contains("512"), "{err}");
+    }
 }

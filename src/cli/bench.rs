@@ -34,8 +34,9 @@ pub struct BenchArgs {
     resolution: Vec<[u32; 2]>,
     /// Methods, comma separated: izb1, izb32, izb32-exact, rt32 (the 32
     /// µQuad samples ray traced), shadow maps `sm-R`, `pcf3-R`, `pcf5-R`,
-    /// `csmN-pcfK-R` (R texels a side), or `shadow-maps` for all four
-    /// kinds at every `--map-sides`. The ground truth is always traced.
+    /// `csmN-pcfK-R`, `pcss-R` (soft, Fernando 2005; R texels a side), or
+    /// `shadow-maps` for the first four kinds at every `--map-sides`. The
+    /// ground truth is always traced.
     #[arg(
         long,
         value_delimiter = ',',

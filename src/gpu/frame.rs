@@ -248,12 +248,7 @@ impl GpuRenderer {
             loop_budget(&shared.info.name),
         );
         if let FramePasses::ShadowMap(map) = passes {
-            params.map_side = map.side;
-            params.map_filter = match map.filter {
-                crate::baseline::Filter::OneTap => 0,
-                crate::baseline::Filter::Pcf(k) => k,
-            };
-            params.map_reach = map.filter.reach();
+            super::shadow_map::map_params(&mut params, scene, triangles, map);
         }
         let mut uploads: Vec<(GpuBuffer, u32)> = Vec::new();
         let mut stage = |b: u32, bytes: &[u8]| -> Result<(), GpuError> {

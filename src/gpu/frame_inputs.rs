@@ -179,6 +179,8 @@ pub(super) fn frame_params(
         light_samples: soft as u32,
         sun_axis_u: sun_axis_u.to_array(),
         sun_axis_v: sun_axis_v.to_array(),
+        map_light_size: 0.0,
+        map_near: 0.0,
         pattern: *pattern,
     }
 }

@@ -8,13 +8,43 @@
 use super::frame::{FramePasses, GBufferSource, GpuRenderer, GpuShadowMapRender};
 use super::frame_report::ShadowMapMillis;
 use super::{GpuError, Kernels, Recorder};
-use crate::baseline::ShadowMapSettings;
+use crate::baseline::pcss::PcssLight;
+use crate::baseline::{Filter, ShadowMapSettings};
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
+use glam::Vec3;
+use izb_contract::{FrameParams, GpuTriangle};
 
 /// Most workgroups along x (the Vulkan minimum of
 /// `maxComputeWorkGroupCount[0]`); more triangles go on in y.
 const MAX_GROUPS_X: u32 = 65_535;
+
+/// The shadow-map fields of `params` for `map`: side, filter code, margin
+/// and, for PCSS, the light ([`PcssLight`], computed from the uploaded
+/// vertices exactly as the CPU twin computes it from its own).
+pub(super) fn map_params(
+    params: &mut FrameParams,
+    scene: &Scene,
+    triangles: &[GpuTriangle],
+    map: ShadowMapSettings,
+) {
+    params.map_side = map.side;
+    params.map_filter = match map.filter {
+        Filter::OneTap => 0,
+        Filter::Pcf(k) => k,
+        Filter::Pcss => izb_contract::pcss::FILTER,
+    };
+    params.map_reach = map.filter.reach();
+    if map.filter == Filter::Pcss {
+        let vertices = triangles
+            .iter()
+            .flat_map(|t| [t.a, t.b, t.c])
+            .map(Vec3::from);
+        let light = PcssLight::new(scene, vertices);
+        params.map_light_size = light.size;
+        params.map_near = light.near;
+    }
+}
 
 /// Records the raster pass: one 64-invocation workgroup per triangle.
 pub fn shadow_map(rec: &Recorder, kernels: &Kernels, triangles: u32) {
