@@ -48,18 +48,6 @@ impl IzbSettings {
         scene.has_area_light() && self.mode != SampleMode::One
     }
 
-    /// The settings a render of `scene` runs with: under an area light
-    /// the skips that stay exact there ([`Skips::for_area_light`]).
-    pub fn for_scene(self, scene: &crate::scene::Scene) -> IzbSettings {
-        if self.light_samples(scene) {
-            IzbSettings {
-                skips: self.skips.for_area_light(),
-                ..self
-            }
-        } else {
-            self
-        }
-    }
 }
 
 impl Default for IzbSettings {

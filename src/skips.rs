@@ -84,18 +84,6 @@ impl Skips {
         shadow_map: false,
     };
 
-    /// The skips that stay exact under a light of finite size: all but
-    /// `behind_receivers`. Its test drops a triangle whose plane every
-    /// receiver of the cell lies above (toward the light); a ray to an
-    /// off-centre sample of the light's disk can still descend to a steep
-    /// plane from above and cross it, so it would drop real penumbrae.
-    pub fn for_area_light(self) -> Skips {
-        Skips {
-            behind_receivers: false,
-            ..self
-        }
-    }
-
     /// Every skip's `--skip` name.
     pub fn names() -> impl Iterator<Item = &'static str> {
         FIELDS.iter().map(|(n, _, _)| *n)

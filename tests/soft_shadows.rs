@@ -38,8 +38,8 @@ fn check_soft_grid(
     let setup = light_setup(scene, &g, request);
     assert!(setup.light_radius > 0.0, "{}: no area light", scene.name);
     let triangles = eye_relative_f32(scene);
-    let skips = Skips::ALL.for_area_light();
-    let bins = bin(&setup, &triangles, skips, None);
+    let boxes = setup.microquad_boxes(&g, Skips::ALL);
+    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some((&g, &boxes)));
     let rule = MaskRule::for_light(SampleMode::Exact32, Skips::NONE, true);
     let (mut pixels, mut pairs) = (0, 0);
     for i in (0..g.flags.len()).step_by(stride) {

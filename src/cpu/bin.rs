@@ -9,7 +9,9 @@
 
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
 use super::footprint::{footprint, Footprint};
-use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
+use super::light_setup::{
+    level_scale, CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection,
+};
 use super::receivers::upward_normal;
 pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
 use super::Skips;
@@ -101,6 +103,9 @@ pub struct BinStats {
     pub entries_behind_receivers: usize,
     /// Binned placements dropped from every cell they cover.
     pub triangles_behind_receivers: usize,
+    /// (cell, triangle) entries an area light's per-cell penumbra bound
+    /// dropped ([`penumbra_reaches_cell`]).
+    pub entries_outside_penumbra: usize,
     /// Cells with a cover triangle (the conservative shadow map).
     pub covered_cells: usize,
 }
@@ -220,6 +225,41 @@ pub fn penumbra_pad(setup: &LightSetup, tri: &[Vec3; 3], ndc: &[Vec2; 3]) -> Opt
             Some(tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow)
         }
     }
+}
+
+/// The per-cell bound on a directional area light's penumbra (with the
+/// `behind_receivers` skip, whose per-cell receiver depths it uses):
+/// whether triangle `tri` (light view, footprint `f` padded for the
+/// lowest receiver of the frame) may hide light from a receiver that
+/// tests cell `c` = (`x`, `y`). Such a receiver's P lies within the cell
+/// grown by the cell's reach, no lower than the cell's lowest receiver,
+/// so the penumbra it can fall in is tan r · (top − that depth) wide:
+/// the cell must list the triangle only when the footprint grown by that
+/// pad and the reach touches it. Every cell of a pixel's range keeps a
+/// triangle the pixel needs (it is registered in all of them), so the
+/// entries' neighbour bits, computed from the frame-wide footprint,
+/// still name one cell per pixel ([`CellEntry`]). Point lights: always
+/// true (their pad already assumes the farthest receiver).
+#[allow(clippy::too_many_arguments)]
+pub fn penumbra_reaches_cell(
+    setup: &LightSetup,
+    grid: &CascadeGrid,
+    receivers: &CellReceivers,
+    f: &Footprint,
+    tri: &[Vec3; 3],
+    c: usize,
+    x: u32,
+    y: u32,
+) -> bool {
+    if setup.light_radius == 0.0 || setup.projection != Projection::Orthographic {
+        return true;
+    }
+    let top = tri[0].z.max(tri[1].z).max(tri[2].z);
+    let pad = setup.light_radius * (top - receivers.z_min[c]).max(0.0) * (1.0 + PENUMBRA_MARGIN);
+    let cells = Vec2::new(grid.cells[0] as f32, grid.cells[1] as f32);
+    let pad = pad * cells / (grid.ndc_max - grid.ndc_min) * level_scale(f.level);
+    let reach = receivers.reach[c] as f32;
+    f.touches_grown(i64::from(x), i64::from(y), pad + reach + CELL_PADDING)
 }
 
 /// Where triangle `tri` (light view) goes in `grid`, and its footprint
@@ -444,6 +484,7 @@ impl BinStats {
         total.cells_untouched += self.cells_untouched;
         total.entries_behind_receivers += self.entries_behind_receivers;
         total.triangles_behind_receivers += self.triangles_behind_receivers;
+        total.entries_outside_penumbra += self.entries_outside_penumbra;
         if total.per_level.len() < self.per_level.len() {
             total.per_level.resize(self.per_level.len(), 0);
         }
@@ -500,9 +541,15 @@ fn block_entries(
                     }
                     let c = cells.index(x, y);
                     if receivers
-                        .is_some_and(|r| behind_receivers(grid, r, &light_view[id], level, c, x, y))
+                        .is_some_and(|r| behind_receivers(grid, r, &light_view[id], level, c, x, y, setup.light_radius))
                     {
                         stats.entries_behind_receivers += 1;
+                        continue;
+                    }
+                    if receivers.is_some_and(|r| {
+                        !penumbra_reaches_cell(setup, grid, r, &f, &light_view[id], c, x, y)
+                    }) {
+                        stats.entries_outside_penumbra += 1;
                         continue;
                     }
                     listed = true;

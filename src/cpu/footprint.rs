@@ -134,6 +134,13 @@ impl Footprint {
     /// that the triangle misses only costs a test.
     #[inline]
     pub fn touches(&self, x: i64, y: i64) -> bool {
+        self.touches_grown(x, y, self.pad + CELL_PADDING)
+    }
+
+    /// [`Self::touches`] with the cell box grown by `grow` (this level's
+    /// cells along x and y) instead of the pad and [`CELL_PADDING`].
+    #[inline]
+    pub fn touches_grown(&self, x: i64, y: i64, grow: Vec2) -> bool {
         let [x0, y0, x1, y1] = self.rect.map(i64::from);
         if x < x0 || x > x1 || y < y0 || y > y1 {
             return false;
@@ -141,7 +148,6 @@ impl Footprint {
         if self.orientation == 0.0 {
             return true;
         }
-        let grow = self.pad + CELL_PADDING;
         let (lo_x, lo_y) = (x as f32 - grow.x, y as f32 - grow.y);
         let (hi_x, hi_y) = (x as f32 + 1.0 + grow.x, y as f32 + 1.0 + grow.y);
         let corners = [(lo_x, lo_y), (hi_x, lo_y), (hi_x, hi_y), (lo_x, hi_y)];

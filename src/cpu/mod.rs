@@ -92,7 +92,6 @@ pub fn eye_relative_f32(scene: &Scene) -> Vec<[glam::Vec3; 3]> {
 pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> ShadowRender {
     let start = Instant::now();
     let soft = settings.light_samples(scene);
-    let settings = settings.for_scene(scene);
     let mut seconds = PassSeconds::default();
     let mut lap = {
         let mut t = Instant::now();

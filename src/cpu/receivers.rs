@@ -149,6 +149,7 @@ pub const BEHIND_MARGIN: f32 = izb_contract::tolerance::BEHIND_MARGIN;
 ///   through the grown cell down to the largest depth; the light is on its
 ///   own side of the plane, so the pyramid is when its four base corners
 ///   are.
+#[allow(clippy::too_many_arguments)]
 pub fn behind_receivers(
     grid: &CascadeGrid,
     receivers: &CellReceivers,
@@ -157,10 +158,14 @@ pub fn behind_receivers(
     c: usize,
     x: u32,
     y: u32,
+    light_radius: f32,
 ) -> bool {
     let z_min = receivers.z_min[c];
     if z_min == f32::INFINITY {
         return true;
+    }
+    if light_radius > 0.0 && !beyond_every_light_sample(tri, receivers.projection, light_radius) {
+        return false;
     }
     let r = receivers.reach[c] as f32 + CELL_PADDING;
     // Level-l grid coordinates to level 0: times 2^l, exact.
@@ -173,6 +178,32 @@ pub fn behind_receivers(
     match receivers.projection {
         Projection::Orthographic => plane_below_box(tri, lo, hi, z_min),
         Projection::Perspective => plane_beyond_pyramid(tri, lo, hi, -z_min),
+    }
+}
+
+/// Under an area light the cull also needs every light sample on the
+/// receivers' side of the plane, seen along every ray: a receiver above
+/// a steep plane can still see part of the light's disk through it.
+/// - Directional light of angular radius r (`light_radius` = tan r): a
+///   ray toward any sample never descends toward the plane when the
+///   plane's upward unit normal has n̂_z ≥ sin r.
+/// - Sphere light of radius R at the origin: every sample lies on the
+///   light's (and the receivers') side when the plane is farther than R
+///   from the centre; a segment between two points of one half-space
+///   stays in it.
+///
+/// With a margin of [`BEHIND_MARGIN`], far above the `f32` rounding.
+fn beyond_every_light_sample(tri: &[Vec3; 3], projection: Projection, light_radius: f32) -> bool {
+    let grow = 1.0 + BEHIND_MARGIN;
+    match projection {
+        Projection::Orthographic => upward_normal(tri).is_some_and(|n| {
+            let sin_r = light_radius / (1.0 + light_radius * light_radius).sqrt();
+            n.z > sin_r * grow * n.length()
+        }),
+        Projection::Perspective => {
+            let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            n.dot(tri[0]).abs() > light_radius * grow * n.length()
+        }
     }
 }
 
