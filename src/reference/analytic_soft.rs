@@ -200,7 +200,7 @@ impl SoftShadow {
     /// every ground point within `rho` of it: `Some(m)` if so. While the
     /// gap between ∂Q and the disk is below μ ≤ the margin, the nearest
     /// points of ∂Q lie within 1 + μ of the centre and so move at most
-    /// [`Self::boundary_speed`]`(1 + μ)` per ground unit: the gap cannot
+    /// `boundary_speed(1 + μ)` per ground unit: the gap cannot
     /// close over a distance shorter than μ / that speed.
     fn constant_within(&self, clearance: Clearance, rho: f64) -> Option<f64> {
         let mu = clearance.margin().min(1.0);
@@ -221,7 +221,7 @@ impl SoftShadow {
     /// disk ∩ Q changes at the normal speed of ∂Q integrated over ∂Q ∩ disk,
     /// whose length is at most the disk's perimeter 2π (it bounds part of
     /// the convex set Q ∩ disk), so |dm| ≤ (2π/π) · speed · |dX| with the
-    /// speed of [`Self::boundary_speed`]`(1)`. A cell whose ground footprint
+    /// speed of `boundary_speed(1)`. A cell whose ground footprint
     /// lies within ρ of its centre's ground point is thus off by at most
     /// min(1, 2 · speed · ρ); the footprint of a screen square is a convex
     /// quadrilateral (a homography), so ρ is attained at its corners.
@@ -271,7 +271,7 @@ impl SoftShadow {
                 let rho = cell.iter().map(|c| (*c - g).length()).fold(0.0, f64::max);
                 let q = self.disk_polygon(g);
                 match self.constant_within(clearance(&q, 1.0), rho) {
-                    Some(v) if v == 1.0 => all_umbra = false,
+                    Some(1.0) => all_umbra = false,
                     Some(_) => all_lit = false,
                     None => (all_lit, all_umbra) = (false, false),
                 }

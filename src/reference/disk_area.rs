@@ -153,7 +153,7 @@ mod tests {
             DVec2::new(0.4, -0.1),
             DVec2::new(0.0, 0.5),
         ];
-        let shoelace = 0.5 * (0.7 * 0.7 - 0.1 * 0.4);
+        let shoelace = 0.5 * (0.7 * 0.7 - 0.1 * 0.3);
         assert!((polygon_disk_area(&tri, 1.0) - shoelace).abs() < 1e-15);
         // Either winding.
         let rev: Vec<_> = tri.iter().rev().copied().collect();
