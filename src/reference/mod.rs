@@ -6,17 +6,25 @@
 //! surfaces facing away from the light count as shadowed, and pixels whose
 //! *centre* is not shadow-tested are NaN (excluded from every metric).
 //!
+//! With an area light (`Scene::light_radius > 0`) each sub-pixel hit sends
+//! [`LIGHT_SAMPLES_PER_RAY`] shadow rays instead, stratified over the
+//! light's disk ([`crate::scene::LightDisk`]); the pixel's value is lit
+//! samples / all samples. With `light_radius == 0` the hard path above runs
+//! unchanged, bit for bit.
+//!
 //! Everything is `f64` and eye-relative; see [`crate::bvh`] for the ray caster and
 //! [`crate::bvh::self_hit_offset`] for how shadow rays leave their surface.
 
 pub mod analytic;
+pub mod analytic_soft;
+pub mod disk_area;
 pub mod same_samples;
 pub mod soft_samples;
 
 use crate::bvh::{self_hit_offset, SceneBvh};
 use crate::gbuffer::{faces_light, pixel_surface, trace_primary};
-use crate::scene::{CameraFrame, Light, Scene};
-use glam::DVec3;
+use crate::scene::{light_disk, CameraFrame, Light, LightDisk, Scene};
+use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 use rayon::prelude::*;
@@ -24,6 +32,33 @@ use std::time::Instant;
 
 /// Side of the square tiles the image is split into for the thread pool.
 const TILE: u32 = 16;
+
+/// Light samples per sub-pixel hit under an area light: the unit square
+/// cut into 2 × 2 strata, one jittered point each, mapped onto the disk by
+/// the concentric map, so each sample is uniform over one quarter of the
+/// disk (paper-notes/reference-estimator.md, "Area lights").
+pub const LIGHT_SAMPLES_PER_RAY: u32 = 4;
+
+/// Strata per side of the light samples' square (L = side²).
+const LIGHT_STRATA_PER_SIDE: u32 = 2;
+
+/// The area-preserving concentric map of Shirley and Chiu 1997 from the
+/// unit square [0, 1)² onto the unit disk. Each quadrant of the square goes
+/// to the matching quarter of the disk, and uniform density stays uniform,
+/// so stratifying the square stratifies the disk.
+pub fn concentric_disk(u: f64, v: f64) -> DVec2 {
+    let (a, b) = (2.0 * u - 1.0, 2.0 * v - 1.0);
+    if a == 0.0 && b == 0.0 {
+        return DVec2::ZERO;
+    }
+    let quarter = std::f64::consts::FRAC_PI_4;
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, quarter * (b / a))
+    } else {
+        (b, 2.0 * quarter - quarter * (a / b))
+    };
+    DVec2::new(r * phi.cos(), r * phi.sin())
+}
 
 /// What the ground truth is traced with.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
@@ -113,6 +148,9 @@ struct Tracer<'a> {
     bvh: &'a SceneBvh,
     frame: CameraFrame,
     light: Light,
+    /// Radius of the light's disk in [`LightDisk`] units (tan r for a
+    /// directional light, R for a point light); `None` for a hard light.
+    disk_radius: Option<f64>,
     settings: ReferenceSettings,
 }
 
@@ -129,7 +167,56 @@ impl Tracer<'_> {
             .occluded(p, toward, self_hit_offset(p), distance, triangle)
     }
 
+    /// Area light: how many of [`LIGHT_SAMPLES_PER_RAY`] stratified light
+    /// samples reach the surface point `p`, and how many shadow rays that
+    /// took. A sample below the tangent plane (normal · sample ≤ 0) is
+    /// occluded by the receiver itself and costs no ray, so a surface that
+    /// faces away from the light's centre still receives the part of the
+    /// disk its tangent plane sees.
+    fn lit_area(
+        &self,
+        p: DVec3,
+        normal: DVec3,
+        triangle: u32,
+        radius: f64,
+        rng: &mut Pcg32,
+    ) -> (u32, u32) {
+        let disk: LightDisk<DVec3> = match self.light {
+            Light::Directional { direction } => light_disk(-direction.normalize(), radius),
+            Light::Point { position } => light_disk(position - p, radius),
+        };
+        let (mut lit, mut rays) = (0, 0);
+        let side = LIGHT_STRATA_PER_SIDE;
+        for stratum in 0..LIGHT_SAMPLES_PER_RAY {
+            let u = ((stratum % side) as f64 + rng.random::<f64>()) / side as f64;
+            let v = ((stratum / side) as f64 + rng.random::<f64>()) / side as f64;
+            // The axes are orthonormal scaled to the diameter: half of each
+            // takes the unit disk to the light's.
+            let q = concentric_disk(u, v);
+            let sample = disk.centre + 0.5 * q.x * disk.axis_u + 0.5 * q.y * disk.axis_v;
+            if normal.dot(sample) <= 0.0 {
+                continue;
+            }
+            rays += 1;
+            let (toward, distance) = match self.light {
+                Light::Directional { .. } => (sample.normalize(), f64::INFINITY),
+                Light::Point { .. } => {
+                    let len = sample.length();
+                    (sample / len, len)
+                }
+            };
+            lit += !self
+                .bvh
+                .occluded(p, toward, self_hit_offset(p), distance, triangle)
+                as u32;
+        }
+        (lit, rays)
+    }
+
     fn pixel(&self, x: u32, y: u32) -> PixelResult {
+        if let Some(radius) = self.disk_radius {
+            return self.pixel_area(x, y, radius);
+        }
         let Some(centre) = pixel_surface(self.bvh, self.scene, &self.frame, x, y) else {
             return UNTESTED;
         };
@@ -186,6 +273,66 @@ impl Tracer<'_> {
     }
 }
 
+impl Tracer<'_> {
+    /// [`Tracer::pixel`] under an area light of disk radius `radius`: the
+    /// same sub-pixel rays from the same per-pixel stream, each hit
+    /// followed by [`LIGHT_SAMPLES_PER_RAY`] light samples drawn from it.
+    fn pixel_area(&self, x: u32, y: u32, radius: f64) -> PixelResult {
+        let Some(centre) = pixel_surface(self.bvh, self.scene, &self.frame, x, y) else {
+            return UNTESTED;
+        };
+        if !centre.shadow_tested {
+            return UNTESTED;
+        }
+        let plane_tolerance = 1e-3 * centre.axis_x.length().max(centre.axis_y.length());
+        let k = self.settings.samples_per_side;
+        let pixel_index = y as u64 * self.frame.width as u64 + x as u64;
+        let mut rng = Pcg32::seed_from_u64(
+            self.settings.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ pixel_index,
+        );
+        let (mut samples, mut lit, mut shadow_rays) = (0u32, 0u32, 0u32);
+        let mut smooth = true;
+        let (near, far) = (self.scene.camera.near, self.scene.camera.far);
+        for j in 0..k {
+            for i in 0..k {
+                let u = (i as f64 + rng.random::<f64>()) / k as f64;
+                let v = (j as f64 + rng.random::<f64>()) / k as f64;
+                let sub =
+                    trace_primary(self.bvh, &self.frame, near, far, x as f64 + u, y as f64 + v);
+                let Some(sub) = sub else {
+                    smooth = false;
+                    continue;
+                };
+                smooth &= centre
+                    .hit
+                    .normal
+                    .dot(sub.position - centre.hit.position)
+                    .abs()
+                    <= plane_tolerance;
+                let (l, rays) =
+                    self.lit_area(sub.position, sub.normal, sub.triangle, radius, &mut rng);
+                samples += LIGHT_SAMPLES_PER_RAY;
+                lit += l;
+                shadow_rays += rays;
+            }
+        }
+        if samples == 0 {
+            // As in the hard path: fall back to the centre hit.
+            let hit = centre.hit;
+            let (l, rays) = self.lit_area(hit.position, hit.normal, hit.triangle, radius, &mut rng);
+            samples = LIGHT_SAMPLES_PER_RAY;
+            lit = l;
+            shadow_rays += rays;
+        }
+        PixelResult {
+            visibility: lit as f32 / samples as f32,
+            smooth: smooth as u32 as f32,
+            primary_rays: 1 + k * k,
+            shadow_rays,
+        }
+    }
+}
+
 /// Traces the ground truth of `scene`. `on_tile(pixels)` is called after
 /// each finished tile (for a progress bar).
 pub fn reference(
@@ -201,6 +348,10 @@ pub fn reference(
         bvh,
         frame: scene.camera.frame(scene.resolution),
         light: scene.light.relative_to(scene.camera.eye),
+        disk_radius: scene.has_area_light().then(|| match scene.light {
+            Light::Directional { .. } => scene.light_radius.tan(),
+            Light::Point { .. } => scene.light_radius,
+        }),
         settings,
     };
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
