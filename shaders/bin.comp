@@ -99,6 +99,21 @@ bool plane_beyond_pyramid(Triangle t, vec2 lo, vec2 hi, float depth) {
         && side * dot(n, q2 - t.a) > margin && side * dot(n, q3 - t.a) > margin;
 }
 
+// receivers::beyond_every_light_sample: under an area light, the cull
+// also needs every light sample on the receivers' side of the plane.
+bool beyond_every_light_sample(Triangle t) {
+    precise float grow = 1.0 + BEHIND_MARGIN;
+    float r = frame.light_radius;
+    if (light.projection == 0u) {
+        vec3 n;
+        if (!upward_normal(t, n)) return false;
+        precise float sin_r = r / sqrt(1.0 + r * r);
+        return n.z > sin_r * grow * length(n);
+    }
+    precise vec3 n = cross(t.b - t.a, t.c - t.a);
+    return abs(dot(n, t.a)) > r * grow * length(n);
+}
+
 // bin::behind_receivers: whether triangle t (light view) lies behind every
 // receiver that can test it in cell `cell` = (x, y) of level `level` of
 // cascade k, so the cell need not list it: a directional light's plane
@@ -107,6 +122,7 @@ bool behind_receivers(Triangle t, uint k, uint level, uint cell, uint x, uint y)
     if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u) return false;
     uvec2 r = cell_receivers[cell];
     if (r.x == 0xFFFFFFFFu) return true;   // no receiver touches the cell
+    if (frame.light_radius > 0.0 && !beyond_every_light_sample(t)) return false;
     float z_min = from_ordered_bits(r.x);
     float reach = float(~r.y) + CELL_PADDING;
     // Level-l grid coordinates to level 0: times 2^l, exact.
@@ -232,16 +248,37 @@ bool edge_reaches(vec2 a, vec2 b, float o, float lo_x, float lo_y, float hi_x, f
 
 // Footprint::touches: whether the projection touches the padded box of
 // cell (x, y) of its level (false outside its rectangle).
-bool touches(Footprint f, int x, int y) {
+bool touches_grown(Footprint f, int x, int y, vec2 grow) {
     ivec4 r = ivec4(f.rect);
     if (x < r.x || x > r.z || y < r.y || y > r.w) return false;
     if (f.orientation == 0.0) return true;
-    precise vec2 grow = f.pad + CELL_PADDING;
     precise float lo_x = float(x) - grow.x, lo_y = float(y) - grow.y;
     precise float hi_x = float(x) + 1.0 + grow.x, hi_y = float(y) + 1.0 + grow.y;
     return edge_reaches(f.v0, f.v1, f.orientation, lo_x, lo_y, hi_x, hi_y)
         && edge_reaches(f.v1, f.v2, f.orientation, lo_x, lo_y, hi_x, hi_y)
         && edge_reaches(f.v2, f.v0, f.orientation, lo_x, lo_y, hi_x, hi_y);
+}
+
+// Footprint::touches: the cell box grown by the pad and the padding.
+bool touches(Footprint f, int x, int y) {
+    precise vec2 grow = f.pad + CELL_PADDING;
+    return touches_grown(f, x, y, grow);
+}
+
+// bin::penumbra_reaches_cell: a directional area light's per-cell bound,
+// from the cell's lowest receiver and its reach (behind-receivers skip).
+bool penumbra_reaches_cell(Triangle t, uint k, Footprint f, uint c, uint x, uint y) {
+    if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || frame.light_radius == 0.0
+        || light.projection != 0u) return true;
+    uvec2 r = cell_receivers[c];
+    float z_min = from_ordered_bits(r.x);
+    float top = max(max(t.a.z, t.b.z), t.c.z);
+    precise float pad_ndc = frame.light_radius * max(top - z_min, 0.0) * (1.0 + PENUMBRA_MARGIN);
+    CascadeGrid grid = light.cascade[k];
+    precise vec2 pad = pad_ndc * vec2(float(grid.cells_x), float(grid.cells_y))
+        / (grid.ndc_max - grid.ndc_min);
+    precise vec2 grow = ldexp(pad, ivec2(-int(f.level))) + float(~r.y) + CELL_PADDING;
+    return touches_grown(f, int(x), int(y), grow);
 }
 
 // bin::place in cascade k: PLACEMENT_CULLED, PLACEMENT_OVERFLOW, or
@@ -379,6 +416,7 @@ void main() {
                     dropped += 1u;
                     continue;
                 }
+                if (!penumbra_reaches_cell(t, k, f, c, x, y)) continue;
                 atomicAdd(cell_start[c], 1u);
                 listed = true;
                 uint fl = cover_floor(t, k, f.level, x, y);
@@ -448,6 +486,7 @@ void main() {
                 if (!touches(f, int(x), int(y))) continue;
                 uint c = cell_index_at(k, level_start, f.level, x, y);
                 if (behind_receivers(t, k, f.level, c, x, y)) continue;
+                if (!penumbra_reaches_cell(t, k, f, c, x, y)) continue;
                 uint slot = atomicAdd(cell_start[c], 0xFFFFFFFFu) - 1u;
                 // CellEntry::new: whether the cells to the left / below lack it.
                 uint entry = id | (touches(f, int(x) - 1, int(y)) ? 0u : ENTRY_FIRST_COLUMN)

@@ -47,7 +47,6 @@ impl IzbSettings {
     pub fn light_samples(&self, scene: &crate::scene::Scene) -> bool {
         scene.has_area_light() && self.mode != SampleMode::One
     }
-
 }
 
 impl Default for IzbSettings {

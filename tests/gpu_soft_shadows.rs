@@ -26,9 +26,20 @@ const RESOLUTION: [u32; 2] = [160, 90];
 fn check(r: &GpuRenderer, scene: Scene) -> usize {
     let scene = scene.with_resolution(RESOLUTION).unwrap();
     let bvh = SceneBvh::build(&scene);
-    let allowed = if r.context.info().kind == "CPU" { 0.0 } else { 1e-4 };
+    let on_cpu = r.context.info().kind == "CPU";
     let mut compared = 0;
     for mode in [SampleMode::Lut32, SampleMode::Exact32] {
+        // Exact mode has no transcendental function: bit for bit on
+        // lavapipe. The LUT's row is floor((atan2 + π) · scale), and
+        // neither Rust's libm nor lavapipe rounds atan2 correctly: a
+        // light edge within an ulp of a row boundary may read the next
+        // row (measured: 1 light sample of 332 416 on wires under a 3°
+        // sun).
+        let allowed = match (on_cpu, mode) {
+            (true, SampleMode::Exact32) => 0.0,
+            (true, _) => 1e-5,
+            (false, _) => 1e-4,
+        };
         let settings = IzbSettings {
             mode,
             ..Default::default()

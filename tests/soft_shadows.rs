@@ -26,6 +26,7 @@ fn check_soft_grid(
     cells: Option<u32>,
     level_cells: u32,
     stride: usize,
+    cull: bool,
 ) -> (usize, usize) {
     let bvh = SceneBvh::build(scene);
     let g = gbuffer(scene, &bvh);
@@ -88,13 +89,16 @@ fn padded_grid_offers_every_occluder_of_a_light_sample() {
             .with_light_size(size)
             .unwrap();
         // A fine grid and a low level threshold: the pads span many cells
-        // and several levels.
-        let (pixels, pairs) = check_soft_grid(&scene, Some(40), 16, 3);
-        println!(
-            "{name} (sun {size}°): {pixels} pixels, {pairs} occluder/pixel pairs, all offered"
-        );
-        assert!(pixels > 300 && pairs > 100, "{name}: too little exercised");
-        checked += 1;
+        // and several levels; with and without the per-cell bounds.
+        for cull in [false, true] {
+            let (pixels, pairs) = check_soft_grid(&scene, Some(40), 16, 3, cull);
+            println!(
+                "{name} (sun {size}°, per-cell bounds {cull}): {pixels} pixels, {pairs} \
+                 occluder/pixel pairs, all offered"
+            );
+            assert!(pixels > 300 && pairs > 100, "{name}: too little exercised");
+            checked += 1;
+        }
     }
     let hairball = scene::procedural::hairball(3000);
     let scene = Scene::new(
@@ -107,7 +111,7 @@ fn padded_grid_offers_every_occluder_of_a_light_sample() {
     .unwrap()
     .with_light_size(1.0)
     .unwrap();
-    let (pixels, pairs) = check_soft_grid(&scene, Some(24), 16, 3);
+    let (pixels, pairs) = check_soft_grid(&scene, Some(24), 16, 3, true);
     println!("hairball (sun 1°): {pixels} pixels, {pairs} occluder/pixel pairs, all offered");
     assert!(pixels > 300 && pairs > 100);
     checked += 1;
@@ -117,12 +121,12 @@ fn padded_grid_offers_every_occluder_of_a_light_sample() {
             .unwrap()
             .with_light_size(20.0)
             .unwrap();
-        let (pixels, pairs) = check_soft_grid(&scene, Some(32), 9, 1);
+        let (pixels, pairs) = check_soft_grid(&scene, Some(32), 9, 1, true);
         println!("engine (sphere light r = 20): {pixels} pixels, {pairs} occluder/pixel pairs, all offered");
         assert!(pixels > 50 && pairs > 50);
         checked += 1;
     }
-    assert!(checked >= 5, "only {checked} configurations checked");
+    assert!(checked >= 9, "only {checked} configurations checked");
 }
 
 const RESOLUTION: [u32; 2] = [160, 90];

@@ -540,9 +540,18 @@ fn block_entries(
                         continue;
                     }
                     let c = cells.index(x, y);
-                    if receivers
-                        .is_some_and(|r| behind_receivers(grid, r, &light_view[id], level, c, x, y, setup.light_radius))
-                    {
+                    if receivers.is_some_and(|r| {
+                        behind_receivers(
+                            grid,
+                            r,
+                            &light_view[id],
+                            level,
+                            c,
+                            x,
+                            y,
+                            setup.light_radius,
+                        )
+                    }) {
                         stats.entries_behind_receivers += 1;
                         continue;
                     }

@@ -135,7 +135,7 @@ impl GpuRenderer {
         source: GBufferSource,
     ) -> Result<GpuRender, GpuError> {
         let pixels = scene.pixel_count();
-            let upload = self.prepare_frame(scene, source)?;
+        let upload = self.prepare_frame(scene, source)?;
         let triangles = &upload.triangles;
         let bvh_start = Instant::now();
         let bvh = super::gbuffer::frame_bvh(source, triangles)?;
