@@ -5,7 +5,7 @@
 //! CPU) no light sample may differ; on a GPU the allowance of
 //! `tests/gpu_backend.rs` (division, square roots and `atan` are not
 //! correctly rounded there). Procedural scenes under a 1° and a 3° sun,
-//! and the engine under a sphere light.
+//! and the engine under a sphere light (radius 5).
 //!
 //! No Vulkan device: the tests print that they skipped — unless
 //! `IZB_REQUIRE_GPU=1` (CI), where that fails. Every test fails on any
@@ -97,7 +97,9 @@ fn gpu_soft_masks_equal_the_cpu_twin() {
         compared += check(&r, scene);
     }
     if let Some(engine) = common::shared_scene("engine") {
-        compared += check(&r, engine.with_light_size(20.0).unwrap());
+        // A 5-unit sphere: at 20 the engine's busiest tile needs more loop
+        // trips than lavapipe allows (the frame is refused, as designed).
+        compared += check(&r, engine.with_light_size(5.0).unwrap());
     }
     assert!(compared >= 8, "only {compared} comparisons");
 }

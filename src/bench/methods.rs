@@ -68,7 +68,9 @@ pub fn parse_methods(
             "izb1" => out.push((name.to_string(), izb_mode(SampleMode::One))),
             "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
             "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
-            "rt32" => out.push((name.to_string(), MethodKind::RayTraced32)),
+            // Under an area light the same-sample reference traces the
+            // 32 light samples (`rt-soft`); the two names are one method.
+            "rt32" | "rt-soft" => out.push((name.to_string(), MethodKind::RayTraced32)),
             "rt32-rays" => out.push((name.to_string(), MethodKind::ShadowRays32)),
             "rt32-embree" if cfg!(feature = "embree") => {
                 out.push((name.to_string(), MethodKind::Embree32))
@@ -93,7 +95,7 @@ pub fn parse_methods(
                 other.to_string(),
                 MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
                     format!(
-                        "{e}; or one of reference, izb1, izb32, izb32-exact, rt32, rt32-rays, \
+                        "{e}; or one of reference, izb1, izb32, izb32-exact, rt32, rt-soft, rt32-rays, \
                          rt32-embree, shadow-maps"
                     )
                 })?),

@@ -121,6 +121,20 @@ impl SceneTruth {
     }
 }
 
+/// The same-sample reference of `scene`: `rt32` (the µQuad's samples), or
+/// under an area light `rt-soft` (the light's samples at P).
+fn same_sample_masks_of(scene: &Scene, bvh: &crate::bvh::SceneBvh) -> Vec<u32> {
+    if scene.has_area_light() {
+        crate::reference::soft_samples::soft_same_sample_masks(
+            scene,
+            bvh,
+            crate::lut::light_pattern(),
+        )
+    } else {
+        same_sample_masks(scene, bvh, crate::lut::sample_pattern())
+    }
+}
+
 /// Runs one method once on the CPU: (visibility, masks, per-pass seconds,
 /// shadow seconds, total seconds, details).
 fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Runs, String> {
@@ -145,9 +159,16 @@ fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Run
         }
         MethodKind::RayTraced32 => {
             let t = Instant::now();
-            let masks = same_sample_masks(scene, &shared.bvh, crate::lut::sample_pattern());
+            let masks = same_sample_masks_of(scene, &shared.bvh);
             // rt32 casts its own primary rays: its whole run is its time.
             r.record_trace(masks, t.elapsed().as_secs_f64(), 0.0, shared);
+        }
+        MethodKind::Embree32 | MethodKind::ShadowRays32 if scene.has_area_light() => {
+            return Err(
+                "traces the µQuad's 32 samples toward the light's centre: under an \
+                        area light the peer is rt-soft"
+                    .into(),
+            )
         }
         MethodKind::Embree32 => embree_once(scene, shared, &mut r)?,
         MethodKind::ShadowRays32 => {
@@ -282,11 +303,9 @@ pub fn bench_scene_cpu(
         .and_then(|(_, r)| r.as_ref()?.masks.clone())
     {
         Some(m) => Some(m),
-        None if methods.iter().any(|m| m.kind.masks_32()) => Some(same_sample_masks(
-            scene,
-            &shared.bvh,
-            crate::lut::sample_pattern(),
-        )),
+        None if methods.iter().any(|m| m.kind.masks_32()) => {
+            Some(same_sample_masks_of(scene, &shared.bvh))
+        }
         None => None,
     };
     let [w, h] = scene.resolution;
@@ -478,6 +497,9 @@ pub fn bench_scene_vulkan(
                         let ms = out.gpu_milliseconds.map(|m| m.as_pass_times());
                         (ms, out.visibility, details)
                     }),
+                // The µQuad's samples toward the light's centre: no peer of
+                // a soft mask (the CPU run says so).
+                MethodKind::ShadowRays32 if scene.has_area_light() => continue,
                 MethodKind::ShadowRays32 => {
                     gpu.render_shadow_rays(scene, GBufferSource::Gpu)
                         .map(|out| {

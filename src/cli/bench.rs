@@ -46,6 +46,12 @@ pub struct BenchArgs {
     /// Map sides `shadow-maps` expands over.
     #[arg(long, value_delimiter = ',', default_value = "512,1024,2048,4096,8192")]
     map_sides: Vec<u32>,
+    /// Light sizes, comma separated, each as `render --light-size` takes
+    /// it (a sun's angular radius in degrees, a sphere light's radius);
+    /// every scene runs at each, named `scene~SIZE` (default: the
+    /// scene's own light).
+    #[arg(long, value_delimiter = ',')]
+    light_size: Vec<f64>,
     /// Repetitions of every method, interleaved; medians are reported.
     #[arg(long, default_value_t = 3)]
     repeat: usize,
@@ -162,18 +168,31 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
     } else {
         args.resolution.iter().copied().map(Some).collect()
     };
-    let runs = scenes
-        .iter()
-        .flat_map(|name| resolutions.iter().map(move |&r| (name, r)));
-    for (name, resolution) in runs {
+    let light_sizes: Vec<Option<f64>> = if args.light_size.is_empty() {
+        vec![None]
+    } else {
+        args.light_size.iter().copied().map(Some).collect()
+    };
+    let mut runs = Vec::new();
+    for name in &scenes {
+        for &r in &resolutions {
+            for &l in &light_sizes {
+                runs.push((name, r, l));
+            }
+        }
+    }
+    for (name, resolution, light_size) in runs {
         let mut scene = load_scene(&SceneArgs {
             scene: name.clone(),
             resolution,
-            light_size: None,
+            light_size,
         })?;
         if resolutions.len() > 1 {
             let [w, h] = scene.resolution;
             scene.name = format!("{}@{w}x{h}", scene.name);
+        }
+        if let Some(size) = light_size {
+            scene.name = format!("{}~{size}", scene.name);
         }
         let bar = progress_bar(scene.pixel_count() as u64, &format!("truth {}", scene.name));
         let shared =
