@@ -213,13 +213,14 @@ pub fn penumbra_pad(setup: &LightSetup, tri: &[Vec3; 3], ndc: &[Vec2; 3]) -> Opt
         Projection::Perspective => {
             let z_min = tri[0].z.min(tri[1].z).min(tri[2].z);
             let clearance = z_min - 2.0 * r * grow;
-            if !(clearance > 0.0) {
+            // NaN or within 2R of the light: overflow.
+            if clearance.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return None;
             }
             let tan_theta = r / clearance * grow;
             let rho = ndc[0].length().max(ndc[1].length()).max(ndc[2].length()) * grow;
             let product = rho * tan_theta;
-            if !(product <= MAX_PENUMBRA_TAN_PRODUCT) {
+            if product.is_nan() || product > MAX_PENUMBRA_TAN_PRODUCT {
                 return None;
             }
             Some(tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow)
