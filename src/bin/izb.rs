@@ -24,7 +24,7 @@ enum Command {
     Render(RenderArgs),
     /// Ground truth and every method side by side: error table, JSON, heat maps.
     Compare(CompareArgs),
-    /// Regenerate the 32-sample edge LUT (the code build.rs runs), with a picture.
+    /// Regenerate the two 32-sample tables, the µQuad edge LUT and the light-sample LUT (the code build.rs runs), with pictures.
     Lut(LutArgs),
     /// Supersampled ray-traced ground truth: lit fraction per pixel.
     Reference(ReferenceArgs),
