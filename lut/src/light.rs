@@ -13,10 +13,9 @@
 //! best by RMS; a unit test re-runs the measurement and fails if the
 //! choice is stale (numbers: `paper-notes/light-pattern.md`).
 
-use crate::edge::signed_distance;
-use crate::pattern::{CoverageError, PatternCandidate, ORIENTATION_BINS};
+use crate::pattern::{CoverageError, PatternCandidate};
 use crate::rng::SplitMix64;
-use crate::table::{EdgeLut, LutStats, LOOKUP_SLACK};
+use crate::table::{EdgeLut, LutStats};
 use crate::{SamplePattern, SAMPLES_PER_PIXEL};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -184,42 +183,24 @@ pub fn disk_coverage_error(pattern: &SamplePattern, lines: usize) -> CoverageErr
 /// pattern. The fields mean what they mean for the pixel's
 /// [`crate::coverage_error`], with the disk for the square.
 pub fn disk_coverage_error_of(points: &[[f32; 2]], lines: usize) -> CoverageError {
-    let mut rng = SplitMix64::new(DISK_COVERAGE_SEED);
-    let (mut sum_sq, mut sum_abs, mut max) = (0.0f64, 0.0f64, 0.0f64);
-    let mut bins = [(0.0f64, 0usize); ORIENTATION_BINS];
     let centred: Vec<[f64; 2]> = points
         .iter()
         .map(|p| [f64::from(p[0]) - 0.5, f64::from(p[1]) - 0.5])
         .collect();
-    for _ in 0..lines {
-        let (theta, distance) = random_disk_crossing_line(&mut rng);
-        let (sin, cos) = theta.sin_cos();
-        let inside = centred
-            .iter()
-            .filter(|p| distance + cos * p[0] + sin * p[1] >= 0.0)
-            .count();
-        let estimate = inside as f64 / points.len().max(1) as f64;
-        let error = (estimate - disk_inside_area(distance)).abs();
-        sum_sq += error * error;
-        sum_abs += error;
-        max = max.max(error);
-        let bin = ((theta.rem_euclid(PI) / PI * ORIENTATION_BINS as f64) as usize)
-            .min(ORIENTATION_BINS - 1);
-        bins[bin].0 += error * error;
-        bins[bin].1 += 1;
-    }
-    let n = lines.max(1) as f64;
-    CoverageError {
+    crate::pattern::coverage_error_over(
         lines,
-        rms: (sum_sq / n).sqrt(),
-        max,
-        mean_abs: sum_abs / n,
-        worst_orientation_rms: bins
-            .iter()
-            .filter(|b| b.1 > 0)
-            .map(|b| (b.0 / b.1 as f64).sqrt())
-            .fold(0.0, f64::max),
-    }
+        DISK_COVERAGE_SEED,
+        random_disk_crossing_line,
+        |theta, distance| {
+            let (sin, cos) = theta.sin_cos();
+            let inside = centred
+                .iter()
+                .filter(|p| distance + cos * p[0] + sin * p[1] >= 0.0)
+                .count();
+            inside as f64 / points.len().max(1) as f64
+        },
+        |_, distance| disk_inside_area(distance),
+    )
 }
 
 /// [`crate::lut_statistics`] for a light table: the same measurement of
@@ -231,66 +212,14 @@ pub fn disk_coverage_error_of(points: &[[f32; 2]], lines: usize) -> CoverageErro
 /// classifiers see it. Distances are in (u, v) units, i.e. light-disk
 /// diameters. Deterministic.
 pub fn light_lut_statistics(lut: &EdgeLut, pattern: &SamplePattern, lines: usize) -> LutStats {
-    let mut rng = SplitMix64::new(LIGHT_STATISTICS_SEED);
-    let mut stats = LutStats {
-        angles: lut.angles,
-        distances: lut.distances,
-        table_bytes: lut.table_bytes(),
+    crate::table::lut_statistics_over(
+        lut,
+        pattern,
         lines,
-        mismatch_rate: 0.0,
-        lines_with_mismatch: 0.0,
-        coverage_rms_error: 0.0,
-        lut_coverage_rms: 0.0,
-        exact_coverage_rms: 0.0,
-        worst_misclassified_distance: 0.0,
-        worst_bound_ratio: 0.0,
-        worst_bound_excess: f64::NEG_INFINITY,
-        bound_violations: 0,
-        max_bound: pattern
-            .iter()
-            .map(|&s| lut.misclassification_bound(s))
-            .fold(0.0, f64::max),
-    };
-    let (mut mismatched_samples, mut mismatched_lines, mut coverage_sq) = (0u64, 0u64, 0.0f64);
-    let (mut lut_area_sq, mut exact_area_sq) = (0.0f64, 0.0f64);
-    let fraction = |mask: u32| f64::from(mask.count_ones()) / SAMPLES_PER_PIXEL as f64;
-    for _ in 0..lines {
-        let (theta, distance) = random_disk_crossing_line(&mut rng);
-        let scale = 10f64.powf(6.0 * rng.next_f64() - 3.0);
-        let [alpha, beta, gamma] = [scale * distance, scale * theta.cos(), scale * theta.sin()]
-            .map(|x| f64::from(x as f32));
-        let comparison = lut.compare_with_exact(alpha, beta, gamma, pattern);
-        let area = disk_inside_area(distance);
-        lut_area_sq += (fraction(comparison.lut_mask) - area).powi(2);
-        exact_area_sq += (fraction(comparison.exact_mask) - area).powi(2);
-        let mismatched = comparison.mismatched();
-        if mismatched == 0 {
-            continue;
-        }
-        mismatched_samples += u64::from(mismatched.count_ones());
-        mismatched_lines += 1;
-        let coverage = fraction(comparison.lut_mask) - fraction(comparison.exact_mask);
-        coverage_sq += coverage * coverage;
-        stats.worst_misclassified_distance = stats
-            .worst_misclassified_distance
-            .max(comparison.worst_distance);
-        stats.worst_bound_ratio = stats.worst_bound_ratio.max(comparison.worst_bound_ratio);
-        stats.worst_bound_excess = stats.worst_bound_excess.max(comparison.worst_excess);
-        stats.bound_violations += (0..SAMPLES_PER_PIXEL)
-            .filter(|&i| mismatched >> i & 1 == 1)
-            .filter(|&i| {
-                let g = signed_distance(alpha, beta, gamma, pattern[i]).abs();
-                g - lut.misclassification_bound(pattern[i]) > LOOKUP_SLACK
-            })
-            .count();
-    }
-    let n = lines.max(1) as f64;
-    stats.mismatch_rate = mismatched_samples as f64 / (n * SAMPLES_PER_PIXEL as f64);
-    stats.lines_with_mismatch = mismatched_lines as f64 / n;
-    stats.coverage_rms_error = (coverage_sq / n).sqrt();
-    stats.lut_coverage_rms = (lut_area_sq / n).sqrt();
-    stats.exact_coverage_rms = (exact_area_sq / n).sqrt();
-    stats
+        LIGHT_STATISTICS_SEED,
+        random_disk_crossing_line,
+        |_, distance| disk_inside_area(distance),
+    )
 }
 
 #[cfg(test)]

@@ -129,14 +129,34 @@ pub const ORIENTATION_BINS: usize = 64;
 /// samples on the inside with the exact inside area ([`inside_area`]).
 /// Deterministic: the same lines for every pattern.
 pub fn coverage_error(pattern: &SamplePattern, lines: usize) -> CoverageError {
-    let mut rng = SplitMix64::new(COVERAGE_SEED);
+    coverage_error_over(
+        lines,
+        COVERAGE_SEED,
+        random_crossing_line,
+        |theta, distance| {
+            f64::from(line_mask(theta, distance, pattern).count_ones()) / SAMPLES_PER_PIXEL as f64
+        },
+        inside_area,
+    )
+}
+
+/// [`coverage_error`] over a family of lines: `random_line` draws (θ, d)
+/// from the seeded generator, `estimate(θ, d)` is the share of samples
+/// inside and `area(θ, d)` the share of the domain (the pixel's square,
+/// or the light's disk: `crate::light::disk_coverage_error_of`).
+pub(crate) fn coverage_error_over(
+    lines: usize,
+    seed: u64,
+    mut random_line: impl FnMut(&mut SplitMix64) -> (f64, f64),
+    estimate: impl Fn(f64, f64) -> f64,
+    area: impl Fn(f64, f64) -> f64,
+) -> CoverageError {
+    let mut rng = SplitMix64::new(seed);
     let (mut sum_sq, mut sum_abs, mut max) = (0.0f64, 0.0f64, 0.0f64);
     let mut bins = [(0.0f64, 0usize); ORIENTATION_BINS];
     for _ in 0..lines {
-        let (theta, distance) = random_crossing_line(&mut rng);
-        let estimate =
-            f64::from(line_mask(theta, distance, pattern).count_ones()) / SAMPLES_PER_PIXEL as f64;
-        let error = (estimate - inside_area(theta, distance)).abs();
+        let (theta, distance) = random_line(&mut rng);
+        let error = (estimate(theta, distance) - area(theta, distance)).abs();
         sum_sq += error * error;
         sum_abs += error;
         max = max.max(error);

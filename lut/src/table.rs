@@ -477,7 +477,29 @@ impl fmt::Display for LutStats {
 /// [`EdgeLut::lookup`] is exercised too; the exact mask and g(s) are
 /// computed in f64. Deterministic.
 pub fn lut_statistics(lut: &EdgeLut, pattern: &SamplePattern, lines: usize) -> LutStats {
-    let mut rng = SplitMix64::new(STATISTICS_SEED);
+    lut_statistics_over(
+        lut,
+        pattern,
+        lines,
+        STATISTICS_SEED,
+        random_crossing_line,
+        inside_area,
+    )
+}
+
+/// [`lut_statistics`] over a family of lines: `random_line` draws
+/// (θ, d) from the seeded generator, `area(θ, d)` is the share of the
+/// sampled domain on the inside (the pixel's square, or the light's disk:
+/// `crate::light::light_lut_statistics`).
+pub(crate) fn lut_statistics_over(
+    lut: &EdgeLut,
+    pattern: &SamplePattern,
+    lines: usize,
+    seed: u64,
+    mut random_line: impl FnMut(&mut SplitMix64) -> (f64, f64),
+    area: impl Fn(f64, f64) -> f64,
+) -> LutStats {
+    let mut rng = SplitMix64::new(seed);
     let mut stats = LutStats {
         angles: lut.angles,
         distances: lut.distances,
@@ -501,13 +523,13 @@ pub fn lut_statistics(lut: &EdgeLut, pattern: &SamplePattern, lines: usize) -> L
     let (mut lut_area_sq, mut exact_area_sq) = (0.0f64, 0.0f64);
     let fraction = |mask: u32| f64::from(mask.count_ones()) / SAMPLES_PER_PIXEL as f64;
     for _ in 0..lines {
-        let (theta, distance) = random_crossing_line(&mut rng);
+        let (theta, distance) = random_line(&mut rng);
         let scale = 10f64.powf(6.0 * rng.next_f64() - 3.0);
         // Round to f32 first so that exact and LUT judge the same edge.
         let [alpha, beta, gamma] = [scale * distance, scale * theta.cos(), scale * theta.sin()]
             .map(|x| f64::from(x as f32));
         let comparison = lut.compare_with_exact(alpha, beta, gamma, pattern);
-        let area = inside_area(theta, distance);
+        let area = area(theta, distance);
         lut_area_sq += (fraction(comparison.lut_mask) - area).powi(2);
         exact_area_sq += (fraction(comparison.exact_mask) - area).powi(2);
         let mismatched = comparison.mismatched();

@@ -2,7 +2,7 @@
 //! the measured choice, 32 against 64 samples and the light table's bound.
 
 use super::*;
-use crate::table::{DEFAULT_ANGLES, DEFAULT_DISTANCES};
+use crate::table::{DEFAULT_ANGLES, DEFAULT_DISTANCES, LOOKUP_SLACK};
 
 /// Strictly inside the disk of radius ½, measured in f64 on the f32
 /// coordinates the renderer gets.
