@@ -213,10 +213,27 @@ impl Tracer<'_> {
         (lit, rays)
     }
 
-    fn pixel(&self, x: u32, y: u32) -> PixelResult {
-        if let Some(radius) = self.disk_radius {
-            return self.pixel_area(x, y, radius);
+    /// What one surface hit contributes: (lit samples, samples, shadow
+    /// rays) — one shadow ray toward a point-like light, or
+    /// [`LIGHT_SAMPLES_PER_RAY`] samples of an area light
+    /// ([`Tracer::lit_area`], drawing from `rng`).
+    fn hit_samples(
+        &self,
+        p: DVec3,
+        normal: DVec3,
+        triangle: u32,
+        rng: &mut Pcg32,
+    ) -> (u32, u32, u32) {
+        match self.disk_radius {
+            None => (self.lit(p, normal, triangle) as u32, 1, 1),
+            Some(radius) => {
+                let (lit, rays) = self.lit_area(p, normal, triangle, radius, rng);
+                (lit, LIGHT_SAMPLES_PER_RAY, rays)
+            }
         }
+    }
+
+    fn pixel(&self, x: u32, y: u32) -> PixelResult {
         let Some(centre) = pixel_surface(self.bvh, self.scene, &self.frame, x, y) else {
             return UNTESTED;
         };
@@ -226,64 +243,6 @@ impl Tracer<'_> {
         // A sub-pixel hit is on the centre's plane when its distance to the
         // plane is below 1e-3 of the µQuad: coplanar neighbours (~1e-12) pass,
         // any other surface in the footprint (~the footprint) fails.
-        let plane_tolerance = 1e-3 * centre.axis_x.length().max(centre.axis_y.length());
-        let k = self.settings.samples_per_side;
-        let pixel_index = y as u64 * self.frame.width as u64 + x as u64;
-        let mut rng = Pcg32::seed_from_u64(
-            self.settings.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ pixel_index,
-        );
-        let (mut hits, mut lit, mut shadow_rays) = (0u32, 0u32, 0u32);
-        let mut smooth = true;
-        let (near, far) = (self.scene.camera.near, self.scene.camera.far);
-        for j in 0..k {
-            for i in 0..k {
-                let u = (i as f64 + rng.random::<f64>()) / k as f64;
-                let v = (j as f64 + rng.random::<f64>()) / k as f64;
-                let sub =
-                    trace_primary(self.bvh, &self.frame, near, far, x as f64 + u, y as f64 + v);
-                let Some(sub) = sub else {
-                    smooth = false;
-                    continue;
-                };
-                hits += 1;
-                smooth &= centre
-                    .hit
-                    .normal
-                    .dot(sub.position - centre.hit.position)
-                    .abs()
-                    <= plane_tolerance;
-                shadow_rays += 1;
-                lit += self.lit(sub.position, sub.normal, sub.triangle) as u32;
-            }
-        }
-        let visibility = if hits > 0 {
-            lit as f32 / hits as f32
-        } else {
-            // Every sub-ray slipped past a sub-pixel sliver the centre ray
-            // hit: fall back to the centre's own shadow ray.
-            shadow_rays += 1;
-            self.lit(centre.hit.position, centre.hit.normal, centre.hit.triangle) as u32 as f32
-        };
-        PixelResult {
-            visibility,
-            smooth: smooth as u32 as f32,
-            primary_rays: 1 + k * k,
-            shadow_rays,
-        }
-    }
-}
-
-impl Tracer<'_> {
-    /// [`Tracer::pixel`] under an area light of disk radius `radius`: the
-    /// same sub-pixel rays from the same per-pixel stream, each hit
-    /// followed by [`LIGHT_SAMPLES_PER_RAY`] light samples drawn from it.
-    fn pixel_area(&self, x: u32, y: u32, radius: f64) -> PixelResult {
-        let Some(centre) = pixel_surface(self.bvh, self.scene, &self.frame, x, y) else {
-            return UNTESTED;
-        };
-        if !centre.shadow_tested {
-            return UNTESTED;
-        }
         let plane_tolerance = 1e-3 * centre.axis_x.length().max(centre.axis_y.length());
         let k = self.settings.samples_per_side;
         let pixel_index = y as u64 * self.frame.width as u64 + x as u64;
@@ -309,19 +268,19 @@ impl Tracer<'_> {
                     .dot(sub.position - centre.hit.position)
                     .abs()
                     <= plane_tolerance;
-                let (l, rays) =
-                    self.lit_area(sub.position, sub.normal, sub.triangle, radius, &mut rng);
-                samples += LIGHT_SAMPLES_PER_RAY;
+                let (l, n, rays) =
+                    self.hit_samples(sub.position, sub.normal, sub.triangle, &mut rng);
                 lit += l;
+                samples += n;
                 shadow_rays += rays;
             }
         }
         if samples == 0 {
-            // As in the hard path: fall back to the centre hit.
+            // Every sub-ray slipped past a sub-pixel sliver the centre ray
+            // hit: fall back to the centre's own samples.
             let hit = centre.hit;
-            let (l, rays) = self.lit_area(hit.position, hit.normal, hit.triangle, radius, &mut rng);
-            samples = LIGHT_SAMPLES_PER_RAY;
-            lit = l;
+            let (l, n, rays) = self.hit_samples(hit.position, hit.normal, hit.triangle, &mut rng);
+            (lit, samples) = (l, n);
             shadow_rays += rays;
         }
         PixelResult {
