@@ -29,7 +29,7 @@ fn main() -> anyhow::Result<()> {
             ..Default::default()
         },
     );
-    let rt_soft = soft_same_sample_masks(&scene, &bvh, izb::lut::light_pattern());
+    let rt_soft = soft_same_sample_masks(&scene, &bvh, izb::lut::light_pattern(), None);
     let tested = |i: usize| izb.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
     let (differ, samples) = izb::metrics::sample_mismatches(&izb.masks, &rt_soft, tested);
     let truth = reference(

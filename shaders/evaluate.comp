@@ -267,12 +267,76 @@ uint soft_triangle_mask(vec3 t0, vec3 t1, vec3 t2) {
     return mask;
 }
 
+// light_samples::PairedRays: pair i's offset from P to µQuad sample i,
+// the disk point c_i from P, and the ray's direction from S_i.
+void paired_ray(int i, out vec3 delta, out vec3 c, out vec3 d) {
+    precise vec3 dl = px_ex * (frame.pair_pattern[i].x - 0.5) + px_ey * (frame.pair_pattern[i].y - 0.5);
+    precise vec3 cl = px_disk_c + px_disk_u * (frame.pattern[i].x - 0.5)
+        + px_disk_v * (frame.pattern[i].y - 0.5);
+    delta = dl;
+    c = cl;
+    d = light.projection != 0u ? cl - dl : cl;
+}
+
+// PairedRays::below_horizon: the pairs whose ray leaves the tangent plane
+// downward or along it.
+uint paired_below_horizon() {
+    uint mask = 0u;
+    [[unroll]] for (int i = 0; i < 32; ++i) {
+        vec3 delta, c, d;
+        paired_ray(i, delta, c, d);
+        precise float h = dot(px_normal, d);
+        if (h <= 0.0) mask |= 1u << i;
+    }
+    return mask;
+}
+
+// light_samples::paired_occluded_samples: every pair's ray from its µQuad
+// sample, the cone from S_i oriented by o - delta_i.m.
+uint paired_triangle_mask(vec3 t0, vec3 t1, vec3 t2) {
+    if (!may_shadow_soft(t0, t1, t2)) return 0u;
+    depth_passed += 1u;
+    precise vec3 m = cross(t1 - t0, t2 - t0);
+    precise float o = dot(cross(t0, t1), t2);
+    precise vec3 n0 = cross(t0, t1);
+    precise vec3 n1 = cross(t1, t2);
+    precise vec3 n2 = cross(t2, t0);
+    precise vec3 e0 = t1 - t0;
+    precise vec3 e1 = t2 - t1;
+    precise vec3 e2 = t0 - t2;
+    bool finite = light.projection != 0u;
+    uint mask = 0u;
+    [[unroll]] for (int i = 0; i < 32; ++i) {
+        vec3 delta, c, d;
+        paired_ray(i, delta, c, d);
+        precise vec3 w = cross(delta, c);
+        precise float oi = o - dot(delta, m);
+        if (!(oi != 0.0)) continue;
+        bool flip = oi < 0.0;
+        precise float f0 = dot(n0, d) + dot(e0, w);
+        precise float f1 = dot(n1, d) + dot(e1, w);
+        precise float f2 = dot(n2, d) + dot(e2, w);
+        bool hit = (flip ? -f0 : f0) >= 0.0 && (flip ? -f1 : f1) >= 0.0
+            && (flip ? -f2 : f2) >= 0.0;
+        if (finite) {
+            precise float g = dot(m, c - t0);
+            hit = hit && (flip ? -g : g) >= 0.0;
+        }
+        if (hit) mask |= 1u << i;
+    }
+    if (mask != 0u) masks_nonempty += 1u;
+    return mask;
+}
+
 // Occluded samples of one eye-relative triangle for this pixel.
 uint triangle_mask(Triangle tri) {
     precise vec3 t0 = tri.a - px_p;
     precise vec3 t1 = tri.b - px_p;
     precise vec3 t2 = tri.c - px_p;
-    if (px_soft) return soft_triangle_mask(t0, t1, t2);
+    if (px_soft) {
+        return frame.mode == MODE_PAIRED32 ? paired_triangle_mask(t0, t1, t2)
+                                           : soft_triangle_mask(t0, t1, t2);
+    }
     vec3 light_rel = px_light;
     if (!may_shadow(t0, t1, t2, light_rel)) return 0u;
     depth_passed += 1u;
@@ -403,7 +467,9 @@ void main() {
         pixel_frustum(i);
         if (!grid_usable) px_cover = NO_COVER;
         // An area light's samples below the horizon: the receiver's own.
-        if (px_soft) {
+        if (px_soft && frame.mode == MODE_PAIRED32) {
+            mask = paired_below_horizon();
+        } else if (px_soft) {
             bool cheap;
             mask = edge_mask(below_horizon_function(), cheap);
         }

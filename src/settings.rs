@@ -17,6 +17,12 @@ pub enum SampleMode {
     Lut32,
     /// 32 samples, every edge function evaluated at every sample.
     Exact32,
+    /// Under an area light, 32 pairs of a µQuad sample and a light sample
+    /// (sample i of each pattern), each ray from the one toward the other
+    /// evaluated exactly: the soft mask antialiased over the pixel, as the
+    /// ground truth integrates it (`cpu::light_samples`). Under a
+    /// point-like light it is `Exact32`.
+    Paired32,
 }
 
 /// How to render.

@@ -1,7 +1,7 @@
 //! Soft shadows from area lights on the CPU (paper-notes/soft-shadows.md):
 //! the penumbra-padded grid against brute force, and the exact soft mode
-//! against `rt-soft` (the same 32 light samples traced in `f64`), sample
-//! by sample, on procedural scenes under suns of three sizes and on the
+//! against `rt-soft` (the same 32 light samples traced in `f64`, from P or,
+//! paired, from the µQuad's samples), sample by sample, on procedural scenes under suns of three sizes and on the
 //! point-lit engine under a sphere light.
 
 mod common;
@@ -134,16 +134,17 @@ const RESOLUTION: [u32; 2] = [160, 90];
 /// (differing samples, compared samples) of exact soft mode against
 /// `rt-soft`, after checking every difference lies within float rounding
 /// of a boundary.
-fn check_exact_soft(scene: Scene) -> (u64, u64) {
+fn check_exact_soft(scene: Scene, mode: SampleMode) -> (u64, u64) {
     let scene = scene.with_resolution(RESOLUTION).unwrap();
     let bvh = SceneBvh::build(&scene);
     let pattern = izb::lut::light_pattern();
-    let reference = soft_same_sample_masks(&scene, &bvh, pattern);
+    let paired = (mode == SampleMode::Paired32).then(izb::lut::sample_pattern);
+    let reference = soft_same_sample_masks(&scene, &bvh, pattern, paired);
     let exact = render_cpu(
         &scene,
         &bvh,
         IzbSettings {
-            mode: SampleMode::Exact32,
+            mode,
             ..Default::default()
         },
     );
@@ -158,8 +159,14 @@ fn check_exact_soft(scene: Scene) -> (u64, u64) {
         let px = pixel_surface(&bvh, &scene, &frame, x, y).unwrap();
         let differing = exact.masks[i] ^ reference[i];
         for bit in (0..32).filter(|b| differing & (1 << b) != 0) {
-            let margin =
-                soft_decision_margin(&triangles, &px, &light, scene.light_radius, pattern[bit]);
+            let margin = soft_decision_margin(
+                &triangles,
+                &px,
+                &light,
+                scene.light_radius,
+                pattern[bit],
+                paired.map(|p| p[bit]),
+            );
             worst = worst.max(margin);
             assert!(
                 margin < FLOAT_DECISION_TOLERANCE,
@@ -178,7 +185,7 @@ fn check_exact_soft(scene: Scene) -> (u64, u64) {
         .filter(|&(i, &m)| tested(i) && m != 0 && m != u32::MAX)
         .count();
     println!(
-        "{} (light radius {:.4}): {diff} of {total} light samples differ, worst margin {worst:.2e}; \
+        "{} (light radius {:.4}, {mode:?}): {diff} of {total} light samples differ, worst margin {worst:.2e}; \
          {partial} penumbra pixels",
         scene.name, scene.light_radius
     );
@@ -191,14 +198,16 @@ fn exact_soft_matches_rt_soft_on_procedural_scenes() {
     let (mut diff, mut total, mut cases) = (0, 0, 0);
     for name in scene::procedural::NAMES {
         for size in [0.25, 1.0, 3.0] {
-            let scene = scene::load(name).unwrap().with_light_size(size).unwrap();
-            let (d, t) = check_exact_soft(scene);
-            diff += d;
-            total += t;
-            cases += 1;
+            for mode in [SampleMode::Exact32, SampleMode::Paired32] {
+                let scene = scene::load(name).unwrap().with_light_size(size).unwrap();
+                let (d, t) = check_exact_soft(scene, mode);
+                diff += d;
+                total += t;
+                cases += 1;
+            }
         }
     }
-    assert_eq!(cases, 3 * scene::procedural::NAMES.len());
+    assert_eq!(cases, 6 * scene::procedural::NAMES.len());
     let rate = diff as f64 / total as f64;
     println!("all: {diff} of {total} light samples within rounding of a boundary ({rate:.2e})");
     assert!(rate < 1e-5, "{diff} of {total} samples differ ({rate:.2e})");
@@ -209,9 +218,12 @@ fn exact_soft_matches_rt_soft_under_a_sphere_light() {
     let Some(engine) = common::shared_scene("engine") else {
         return;
     };
-    let (diff, total) = check_exact_soft(engine.with_light_size(20.0).unwrap());
-    assert!(
-        diff as f64 / (total as f64) < 1e-5,
-        "{diff} of {total} differ"
-    );
+    for mode in [SampleMode::Exact32, SampleMode::Paired32] {
+        let scene = engine.clone().with_light_size(20.0).unwrap();
+        let (diff, total) = check_exact_soft(scene, mode);
+        assert!(
+            diff as f64 / (total as f64) < 1e-5,
+            "{diff} of {total} differ"
+        );
+    }
 }

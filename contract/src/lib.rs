@@ -118,6 +118,9 @@ shared_constants! {
         ONE = 0;
         LUT32 = 1;
         EXACT32 = 2;
+        /// Under an area light: 32 (µQuad sample, light sample) pairs,
+        /// evaluated exactly; under a point-like light as `EXACT32`.
+        PAIRED32 = 3;
     }
 }
 
@@ -328,7 +331,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 72, "members of the five shared structs");
+        assert_eq!(checked, 77, "members of the five shared structs");
     }
 
     #[test]

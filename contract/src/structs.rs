@@ -88,6 +88,9 @@ shared_struct! {
         /// map's depth range; 0 otherwise.
         pub map_near: f32 => "float map_near",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
+        /// The µQuad's samples, paired with `pattern`'s light samples in a
+        /// `MODE_PAIRED32` frame under an area light.
+        pub pair_pattern: [[f32; 2]; 32] => "vec2 pair_pattern[32]",
     }
 }
 

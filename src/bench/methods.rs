@@ -33,7 +33,8 @@ impl MethodKind {
     /// sample with `rt32`).
     pub(super) fn masks_32(&self) -> bool {
         match self {
-            MethodKind::Izb(s) => s.mode != SampleMode::One,
+            // Paired masks are over other rays than rt32 / rt-soft traces.
+            MethodKind::Izb(s) => matches!(s.mode, SampleMode::Lut32 | SampleMode::Exact32),
             MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
             MethodKind::ShadowMap(_) => false,
         }
@@ -68,6 +69,7 @@ pub fn parse_methods(
             "izb1" => out.push((name.to_string(), izb_mode(SampleMode::One))),
             "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
             "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
+            "izb32-paired" => out.push((name.to_string(), izb_mode(SampleMode::Paired32))),
             // Under an area light the same-sample reference traces the
             // 32 light samples (`rt-soft`); the two names are one method.
             "rt32" | "rt-soft" => out.push((name.to_string(), MethodKind::RayTraced32)),
@@ -95,7 +97,7 @@ pub fn parse_methods(
                 other.to_string(),
                 MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
                     format!(
-                        "{e}; or one of reference, izb1, izb32, izb32-exact, rt32, rt-soft, rt32-rays, \
+                        "{e}; or one of reference, izb1, izb32, izb32-exact, izb32-paired, rt32, rt-soft, rt32-rays, \
                          rt32-embree, shadow-maps"
                     )
                 })?),

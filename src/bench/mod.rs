@@ -129,6 +129,7 @@ fn same_sample_masks_of(scene: &Scene, bvh: &crate::bvh::SceneBvh) -> Vec<u32> {
             scene,
             bvh,
             crate::lut::light_pattern(),
+            None,
         )
     } else {
         same_sample_masks(scene, bvh, crate::lut::sample_pattern())

@@ -24,6 +24,12 @@ pub struct RenderArgs {
     /// Evaluate every edge function at every sample instead of the LUT.
     #[arg(long)]
     exact: bool,
+    /// Under an area light: pair the 32 light samples with the µQuad's 32
+    /// samples, each ray from its own point of the pixel, evaluated
+    /// exactly (the soft mask antialiased over the pixel); implies
+    /// --exact.
+    #[arg(long)]
+    paired: bool,
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     backend: Backend,
     /// Vulkan device index (see `izb devices`; default: the best one).
@@ -44,10 +50,11 @@ pub struct RenderArgs {
     threads: Option<usize>,
 }
 
-pub fn mode_for(spp: u32, exact: bool) -> SampleMode {
-    match (spp, exact) {
-        (1, _) => SampleMode::One,
-        (_, true) => SampleMode::Exact32,
+pub fn mode_for(spp: u32, exact: bool, paired: bool) -> SampleMode {
+    match (spp, exact, paired) {
+        (1, _, _) => SampleMode::One,
+        (_, _, true) => SampleMode::Paired32,
+        (_, true, _) => SampleMode::Exact32,
         _ => SampleMode::Lut32,
     }
 }
@@ -55,11 +62,11 @@ pub fn mode_for(spp: u32, exact: bool) -> SampleMode {
 pub fn run_render(args: RenderArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
     anyhow::ensure!(
-        !(args.exact && args.spp == 1),
-        "--exact applies to 32 spp; 1 spp is always an exact point test"
+        !((args.exact || args.paired) && args.spp == 1),
+        "--exact and --paired apply to 32 spp; 1 spp is always an exact point test"
     );
     let settings = args.grid.apply(IzbSettings {
-        mode: mode_for(args.spp, args.exact),
+        mode: mode_for(args.spp, args.exact, args.paired),
         skips: args.skip,
         ..Default::default()
     })?;

@@ -14,7 +14,9 @@
 //! projection touches.
 
 use super::bin::{cell_range, cell_range_at, Bins, NO_COVER};
-use super::light_samples::{below_horizon, occluded_light_samples, LightView};
+use super::light_samples::{
+    below_horizon, occluded_light_samples, paired_occluded_samples, LightView, PairedRays,
+};
 use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
 use super::{is_receiver, SampleMode, Skips};
 use crate::frustum::{
@@ -81,6 +83,9 @@ struct PixelFrustum {
     /// The light's disk seen from P, when the light has a size: the mask
     /// is then over the light's samples (`light_samples`).
     soft: Option<LightView>,
+    /// With [`SampleMode::Paired32`] under an area light: the pixel's 32
+    /// (µQuad sample, light sample) rays.
+    paired: Option<Box<PairedRays>>,
 }
 
 /// Pixel `i`'s frustum; `ndc_box` its µQuad's light-NDC box
@@ -108,6 +113,26 @@ fn pixel_frustum(
                 .map(|n| grid.grid_coords(n));
         }
     }
+    let soft = rule
+        .light_samples
+        .then(|| setup.light_disk_from(p))
+        .flatten()
+        .map(|disk| LightView {
+            disk,
+            finite: setup.projection == super::light_setup::Projection::Perspective,
+        });
+    let paired = soft
+        .as_ref()
+        .filter(|_| rule.mode == SampleMode::Paired32)
+        .map(|view| {
+            Box::new(PairedRays::new(
+                view,
+                ex,
+                ey,
+                crate::lut::sample_pattern(),
+                rule.pattern,
+            ))
+        });
     PixelFrustum {
         p,
         normal: g.normal[i],
@@ -119,14 +144,8 @@ fn pixel_frustum(
         cascade,
         grid_box,
         centre,
-        soft: rule
-            .light_samples
-            .then(|| setup.light_disk_from(p))
-            .flatten()
-            .map(|disk| LightView {
-                disk,
-                finite: setup.projection == super::light_setup::Projection::Perspective,
-            }),
+        soft,
+        paired,
     }
 }
 
@@ -218,7 +237,7 @@ impl<'a> MaskRule<'a> {
                 let cheap = matches!(cell, izb_lut::LutCell::Constant(_));
                 (self.lut.cell_mask(cell), cheap)
             }
-            SampleMode::Exact32 => match saturated_edge(e, self.radius) {
+            SampleMode::Exact32 | SampleMode::Paired32 => match saturated_edge(e, self.radius) {
                 Some(mask) => (mask, true),
                 None => (exact_edge_mask(e, self.pattern), false),
             },
@@ -262,10 +281,13 @@ fn triangle_mask(
     // in the candidate loop, the rest of the test is called.
     match above_tangent_plane(&t, px.normal, px.microquad_part) {
         None => 0,
-        Some(height) => match &px.soft {
-            None => occluded_samples(px, &t, height, rule, counters),
-            Some(view) => {
+        Some(height) => match (&px.soft, &px.paired) {
+            (None, _) => occluded_samples(px, &t, height, rule, counters),
+            (Some(view), None) => {
                 occluded_light_samples(&t, height, px.microquad_part, view, rule, counters)
+            }
+            (Some(view), Some(rays)) => {
+                paired_occluded_samples(&t, height, px.microquad_part, view.finite, rays, counters)
             }
         },
     }
@@ -385,10 +407,11 @@ fn evaluate_pixel(
 ) -> (u32, u64) {
     // An area light's samples below the receiver's horizon are hidden by
     // the receiver itself.
-    let mut mask = px
-        .soft
-        .as_ref()
-        .map_or(0, |view| below_horizon(px.normal, view, rule));
+    let mut mask = match (&px.soft, &px.paired) {
+        (None, _) => 0,
+        (Some(view), None) => below_horizon(px.normal, view, rule),
+        (Some(_), Some(rays)) => rays.below_horizon(px.normal),
+    };
     let mut tests = 0u64;
     let mut counters = TestCounters::default();
     // The conservative shadow map: the cover triangle of the centre's cell

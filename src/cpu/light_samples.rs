@@ -75,3 +75,98 @@ pub(super) fn occluded_light_samples(
     counters.masks_nonempty += (mask != 0) as u64;
     mask
 }
+
+/// The 32 rays of [`crate::settings::SampleMode::Paired32`] for one
+/// pixel, relative to P: pair i starts at µQuad sample i, S_i = P + δ_i,
+/// and goes toward light sample i (the disk point c_i from P): direction
+/// d_i = c_i for a sun (at infinity), the offset c_i − δ_i to the point
+/// for a sphere. Pairing the two patterns sample by sample makes the mask
+/// estimate the light's visible fraction averaged over the pixel, as the
+/// ground truth does, with each pattern's stratification in its own
+/// dimensions (Cook et al. 1984's distributed ray tracing pairs pixel and
+/// light samples the same way).
+pub(super) struct PairedRays {
+    delta: [Vec3; 32],
+    c: [Vec3; 32],
+    d: [Vec3; 32],
+    /// δ_i × c_i: the edge plane through S_i is the one through P plus
+    /// (t_{k+1} − t_k) × δ_i, so f = n·d_i + (t_{k+1} − t_k)·w_i.
+    w: [Vec3; 32],
+}
+
+impl PairedRays {
+    /// The rays of the pixel with µQuad axes `ex`, `ey` under `view`,
+    /// pairing `pixel_pattern[i]` with `light_pattern[i]` (the operations
+    /// and their order are the GPU's).
+    pub(super) fn new(
+        view: &LightView,
+        ex: Vec3,
+        ey: Vec3,
+        pixel_pattern: &[[f32; 2]; 32],
+        light_pattern: &[[f32; 2]; 32],
+    ) -> PairedRays {
+        let disk = &view.disk;
+        let delta: [Vec3; 32] = std::array::from_fn(|i| {
+            let s = pixel_pattern[i];
+            ex * (s[0] - 0.5) + ey * (s[1] - 0.5)
+        });
+        let c: [Vec3; 32] = std::array::from_fn(|i| {
+            let l = light_pattern[i];
+            disk.centre + disk.axis_u * (l[0] - 0.5) + disk.axis_v * (l[1] - 0.5)
+        });
+        PairedRays {
+            d: std::array::from_fn(|i| if view.finite { c[i] - delta[i] } else { c[i] }),
+            w: std::array::from_fn(|i| delta[i].cross(c[i])),
+            delta,
+            c,
+        }
+    }
+
+    /// The pairs whose ray leaves the receiver's tangent plane (normal
+    /// `normal`) downward or along it: hidden by the receiver itself.
+    pub(super) fn below_horizon(&self, normal: Vec3) -> u32 {
+        (0..32).fold(0, |m, i| m | ((normal.dot(self.d[i]) <= 0.0) as u32) << i)
+    }
+}
+
+/// The pairs whose ray triangle `t` (vertices minus P, above the tangent
+/// plane by `height`) blocks, every ray evaluated: the cone from S_i
+/// through the triangle has the orientation det(t − δ_i) = o − δ_i·m (o
+/// the triple product at P, m the triangle's normal), and for a sphere
+/// light the sample must lie beyond the triangle's plane seen from S_i
+/// (m·(c_i − t₀) of that orientation's sign). The depth rule is the
+/// unpaired one, at P.
+pub(super) fn paired_occluded_samples(
+    t: &[Vec3; 3],
+    height: f32,
+    microquad_part: f32,
+    finite: bool,
+    rays: &PairedRays,
+    counters: &mut TestCounters,
+) -> u32 {
+    if !off_triangle_plane(t, height, microquad_part) {
+        return 0;
+    }
+    counters.depth_passed += 1;
+    let m = (t[1] - t[0]).cross(t[2] - t[0]);
+    let o = cone_orientation(t);
+    let n = [t[0].cross(t[1]), t[1].cross(t[2]), t[2].cross(t[0])];
+    let e = [t[1] - t[0], t[2] - t[1], t[0] - t[2]];
+    let mut mask = 0u32;
+    for i in 0..32 {
+        let oi = o - rays.delta[i].dot(m);
+        if !(oi != 0.0) {
+            continue; // S_i in the triangle's plane (or NaN): no cone
+        }
+        let flip = oi < 0.0;
+        let side = |f: f32| (if flip { -f } else { f }) >= 0.0;
+        let (d, w) = (rays.d[i], rays.w[i]);
+        let mut hit = (0..3).all(|k| side(n[k].dot(d) + e[k].dot(w)));
+        if finite {
+            hit &= side(m.dot(rays.c[i] - t[0]));
+        }
+        mask |= (hit as u32) << i;
+    }
+    counters.masks_nonempty += (mask != 0) as u64;
+    mask
+}

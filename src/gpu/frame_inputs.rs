@@ -85,6 +85,7 @@ fn mode_code(mode: SampleMode) -> u32 {
         SampleMode::One => shared::mode::ONE,
         SampleMode::Lut32 => shared::mode::LUT32,
         SampleMode::Exact32 => shared::mode::EXACT32,
+        SampleMode::Paired32 => shared::mode::PAIRED32,
     }
 }
 
@@ -182,6 +183,7 @@ pub(super) fn frame_params(
         map_light_size: 0.0,
         map_near: 0.0,
         pattern: *pattern,
+        pair_pattern: *crate::lut::sample_pattern(),
     }
 }
 

@@ -33,9 +33,15 @@ pub fn disk_from(light: &Light, radius: f64, p: DVec3) -> (LightDisk<DVec3>, boo
 }
 
 /// The 32-light-sample masks of every pixel (0 where not shadow-tested),
-/// bit i = light sample i of `pattern` hidden. The scene must have an
-/// area light.
-pub fn soft_same_sample_masks(scene: &Scene, bvh: &SceneBvh, pattern: &[[f32; 2]; 32]) -> Vec<u32> {
+/// bit i = light sample i of `pattern` hidden. With `paired_with` (the
+/// µQuad pattern: [`crate::settings::SampleMode::Paired32`]) ray i starts
+/// at µQuad sample i instead of P. The scene must have an area light.
+pub fn soft_same_sample_masks(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    pattern: &[[f32; 2]; 32],
+    paired_with: Option<&[[f32; 2]; 32]>,
+) -> Vec<u32> {
     let frame = scene.camera.frame(scene.resolution);
     let light = scene.light.relative_to(scene.camera.eye);
     let [w, h] = scene.resolution;
@@ -44,7 +50,7 @@ pub fn soft_same_sample_masks(scene: &Scene, bvh: &SceneBvh, pattern: &[[f32; 2]
         .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| match pixel_surface(bvh, scene, &frame, x, y) {
             Some(px) if px.shadow_tested => {
-                pixel_mask(bvh, &px, &light, scene.light_radius, pattern)
+                pixel_mask(bvh, &px, &light, scene.light_radius, pattern, paired_with)
             }
             _ => 0,
         })
@@ -57,6 +63,7 @@ fn pixel_mask(
     light: &Light,
     radius: f64,
     pattern: &[[f32; 2]; 32],
+    paired_with: Option<&[[f32; 2]; 32]>,
 ) -> u32 {
     let p = px.hit.position;
     let normal = px.hit.normal;
@@ -70,12 +77,36 @@ fn pixel_mask(
     let t_max = if finite { 1.0 } else { f64::INFINITY };
     let mut mask = 0u32;
     for (i, &uv) in pattern.iter().enumerate() {
-        let toward = disk.sample(uv);
-        if normal.dot(toward) <= 0.0 || bvh.any_hit(p, toward, 0.0, t_max, occludes) {
+        let delta = paired_with.map_or(DVec3::ZERO, |pixel| microquad_offset(px, pixel[i]));
+        let toward = ray_toward(&disk, finite, uv, delta);
+        // A unit direction and the distance as t_max: obvhs's f32 culling
+        // dropped a hit 1.2 cm from the origin on the engine with the
+        // unnormalised offset (|d| ≈ 629) as the direction, and found it
+        // with the unit one.
+        let length = toward.length();
+        let hidden = normal.dot(toward) <= 0.0
+            || bvh.any_hit(p + delta, toward / length, 0.0, t_max * length, occludes);
+        if hidden {
             mask |= 1 << i;
         }
     }
     mask
+}
+
+/// The offset from P of the µQuad sample at `uv`.
+fn microquad_offset(px: &PixelSurface, uv: [f32; 2]) -> DVec3 {
+    (uv[0] as f64 - 0.5) * px.axis_x + (uv[1] as f64 - 0.5) * px.axis_y
+}
+
+/// The ray from P + `delta` toward light sample `uv`: a direction for a
+/// sun, the offset to the point for a sphere (t = 1 at the light).
+fn ray_toward(disk: &LightDisk<DVec3>, finite: bool, uv: [f32; 2], delta: DVec3) -> DVec3 {
+    let c = disk.sample(uv);
+    if finite {
+        c - delta
+    } else {
+        c
+    }
 }
 
 /// How close light sample `uv` of pixel `px` is to flipping, relative to
@@ -83,8 +114,9 @@ fn pixel_mask(
 /// the receiver, of the soft depth rule's margins (height above the
 /// tangent plane and distance off the triangle's plane, minus the
 /// tolerance, over the triangle's distance plus the µQuad size) and, for
-/// triangles passing it, the sine of the angle between the sample's
-/// direction and each edge plane through P (and for a sphere light the
+/// triangles passing it, the sine of the angle between the ray's
+/// direction and each edge plane through its origin (P, or µQuad sample
+/// `paired_uv`) (and for a sphere light the
 /// sample's distance to the triangle's plane over the scale); and the
 /// sample's elevation above the horizon. Compare with
 /// [`super::same_samples::FLOAT_DECISION_TOLERANCE`]. `f64`, brute force:
@@ -96,12 +128,14 @@ pub fn soft_decision_margin(
     light: &Light,
     radius: f64,
     uv: [f32; 2],
+    paired_uv: Option<[f32; 2]>,
 ) -> f64 {
     use crate::frustum::{DEPTH_TOLERANCE_MICROQUAD, DEPTH_TOLERANCE_ROUNDING};
     let p = px.hit.position;
     let size = px.axis_x.length().max(px.axis_y.length());
     let (disk, finite) = disk_from(light, radius, p);
-    let s = disk.sample(uv);
+    let delta = paired_uv.map_or(DVec3::ZERO, |pixel| microquad_offset(px, pixel));
+    let s = ray_toward(&disk, finite, uv, delta);
     let s_len = s.length();
     let mut margin = (px.hit.normal.dot(s) / s_len).abs();
     for (id, tri) in eye_relative_triangles.iter().enumerate() {
@@ -121,12 +155,12 @@ pub fn soft_decision_margin(
         margin = margin.min((height - tolerance).abs().min((off - tolerance).abs()) / scale);
         if height > tolerance && off > tolerance {
             for k in 0..3 {
-                let e = t[k].cross(t[(k + 1) % 3]);
+                let e = (t[k] - delta).cross(t[(k + 1) % 3] - delta);
                 let len = e.length().max(f64::MIN_POSITIVE);
                 margin = margin.min((e.dot(s) / (len * s_len)).abs());
             }
             if finite {
-                margin = margin.min((n.dot(s - t[0]) / n.length()).abs() / scale);
+                margin = margin.min((n.dot(disk.sample(uv) - t[0]) / n.length()).abs() / scale);
             }
         }
     }
