@@ -524,3 +524,36 @@ fn with_resolution_rejects_zero() {
     let message = error_message(scene.with_resolution([0, 5]), "with_resolution([0, 5])");
     assert_mentions(&message, &["resolution", "0x5"]);
 }
+
+#[test]
+fn light_sizes_out_of_range() {
+    expect_spec_error(
+        "negative-sun",
+        |s| s["light"]["angular_radius_deg"] = json!(-1.0),
+        &["light.angular_radius_deg", "≥ 0", "-1"],
+    );
+    expect_spec_error(
+        "wide-sun",
+        |s| s["light"]["angular_radius_deg"] = json!(45.0),
+        &["light.angular_radius_deg", "at most 30"],
+    );
+    expect_spec_error(
+        "negative-sphere",
+        |s| s["light"] = json!({ "type": "point", "position": [0.0, 5.0, 0.0], "radius": -2.0 }),
+        &["light.radius", "≥ 0"],
+    );
+    expect_spec_error(
+        "sun-with-radius",
+        |s| s["light"]["radius"] = json!(1.0),
+        &["light", "unknown field `radius`"],
+    );
+    let scene = scene::load("analytic").unwrap();
+    let message = error_message(scene.with_light_size(f64::NAN), "with_light_size(NaN)");
+    assert_mentions(&message, &["--light-size", "angular_radius_deg", "NaN"]);
+    let output = common::izb_cli(&["render", "analytic", "--light-size=-3", "--backend", "cpu"]);
+    assert!(!output.status.success(), "a negative --light-size rendered");
+    assert_mentions(
+        &String::from_utf8_lossy(&output.stderr),
+        &["--light-size", "≥ 0"],
+    );
+}
