@@ -311,7 +311,9 @@ uint paired_triangle_mask(vec3 t0, vec3 t1, vec3 t2) {
         paired_ray(i, delta, c, d);
         precise vec3 w = cross(delta, c);
         precise float oi = o - dot(delta, m);
-        if (!(oi != 0.0)) continue;
+        // S_i beyond the triangle's plane from P: inside the occluder, as
+        // far as the µQuad can tell (paired_occluded_samples).
+        if (!(oi * o > 0.0)) continue;
         bool flip = oi < 0.0;
         precise float f0 = dot(n0, d) + dot(e0, w);
         precise float f1 = dot(n1, d) + dot(e1, w);

@@ -155,8 +155,12 @@ pub(super) fn paired_occluded_samples(
     let mut mask = 0u32;
     for i in 0..32 {
         let oi = o - rays.delta[i].dot(m);
-        if !(oi != 0.0) {
-            continue; // S_i in the triangle's plane (or NaN): no cone
+        // S_i on P's side of the triangle's plane: o_i has o's sign. A
+        // sample beyond the plane lies, as far as the µQuad can tell,
+        // inside the occluder's solid (the wall at a crease): the
+        // triangle does not shadow it. (Zero or NaN: no cone.)
+        if !(oi * o > 0.0) {
+            continue;
         }
         let flip = oi < 0.0;
         let side = |f: f32| (if flip { -f } else { f }) >= 0.0;

@@ -70,9 +70,11 @@ fn pixel_mask(
     let size = px.axis_x.length().max(px.axis_y.length());
     let microquad_part = microquad_tolerance::<DVec3>(size);
     let (disk, finite) = disk_from(light, radius, p);
-    let occludes = |id: u32| {
+    let occludes_from = |id: u32, delta: DVec3| {
+        let t = bvh.triangle(id).map(|v| v - p);
         id != px.hit.triangle
-            && may_shadow_soft(&bvh.triangle(id).map(|v| v - p), normal, microquad_part)
+            && may_shadow_soft(&t, normal, microquad_part)
+            && same_side_as_p(&t, delta)
     };
     let t_max = if finite { 1.0 } else { f64::INFINITY };
     let mut mask = 0u32;
@@ -84,6 +86,7 @@ fn pixel_mask(
         // unnormalised offset (|d| ≈ 629) as the direction, and found it
         // with the unit one.
         let length = toward.length();
+        let occludes = |id: u32| occludes_from(id, delta);
         let hidden = normal.dot(toward) <= 0.0
             || bvh.any_hit(p + delta, toward / length, 0.0, t_max * length, occludes);
         if hidden {
@@ -91,6 +94,19 @@ fn pixel_mask(
         }
     }
     mask
+}
+
+/// Whether the ray origin P + `delta` lies strictly on P's side of the
+/// plane of `t` (vertices minus P): a paired ray from beyond it starts, as
+/// far as the µQuad can tell, inside that occluder, which does not shadow
+/// it (the IZB's `paired_occluded_samples`). Always true from P.
+fn same_side_as_p(t: &[DVec3; 3], delta: DVec3) -> bool {
+    if delta == DVec3::ZERO {
+        return true;
+    }
+    let m = (t[1] - t[0]).cross(t[2] - t[0]);
+    let o = m.dot(t[0]);
+    (o - delta.dot(m)) * o > 0.0
 }
 
 /// The offset from P of the µQuad sample at `uv`.
@@ -153,6 +169,10 @@ pub fn soft_decision_margin(
         let n = (t[1] - t[0]).cross(t[2] - t[0]);
         let off = (n.dot(t[0]) / n.length()).abs();
         margin = margin.min((height - tolerance).abs().min((off - tolerance).abs()) / scale);
+        if paired_uv.is_some() {
+            // The paired rule's side of the plane: S_i's distance to it.
+            margin = margin.min((n.dot(t[0] - delta) / n.length()).abs() / scale);
+        }
         if height > tolerance && off > tolerance {
             for k in 0..3 {
                 let e = (t[k] - delta).cross(t[(k + 1) % 3] - delta);
