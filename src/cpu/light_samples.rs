@@ -159,7 +159,7 @@ pub(super) fn paired_occluded_samples(
         // sample beyond the plane lies, as far as the µQuad can tell,
         // inside the occluder's solid (the wall at a crease): the
         // triangle does not shadow it. (Zero or NaN: no cone.)
-        if !(oi * o > 0.0) {
+        if (oi * o).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
         let flip = oi < 0.0;
