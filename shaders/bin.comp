@@ -267,13 +267,45 @@ bool touches(Footprint f, int x, int y) {
 
 // bin::penumbra_reaches_cell: a directional area light's per-cell bound,
 // from the cell's lowest receiver and its reach (behind-receivers skip).
+// penumbra::sphere_pad_in_cell: a sphere light's pad for the receivers
+// of cell c = (x, y) of level `level`; false keeps the frame-wide pad.
+bool sphere_pad_in_cell(Triangle t, uint k, uint level, uvec2 r, uint x, uint y, out float pad) {
+    pad = 0.0;
+    precise float grow = 1.0 + PENUMBRA_MARGIN;
+    float rad = frame.light_radius;
+    float around = float(~r.y) + CELL_PADDING;
+    float up = float(1u << level);
+    vec2 lo = ndc_of_grid(k, vec2(float(x) - around, float(y) - around) * up);
+    vec2 hi = ndc_of_grid(k, vec2(float(x) + 1.0 + around, float(y) + 1.0 + around) * up);
+    precise float rho_cell = length(max(abs(lo), abs(hi)));
+    precise float depth = -from_ordered_bits(r.x);
+    precise float far = depth * sqrt(1.0 + rho_cell * rho_cell) * grow;
+    float near = min(min(t.a.z, t.b.z), t.c.z);
+    if (!(!isinf(far) && !isnan(far) && near > 2.0 * rad * grow)) return false;
+    if (far <= near) return true;   // every receiver nearer than the triangle
+    precise float denominator = near * (far + rad) - 2.0 * far * rad * grow;
+    if (!(denominator > 0.0)) return false;
+    precise float tan_theta = rad * (far - near) / denominator * grow;
+    precise float rho = max(max(length(t.a.xy / t.a.z), length(t.b.xy / t.b.z)), length(t.c.xy / t.c.z)) * grow;
+    precise float product = rho * tan_theta;
+    if (!(product <= MAX_PENUMBRA_TAN_PRODUCT)) return false;
+    precise float p = tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow;
+    pad = p;
+    return true;
+}
+
 bool penumbra_reaches_cell(Triangle t, uint k, Footprint f, uint c, uint x, uint y) {
-    if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || frame.light_radius == 0.0
-        || light.projection != 0u) return true;
+    if ((frame.skips & SKIP_BEHIND_RECEIVERS) == 0u || frame.light_radius == 0.0) return true;
     uvec2 r = cell_receivers[c];
-    float z_min = from_ordered_bits(r.x);
-    float top = max(max(t.a.z, t.b.z), t.c.z);
-    precise float pad_ndc = frame.light_radius * max(top - z_min, 0.0) * (1.0 + PENUMBRA_MARGIN);
+    precise float pad_ndc;
+    if (light.projection == 0u) {
+        float z_min = from_ordered_bits(r.x);
+        float top = max(max(t.a.z, t.b.z), t.c.z);
+        precise float p = frame.light_radius * max(top - z_min, 0.0) * (1.0 + PENUMBRA_MARGIN);
+        pad_ndc = p;
+    } else if (!sphere_pad_in_cell(t, k, f.level, r, x, y, pad_ndc)) {
+        return true;
+    }
     CascadeGrid grid = light.cascade[k];
     precise vec2 pad = pad_ndc * vec2(float(grid.cells_x), float(grid.cells_y))
         / (grid.ndc_max - grid.ndc_min);

@@ -16,6 +16,7 @@ pub mod evaluate;
 pub mod footprint;
 pub mod light_samples;
 pub mod light_setup;
+pub mod penumbra;
 pub mod receivers;
 
 // The settings the CPU twins take, declared below both backends.
