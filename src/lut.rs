@@ -54,6 +54,16 @@ pub fn light_pattern() -> &'static SamplePattern {
     &EMBEDDED_LIGHT_PATTERN
 }
 
+/// The table and the 32 samples a mask is over: the light's
+/// ([`light_lut`], [`light_pattern`]) for soft shadows, else the µQuad's.
+pub fn tables_for(light_samples: bool) -> (&'static EdgeLut, &'static SamplePattern) {
+    if light_samples {
+        (light_lut(), light_pattern())
+    } else {
+        (edge_lut(), sample_pattern())
+    }
+}
+
 /// Random edges behind each table's statistics [`regenerate_tables`]
 /// returns.
 pub const REGENERATE_STATISTICS_LINES: usize = 1_000_000;

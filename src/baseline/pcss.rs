@@ -77,7 +77,7 @@ impl PcssLight {
                     .map(|v| toward.dot(v))
                     .fold(f32::NEG_INFINITY, f32::max);
                 PcssLight {
-                    size: scene.light_radius.tan() as f32,
+                    size: scene.light.disk_radius(scene.light_radius) as f32,
                     near: if near.is_finite() { near } else { 0.0 },
                 }
             }

@@ -10,7 +10,7 @@
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
 use super::footprint::{footprint, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
-pub use super::penumbra::{penumbra_pad, penumbra_reaches_cell};
+pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
 use super::receivers::upward_normal;
 pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
 use super::Skips;
@@ -187,9 +187,7 @@ pub fn place(
     let Some(pad) = penumbra_pad(setup, tri, &ndc) else {
         return (Placement::Overflow, None);
     };
-    // Light NDC to level-0 cells, per axis.
-    let cells = Vec2::new(grid.cells[0] as f32, grid.cells[1] as f32);
-    let pad = pad * cells / (grid.ndc_max - grid.ndc_min);
+    let pad = ndc_pad_in_cells(grid, pad);
     match footprint(grid, ndc.map(|n| grid.grid_coords(n)), pad) {
         None => (Placement::Culled, None),
         Some(f) => {

@@ -85,7 +85,7 @@ struct PixelFrustum {
     soft: Option<LightView>,
     /// With [`SampleMode::Paired32`] under an area light: the pixel's 32
     /// (µQuad sample, light sample) rays.
-    paired: Option<Box<PairedRays>>,
+    paired: Option<PairedRays>,
 }
 
 /// Pixel `i`'s frustum; `ndc_box` its µQuad's light-NDC box
@@ -124,15 +124,7 @@ fn pixel_frustum(
     let paired = soft
         .as_ref()
         .filter(|_| rule.mode == SampleMode::Paired32)
-        .map(|view| {
-            Box::new(PairedRays::new(
-                view,
-                ex,
-                ey,
-                crate::lut::sample_pattern(),
-                rule.pattern,
-            ))
-        });
+        .map(|view| PairedRays::new(view, ex, ey, crate::lut::sample_pattern(), rule.pattern));
     PixelFrustum {
         p,
         normal: g.normal[i],
@@ -196,31 +188,20 @@ pub struct MaskRule<'a> {
 impl<'a> MaskRule<'a> {
     /// The µQuad's 32 samples and their LUT.
     pub fn new(mode: SampleMode, skips: Skips) -> MaskRule<'static> {
-        let pattern = crate::lut::sample_pattern();
-        MaskRule {
-            mode,
-            pattern,
-            lut: crate::lut::edge_lut(),
-            skips,
-            radius: crate::frustum::pattern_radius(pattern),
-            light_samples: false,
-        }
+        Self::for_light(mode, skips, false)
     }
 
     /// The light's 32 samples and their LUT (soft shadows), or the
-    /// µQuad's for a point-like light.
+    /// µQuad's for a point-like light ([`crate::lut::tables_for`]).
     pub fn for_light(mode: SampleMode, skips: Skips, soft: bool) -> MaskRule<'static> {
-        if !soft {
-            return Self::new(mode, skips);
-        }
-        let pattern = crate::lut::light_pattern();
+        let (lut, pattern) = crate::lut::tables_for(soft);
         MaskRule {
             mode,
             pattern,
-            lut: crate::lut::light_lut(),
+            lut,
             skips,
             radius: crate::frustum::pattern_radius(pattern),
-            light_samples: true,
+            light_samples: soft,
         }
     }
 
@@ -311,25 +292,40 @@ fn occluded_samples(
     if !(w != 0.0) {
         return 0; // edge-on from the light (or NaN): no shadow area
     }
-    let edge = |k| edge_function(t, k, px.ex, px.ey, light, w < 0.0);
-    if !rule.skips.saturated_edges {
-        let mask = (0..3).fold(FULL, |m, k| m & rule.edge_mask(edge(k)).0);
-        counters.masks_nonempty += (mask != 0) as u64;
-        return mask;
-    }
-    // The cheap path: stop at the first edge that leaves no sample, and
-    // count the triangles no LUT read or sample loop was needed for.
+    and_of_edges(
+        rule,
+        3,
+        |k| edge_function(t, k, px.ex, px.ey, light, w < 0.0),
+        counters,
+    )
+}
+
+/// The AND of the masks of `count` edges (`edge(k)`, k < `count`), with
+/// the counters: with the `saturated_edges` skip it stops at the first
+/// edge that leaves no sample and counts the triangles no LUT read or
+/// sample loop was needed for. Shared by the µQuad and the light-sample
+/// tests.
+#[inline]
+pub(super) fn and_of_edges(
+    rule: &MaskRule,
+    count: usize,
+    edge: impl Fn(usize) -> [f32; 3],
+    counters: &mut TestCounters,
+) -> u32 {
+    let saturate = rule.skips.saturated_edges;
     let mut mask = FULL;
     let mut all_cheap = true;
-    for k in 0..3 {
+    for k in 0..count {
         let (m, cheap) = rule.edge_mask(edge(k));
         mask &= m;
         all_cheap &= cheap;
-        if mask == 0 {
+        if mask == 0 && saturate {
             break;
         }
     }
-    counters.saturated_masks += all_cheap as u64;
+    if saturate {
+        counters.saturated_masks += all_cheap as u64;
+    }
     counters.masks_nonempty += (mask != 0) as u64;
     mask
 }

@@ -4,7 +4,7 @@
 //! `evaluate` calls it in place of the µQuad test when the light has a
 //! size; the grid, the candidate walk and the skips are the same.
 
-use super::evaluate::{MaskRule, TestCounters, FULL};
+use super::evaluate::{and_of_edges, MaskRule, TestCounters};
 use crate::frustum::soft::{
     below_horizon_function, beyond_plane_function, cone_orientation, light_edge_function,
     off_triangle_plane,
@@ -59,21 +59,7 @@ pub(super) fn occluded_light_samples(
             beyond_plane_function(t, &view.disk)
         }
     };
-    let mut mask = FULL;
-    let mut all_cheap = true;
-    for k in 0..lines {
-        let (m, cheap) = rule.edge_mask(line(k));
-        mask &= m;
-        all_cheap &= cheap;
-        if mask == 0 && rule.skips.saturated_edges {
-            break;
-        }
-    }
-    if rule.skips.saturated_edges {
-        counters.saturated_masks += all_cheap as u64;
-    }
-    counters.masks_nonempty += (mask != 0) as u64;
-    mask
+    and_of_edges(rule, lines, line, counters)
 }
 
 /// The 32 rays of [`crate::settings::SampleMode::Paired32`] for one

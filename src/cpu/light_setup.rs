@@ -10,7 +10,7 @@
 use crate::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
 use crate::frustum::LightRel;
 use crate::gbuffer::{flags, GBuffer};
-use crate::scene::{light_disk, light_disk_f32, Light, LightDisk, Scene};
+use crate::scene::{light_disk_f32, Light, LightDisk, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -488,18 +488,14 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
         sun_disk: None,
     };
     if scene.has_area_light() {
-        match light {
-            Light::Directional { direction } => {
-                let tan_r = scene.light_radius.tan();
-                let disk = light_disk(-direction, tan_r);
-                setup.light_radius = tan_r as f32;
-                setup.sun_disk = Some(LightDisk {
-                    centre: setup.rotation.row(2),
-                    axis_u: disk.axis_u.as_vec3(),
-                    axis_v: disk.axis_v.as_vec3(),
-                });
-            }
-            Light::Point { .. } => setup.light_radius = scene.light_radius as f32,
+        setup.light_radius = light.disk_radius(scene.light_radius) as f32;
+        if let Light::Directional { .. } = light {
+            let disk = light.disk_from(scene.light_radius, DVec3::ZERO);
+            setup.sun_disk = Some(LightDisk {
+                centre: setup.rotation.row(2),
+                axis_u: disk.axis_u.as_vec3(),
+                axis_v: disk.axis_v.as_vec3(),
+            });
         }
     }
     if tested.is_empty() {

@@ -55,15 +55,30 @@ pub fn penumbra_pad(setup: &LightSetup, tri: &[Vec3; 3], ndc: &[Vec2; 3]) -> Opt
             if clearance.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return None;
             }
-            let tan_theta = r / clearance * grow;
-            let rho = ndc[0].length().max(ndc[1].length()).max(ndc[2].length()) * grow;
-            let product = rho * tan_theta;
-            if product.is_nan() || product > MAX_PENUMBRA_TAN_PRODUCT {
-                return None;
-            }
-            Some(tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow)
+            cone_ndc_pad(r / clearance * grow, ndc)
         }
     }
+}
+
+/// How far, in light NDC, directions within angle θ (`tan_theta`) of the
+/// directions to a triangle with NDC vertices `ndc` reach beyond its
+/// projection: tan θ (1 + ρ²) / (1 − ρ tan θ) at the widest vertex
+/// (tan φ = ρ), with [`PENUMBRA_MARGIN`]; `None` (overflow) when
+/// ρ tan θ exceeds [`MAX_PENUMBRA_TAN_PRODUCT`] or is NaN.
+fn cone_ndc_pad(tan_theta: f32, ndc: &[Vec2; 3]) -> Option<f32> {
+    let grow = 1.0 + PENUMBRA_MARGIN;
+    let rho = ndc[0].length().max(ndc[1].length()).max(ndc[2].length()) * grow;
+    let product = rho * tan_theta;
+    if product.is_nan() || product > MAX_PENUMBRA_TAN_PRODUCT {
+        return None;
+    }
+    Some(tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow)
+}
+
+/// A light-NDC distance `pad` in level-0 cells of `grid`, along x and y.
+pub fn ndc_pad_in_cells(grid: &CascadeGrid, pad: f32) -> Vec2 {
+    let cells = Vec2::new(grid.cells[0] as f32, grid.cells[1] as f32);
+    pad * cells / (grid.ndc_max - grid.ndc_min)
 }
 
 /// The per-cell bound on a directional area light's penumbra (with the
@@ -113,8 +128,7 @@ pub fn penumbra_reaches_cell(
             pad
         }
     };
-    let cells = Vec2::new(grid.cells[0] as f32, grid.cells[1] as f32);
-    let pad = pad * cells / (grid.ndc_max - grid.ndc_min) * level_scale(f.level);
+    let pad = ndc_pad_in_cells(grid, pad) * level_scale(f.level);
     f.touches_grown(i64::from(x), i64::from(y), pad + reach + CELL_PADDING)
 }
 
@@ -154,11 +168,5 @@ fn sphere_pad_in_cell(
         return None;
     }
     let tan_theta = r * (far - near) / denominator * grow;
-    let ndc = tri.map(|v| Vec2::new(v.x / v.z, v.y / v.z));
-    let rho = ndc[0].length().max(ndc[1].length()).max(ndc[2].length()) * grow;
-    let product = rho * tan_theta;
-    if product.is_nan() || product > MAX_PENUMBRA_TAN_PRODUCT {
-        return None;
-    }
-    Some(tan_theta * (1.0 + rho * rho) / (1.0 - product) * grow)
+    cone_ndc_pad(tan_theta, &tri.map(|v| Vec2::new(v.x / v.z, v.y / v.z)))
 }

@@ -163,14 +163,9 @@ pub fn beyond_triangle_plane<V: Vector>(
     microquad_part: V::Scalar,
     light: LightRel<V>,
 ) -> bool {
-    let reach = max3(t[0].length(), t[1].length(), t[2].length());
-    let tolerance = microquad_part + V::from_f64(DEPTH_TOLERANCE_ROUNDING) * reach;
-    if !matches!(
-        height.partial_cmp(&tolerance),
-        Some(std::cmp::Ordering::Greater)
-    ) {
+    let Some(tolerance) = above_full_tolerance(t, height, microquad_part) else {
         return false;
-    }
+    };
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     // Orient n toward the light.
     let facing = match light {
@@ -184,6 +179,25 @@ pub fn beyond_triangle_plane<V: Vector>(
     let n = if facing > zero { n } else { -n };
     // P − A = −A: P is beyond the plane (away from the light) when n·A > 0.
     n.dot(t[0]) > tolerance * n.length()
+}
+
+/// Condition 1 against the full tolerance (the µQuad part plus
+/// [`DEPTH_TOLERANCE_ROUNDING`] × the triangle's distance from P): the
+/// tolerance when `height` exceeds it, else `None`. Shared by the point
+/// light's rule and the area light's ([`soft::off_triangle_plane`]).
+#[inline]
+pub(crate) fn above_full_tolerance<V: Vector>(
+    t: &[V; 3],
+    height: V::Scalar,
+    microquad_part: V::Scalar,
+) -> Option<V::Scalar> {
+    let reach = max3(t[0].length(), t[1].length(), t[2].length());
+    let tolerance = microquad_part + V::from_f64(DEPTH_TOLERANCE_ROUNDING) * reach;
+    matches!(
+        height.partial_cmp(&tolerance),
+        Some(std::cmp::Ordering::Greater)
+    )
+    .then_some(tolerance)
 }
 
 #[inline]

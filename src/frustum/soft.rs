@@ -19,7 +19,7 @@
 //! light but through the disk: the same floats frame after frame while
 //! the light turns (see [`super`] on temporal stability).
 
-use super::{above_tangent_plane, max3, Vector, DEPTH_TOLERANCE_ROUNDING};
+use super::{above_full_tolerance, above_tangent_plane, Vector};
 use crate::scene::LightDisk;
 
 /// The per-pixel depth rule for an area light: triangle `t` (vertices
@@ -36,7 +36,7 @@ use crate::scene::LightDisk;
 ///    directional light, and by [`beyond_plane_function`] for a sphere.)
 ///
 /// The tolerance is the point-light rule's: `microquad_part` plus
-/// [`DEPTH_TOLERANCE_ROUNDING`] × the triangle's distance from P. Coplanar
+/// [`super::DEPTH_TOLERANCE_ROUNDING`] × the triangle's distance from P. Coplanar
 /// neighbours of the receiver fail condition 2; the triangles below its
 /// tangent plane fail condition 1.
 #[inline]
@@ -54,14 +54,9 @@ pub fn off_triangle_plane<V: Vector>(
     height: V::Scalar,
     microquad_part: V::Scalar,
 ) -> bool {
-    let reach = max3(t[0].length(), t[1].length(), t[2].length());
-    let tolerance = microquad_part + V::from_f64(DEPTH_TOLERANCE_ROUNDING) * reach;
-    if !matches!(
-        height.partial_cmp(&tolerance),
-        Some(std::cmp::Ordering::Greater)
-    ) {
+    let Some(tolerance) = above_full_tolerance(t, height, microquad_part) else {
         return false;
-    }
+    };
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let distance = n.dot(t[0]);
     let distance = if distance < V::zero() {

@@ -215,7 +215,7 @@ impl GpuRenderer {
         let [w, h] = scene.resolution;
         let pixels = scene.pixel_count() as u64;
         let t = triangles.len() as u64;
-        let (lut, _) = super::frame_inputs::frame_lut(settings.light_samples(scene));
+        let (lut, _) = crate::lut::tables_for(settings.light_samples(scene));
         let descs = frame_buffer_descs(&FrameSizes {
             pixels,
             triangles: t,

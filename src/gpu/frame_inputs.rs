@@ -130,19 +130,15 @@ pub(super) fn frame_params(
         Light::Point { position } => (position.as_vec3(), 1, glam::Mat3::IDENTITY),
     };
     let soft = settings.light_samples(scene);
-    let (lut, pattern) = frame_lut(soft);
+    let (lut, pattern) = crate::lut::tables_for(soft);
     let rows = rotation.transpose();
+    // LightSetup's light size and sun disk: the same f64 values, then f32.
+    let light_radius = light.disk_radius(scene.light_radius) as f32;
     let (mut sun_axis_u, mut sun_axis_v) = (glam::Vec3::ZERO, glam::Vec3::ZERO);
-    let light_radius = match light {
-        Light::Directional { direction } if scene.has_area_light() => {
-            // LightSetup's sun disk: the same f64 basis, then f32.
-            let tan_r = scene.light_radius.tan();
-            let disk = crate::scene::light_disk(-direction, tan_r);
-            (sun_axis_u, sun_axis_v) = (disk.axis_u.as_vec3(), disk.axis_v.as_vec3());
-            tan_r as f32
-        }
-        _ => scene.light_radius as f32,
-    };
+    if let (Light::Directional { .. }, true) = (light, scene.has_area_light()) {
+        let disk = light.disk_from(scene.light_radius, glam::DVec3::ZERO);
+        (sun_axis_u, sun_axis_v) = (disk.axis_u.as_vec3(), disk.axis_v.as_vec3());
+    }
     FrameParams {
         cam_corner: corner.as_vec3().to_array(),
         near: scene.camera.near as f32,
@@ -184,17 +180,5 @@ pub(super) fn frame_params(
         map_near: 0.0,
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
-    }
-}
-
-/// The table and the 32 samples a frame's masks are over: the light's
-/// (soft shadows) or the µQuad's.
-pub(super) fn frame_lut(
-    light_samples: bool,
-) -> (&'static crate::lut::EdgeLut, &'static [[f32; 2]; 32]) {
-    if light_samples {
-        (crate::lut::light_lut(), crate::lut::light_pattern())
-    } else {
-        (crate::lut::edge_lut(), crate::lut::sample_pattern())
     }
 }

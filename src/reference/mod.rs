@@ -23,7 +23,7 @@ pub mod soft_samples;
 
 use crate::bvh::{self_hit_offset, SceneBvh};
 use crate::gbuffer::{faces_light, pixel_surface, trace_primary};
-use crate::scene::{light_disk, CameraFrame, Light, LightDisk, Scene};
+use crate::scene::{CameraFrame, Light, Scene};
 use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
@@ -148,9 +148,8 @@ struct Tracer<'a> {
     bvh: &'a SceneBvh,
     frame: CameraFrame,
     light: Light,
-    /// Radius of the light's disk in [`LightDisk`] units (tan r for a
-    /// directional light, R for a point light); `None` for a hard light.
-    disk_radius: Option<f64>,
+    /// The light's size ([`Scene::light_radius`]); `None` for a hard light.
+    light_radius: Option<f64>,
     settings: ReferenceSettings,
 }
 
@@ -178,13 +177,10 @@ impl Tracer<'_> {
         p: DVec3,
         normal: DVec3,
         triangle: u32,
-        radius: f64,
+        light_radius: f64,
         rng: &mut Pcg32,
     ) -> (u32, u32) {
-        let disk: LightDisk<DVec3> = match self.light {
-            Light::Directional { direction } => light_disk(-direction.normalize(), radius),
-            Light::Point { position } => light_disk(position - p, radius),
-        };
+        let disk = self.light.disk_from(light_radius, p);
         let (mut lit, mut rays) = (0, 0);
         let side = LIGHT_STRATA_PER_SIDE;
         for stratum in 0..LIGHT_SAMPLES_PER_RAY {
@@ -224,10 +220,10 @@ impl Tracer<'_> {
         triangle: u32,
         rng: &mut Pcg32,
     ) -> (u32, u32, u32) {
-        match self.disk_radius {
+        match self.light_radius {
             None => (self.lit(p, normal, triangle) as u32, 1, 1),
-            Some(radius) => {
-                let (lit, rays) = self.lit_area(p, normal, triangle, radius, rng);
+            Some(light_radius) => {
+                let (lit, rays) = self.lit_area(p, normal, triangle, light_radius, rng);
                 (lit, LIGHT_SAMPLES_PER_RAY, rays)
             }
         }
@@ -307,10 +303,7 @@ pub fn reference(
         bvh,
         frame: scene.camera.frame(scene.resolution),
         light: scene.light.relative_to(scene.camera.eye),
-        disk_radius: scene.has_area_light().then(|| match scene.light {
-            Light::Directional { .. } => scene.light_radius.tan(),
-            Light::Point { .. } => scene.light_radius,
-        }),
+        light_radius: scene.has_area_light().then_some(scene.light_radius),
         settings,
     };
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))

@@ -18,7 +18,7 @@ use crate::bvh::SceneBvh;
 use crate::frustum::microquad_tolerance;
 use crate::frustum::soft::may_shadow_soft;
 use crate::gbuffer::{pixel_surface, PixelSurface};
-use crate::scene::{light_disk, Light, LightDisk, Scene};
+use crate::scene::{Light, LightDisk, Scene};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -26,10 +26,8 @@ use rayon::prelude::*;
 /// samples are points at a finite distance. `light` must be eye-relative
 /// and `radius` the scene's [`Scene::light_radius`] (> 0).
 pub fn disk_from(light: &Light, radius: f64, p: DVec3) -> (LightDisk<DVec3>, bool) {
-    match *light {
-        Light::Directional { direction } => (light_disk(-direction, radius.tan()), false),
-        Light::Point { position } => (light_disk(position - p, radius), true),
-    }
+    let finite = matches!(light, Light::Point { .. });
+    (light.disk_from(radius, p), finite)
 }
 
 /// The 32-light-sample masks of every pixel (0 where not shadow-tested),

@@ -64,6 +64,29 @@ impl Light {
         Ok(())
     }
 
+    /// The radius of the light's disk ([`LightDisk`]) for a light of size
+    /// `light_radius` ([`Scene::light_radius`](super::Scene::light_radius)):
+    /// tan r for a directional light (its disk lies one unit away), R for
+    /// a point light.
+    pub fn disk_radius(&self, light_radius: f64) -> f64 {
+        match self {
+            Light::Directional { .. } => light_radius.tan(),
+            Light::Point { .. } => light_radius,
+        }
+    }
+
+    /// The light's disk seen from `p` ([`LightDisk`], `f64`) for a light of
+    /// size `light_radius`. The light and `p` must be in one frame, and a
+    /// directional light's direction unit ([`Light::relative_to`] makes
+    /// both so).
+    pub fn disk_from(&self, light_radius: f64, p: DVec3) -> LightDisk<DVec3> {
+        let radius = self.disk_radius(light_radius);
+        match *self {
+            Light::Directional { direction } => light_disk(-direction, radius),
+            Light::Point { position } => light_disk(position - p, radius),
+        }
+    }
+
     /// The spec field that sizes this kind of light.
     pub fn size_field(&self) -> &'static str {
         match self {
