@@ -222,8 +222,18 @@ impl Drop for GpuContext {
     }
 }
 
+/// Subgroup operations the shaders use in compute: `subgroupElect`
+/// (basic), `subgroupAllEqual` (vote), `subgroupAdd`/`Min`/`Max`/`Or`
+/// (arithmetic), `subgroupBallot` (ballot).
+const REQUIRED_SUBGROUP_OPERATIONS: vk::SubgroupFeatureFlags = vk::SubgroupFeatureFlags::from_raw(
+    vk::SubgroupFeatureFlags::BASIC.as_raw()
+        | vk::SubgroupFeatureFlags::VOTE.as_raw()
+        | vk::SubgroupFeatureFlags::ARITHMETIC.as_raw()
+        | vk::SubgroupFeatureFlags::BALLOT.as_raw(),
+);
+
 /// A suitable physical device: Vulkan ≥ 1.2, a compute queue, the scalar
-/// block layout.
+/// block layout, the subgroup operations of [`REQUIRED_SUBGROUP_OPERATIONS`].
 struct Candidate {
     physical: vk::PhysicalDevice,
     queue_family: u32,
@@ -249,6 +259,19 @@ fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
         // SAFETY: as above; the feature chain outlives the call.
         unsafe { instance.get_physical_device_features2(physical, &mut f2) };
         if f12.scalar_block_layout == vk::FALSE {
+            continue;
+        }
+        // The passes reduce their counters and atomics per subgroup
+        // (votes, arithmetic) before touching memory.
+        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut subgroup);
+        // SAFETY: as above; the property chain outlives the call.
+        unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
+        if !subgroup
+            .supported_stages
+            .contains(vk::ShaderStageFlags::COMPUTE)
+            || !subgroup.supported_operations.contains(REQUIRED_SUBGROUP_OPERATIONS)
+        {
             continue;
         }
         // SAFETY: as above.

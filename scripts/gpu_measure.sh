@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The GPU measurements of paper-notes/performance.md ("On a real GPU"), as
+# one script for a lent GPU machine (this workplace's `device` tool): a
+# Vulkan-only bench (the GPU clocks down when the CPU twin works in the same
+# process), the GPU = CPU tests on real hardware, and the soft-shadow bench.
+#
+# Run from the repository root. It expects, beside the tree and git-ignored
+# (scripts/gpu_prepare.sh makes them on the build machine):
+#   .gl/*.deb      the Vulkan loader (the device image has none);
+#   .dev/izb       a stripped release binary;
+#   .dev/tests/*   stripped test executables (gpu_backend, gpu_soft_shadows);
+#   .dev/scenes    a copy of ../shared/scenes.
+# Writes logs and bench JSON under $OUT. Each step has its own time limit
+# so a slow step cannot cost the ones after it.
+# Knobs: IZB_MEASURE_RES (hard bench resolutions), IZB_MEASURE_REPEAT,
+# IZB_MEASURE_STEPS (which steps, default "hard tests soft").
+set -u
+OUT=${OUT:-/tmp/izb-gpu-out}
+mkdir -p "$OUT"
+RES=${IZB_MEASURE_RES:-960x540,1920x1080}
+REPEAT=${IZB_MEASURE_REPEAT:-7}
+STEPS=${IZB_MEASURE_STEPS:-hard tests soft}
+LOG=$OUT/log.txt
+S=$PWD/.dev/scenes
+SHARED="$S/deckchair.scene.json $S/tablefan.scene.json $S/ficus.scene.json $S/engine.scene.json $S/courtyard.scene.json"
+PROCEDURAL="default wires hairball city grazing far analytic"
+
+# The loader and glvnd (the NVIDIA ICD's libGLX_nvidia needs libGLdispatch).
+if [ -d .gl ]; then
+    for f in .gl/*.deb; do dpkg -x "$f" /; done
+    ldconfig
+fi
+icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+[ -f "$icd" ] && export VK_DRIVER_FILES=$icd
+
+# step LIMIT_S NAME COMMAND...: runs COMMAND under a limit, logged.
+step() {
+    local limit=$1 name=$2
+    shift 2
+    local start=$SECONDS
+    echo "== $name (limit ${limit} s): $*" | tee -a "$LOG"
+    timeout "$limit" "$@" 2>&1 | tee -a "$LOG"
+    echo "== $name: exit ${PIPESTATUS[0]} after $((SECONDS - start)) s" | tee -a "$LOG"
+}
+
+step 20 gpu nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm,clocks.mem,temperature.gpu,power.draw --format=csv
+step 20 devices .dev/izb devices
+
+for s in $STEPS; do
+    case $s in
+    hard)
+        # izb32 against the GPU ray tracer (rt32-rays) on every scene at
+        # two resolutions; the ground truth at 1 spp (only the metrics
+        # need it).
+        step 180 hard .dev/izb bench $PROCEDURAL $SHARED --backend vulkan \
+            --methods izb32,rt32-rays --resolution "$RES" --repeat "$REPEAT" \
+            --spp 1 --out /tmp/izb-bench/hard.json
+        cp /tmp/izb-bench/hard.json "$OUT/" 2>/dev/null
+        ;;
+    tests)
+        # The tests find ../shared/scenes beside the checkout they were
+        # built in (/work/main).
+        if [ ! -e /work/shared/scenes ]; then
+            mkdir -p /work/shared && ln -s "$S" /work/shared/scenes
+        fi
+        for t in .dev/tests/*; do
+            IZB_REQUIRE_GPU=1 IZB_REQUIRE_SCENES=1 step 75 "$(basename "$t")" "$t"
+        done
+        ;;
+    soft)
+        # Area lights: the paired and LUT soft masks and PCSS, 1080p.
+        step 150 soft .dev/izb bench default $SHARED --backend vulkan \
+            --methods izb32,izb32-paired,pcss-2048 --light-size 0.5,2 \
+            --resolution 1920x1080 --repeat 5 --spp 1 --out /tmp/izb-bench/soft.json
+        cp /tmp/izb-bench/soft.json "$OUT/" 2>/dev/null
+        ;;
+    esac
+done
+step 20 gpu-after nvidia-smi --query-gpu=clocks.sm,temperature.gpu,power.draw --format=csv
