@@ -8,12 +8,14 @@
 # (scripts/gpu_prepare.sh makes them on the build machine):
 #   .gl/*.deb      the Vulkan loader (the device image has none);
 #   .dev/izb       a stripped release binary;
-#   .dev/tests/*   stripped test executables (gpu_backend, gpu_soft_shadows);
+#   .dev/tests/*   stripped test executables (gpu_backend, gpu_heavy_step,
+#                  gpu_soft_shadows);
 #   .dev/scenes    a copy of ../shared/scenes.
 # Writes logs and bench JSON under $OUT. Each step has its own time limit
 # so a slow step cannot cost the ones after it.
 # Knobs: IZB_MEASURE_RES (hard bench resolutions), IZB_MEASURE_REPEAT,
-# IZB_MEASURE_STEPS (which steps, default "hard tests soft").
+# IZB_MEASURE_STEPS (which steps of hard, heavy, tests, soft; default
+# "hard tests soft").
 set -u
 OUT=${OUT:-/tmp/izb-gpu-out}
 mkdir -p "$OUT"
@@ -52,10 +54,21 @@ for s in $STEPS; do
         # izb32 against the GPU ray tracer (rt32-rays) on every scene at
         # two resolutions; the ground truth at 1 spp (only the metrics
         # need it).
-        step 180 hard .dev/izb bench $PROCEDURAL $SHARED --backend vulkan \
+        step 150 hard .dev/izb bench $PROCEDURAL $SHARED --backend vulkan \
             --methods izb32,rt32-rays --resolution "$RES" --repeat "$REPEAT" \
             --spp 1 --out /tmp/izb-bench/hard.json
         cp /tmp/izb-bench/hard.json "$OUT/" 2>/dev/null
+        ;;
+    heavy)
+        # Evaluate's heavy step: its threshold (0 = off) on the scenes with
+        # long candidate lists, 1080p.
+        for e in 0 64 128 256 512; do
+            IZB_GPU_HEAVY_ENTRIES=$e step 60 "heavy-$e" .dev/izb bench \
+                "$S/courtyard.scene.json" "$S/ficus.scene.json" "$S/engine.scene.json" \
+                grazing hairball --backend vulkan --methods izb32 \
+                --resolution 1920x1080 --repeat 3 --spp 1 --out "/tmp/izb-bench/heavy-$e.json"
+            cp "/tmp/izb-bench/heavy-$e.json" "$OUT/" 2>/dev/null
+        done
         ;;
     tests)
         # The tests find ../shared/scenes beside the checkout they were
@@ -64,12 +77,12 @@ for s in $STEPS; do
             mkdir -p /work/shared && ln -s "$S" /work/shared/scenes
         fi
         for t in .dev/tests/*; do
-            IZB_REQUIRE_GPU=1 IZB_REQUIRE_SCENES=1 step 75 "$(basename "$t")" "$t"
+            IZB_REQUIRE_GPU=1 IZB_REQUIRE_SCENES=1 step 60 "$(basename "$t")" "$t"
         done
         ;;
     soft)
         # Area lights: the paired and LUT soft masks and PCSS, 1080p.
-        step 150 soft .dev/izb bench default $SHARED --backend vulkan \
+        step 90 soft .dev/izb bench default $SHARED --backend vulkan \
             --methods izb32,izb32-paired,pcss-2048 --light-size 0.5,2 \
             --resolution 1920x1080 --repeat 5 --spp 1 --out /tmp/izb-bench/soft.json
         cp /tmp/izb-bench/soft.json "$OUT/" 2>/dev/null

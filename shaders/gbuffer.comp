@@ -24,6 +24,7 @@ layout(scalar, binding = B_G_AXIS_Y) writeonly buffer AyBuf { vec3 g_axis_y[]; }
 layout(scalar, binding = B_G_ID_FLAGS) writeonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
+#include "counters.glsl"
 
 #define STACK_SIZE 64
 
@@ -137,7 +138,7 @@ void main() {
     g_position[i] = p;
     g_axis_x[i] = ex;
     g_axis_y[i] = ey;
-    atomicAdd(counters[C_HITS], 1u);
-    if ((flags & FLAG_SHADOW_TESTED) != 0u) atomicAdd(counters[C_SHADOW_TESTED], 1u);
-    if ((flags & FLAG_AXES_CLAMPED) != 0u) atomicAdd(counters[C_CLAMPED], 1u);
+    count_add(C_HITS, 1u);
+    count_add(C_SHADOW_TESTED, (flags & FLAG_SHADOW_TESTED) != 0u ? 1u : 0u);
+    count_add(C_CLAMPED, (flags & FLAG_AXES_CLAMPED) != 0u ? 1u : 0u);
 }

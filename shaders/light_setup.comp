@@ -39,9 +39,13 @@ layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
 // (light_setup::MIN_PERSPECTIVE_DEPTH_RATIO).
 
 #if defined(STEP_RECEIVERS) || defined(STEP_EXTENT)
-// Workgroup partial reductions: the tile reduces in shared memory, then
-// one thread per tile touches the global LightState, so the global atomics
-// fall from one per pixel (or corner) to one per 8×8 tile.
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+// Partial reductions: each subgroup reduces its lanes (subgroupMin/Max,
+// exact for order-preserving bits), one lane per subgroup folds that into
+// shared memory, then one thread per tile touches the global LightState:
+// one global atomic per 8×8 tile instead of one per pixel (or corner),
+// and no 64-way conflicts on the shared words.
 // STEP_RECEIVERS: wg_lo/wg_hi[0..3] position, [3] view depth.
 // STEP_EXTENT: wg_lo/wg_hi[0] light-view z, wg_ndc_* per cascade.
 shared uint wg_count[MAX_CASCADES];
@@ -87,16 +91,23 @@ void main() {
 #ifdef STEP_RECEIVERS
     wg_reset();
     uint i;
-    if (receiver_pixel(i)) {
-        vec3 p = g_position[i];
-        precise float depth = dot(p, frame.cam_forward);
-        atomicAdd(wg_count[0], 1u);
-        for (int k = 0; k < 3; ++k) {
-            atomicMin(wg_lo[k], ordered_bits(p[k]));
-            atomicMax(wg_hi[k], ordered_bits(p[k]));
+    bool receiver = receiver_pixel(i);
+    vec3 p = receiver ? g_position[i] : vec3(0.0);
+    precise float depth = dot(p, frame.cam_forward);
+    // Non-receivers reduce as the identities (~0 for min, 0 for max).
+    uint count = subgroupAdd(receiver ? 1u : 0u);
+    uint lo[4], hi[4];
+    for (int k = 0; k < 4; ++k) {
+        uint bits = ordered_bits(k < 3 ? p[k] : depth);
+        lo[k] = subgroupMin(receiver ? bits : 0xFFFFFFFFu);
+        hi[k] = subgroupMax(receiver ? bits : 0u);
+    }
+    if (count != 0u && subgroupElect()) {
+        atomicAdd(wg_count[0], count);
+        for (int k = 0; k < 4; ++k) {
+            atomicMin(wg_lo[k], lo[k]);
+            atomicMax(wg_hi[k], hi[k]);
         }
-        atomicMin(wg_lo[3], ordered_bits(depth));
-        atomicMax(wg_hi[3], ordered_bits(depth));
     }
     barrier();
     if (gl_LocalInvocationIndex == 0u && wg_count[0] > 0u) {
@@ -176,16 +187,20 @@ void main() {
         k = cascade_of(g_position[i]);
         masks[i] = k;
     }
-    if ((gbuffer_flags(word) & FLAG_SHADOW_TESTED) != 0u) {
-        atomicAdd(wg_count[k], 1u);
+    // This pixel's corners first (identities when it is not tested), then
+    // the subgroup's, per cascade.
+    bool tested = (gbuffer_flags(word) & FLAG_SHADOW_TESTED) != 0u;
+    uint z_lo = 0xFFFFFFFFu, z_hi = 0u;
+    uvec2 ndc_lo = uvec2(0xFFFFFFFFu), ndc_hi = uvec2(0u);
+    if (tested) {
         vec3 p = g_position[i];
         vec3 hx = g_axis_x[i] * 0.5;
         vec3 hy = g_axis_y[i] * 0.5;
         vec3 corners[4] = vec3[4](p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy);
         for (int c = 0; c < 4; ++c) {
             vec3 q = to_light_view(corners[c]);
-            atomicMin(wg_lo[0], ordered_bits(q.z));
-            atomicMax(wg_hi[0], ordered_bits(q.z));
+            z_lo = min(z_lo, ordered_bits(q.z));
+            z_hi = max(z_hi, ordered_bits(q.z));
             vec2 ndc;
             if (light.projection == 0u) {
                 ndc = q.xy;
@@ -195,10 +210,28 @@ void main() {
                 wg_behind = 1u;
                 continue;
             }
-            atomicMin(wg_ndc_lo[k][0], ordered_bits(ndc.x));
-            atomicMin(wg_ndc_lo[k][1], ordered_bits(ndc.y));
-            atomicMax(wg_ndc_hi[k][0], ordered_bits(ndc.x));
-            atomicMax(wg_ndc_hi[k][1], ordered_bits(ndc.y));
+            uvec2 bits = uvec2(ordered_bits(ndc.x), ordered_bits(ndc.y));
+            ndc_lo = min(ndc_lo, bits);
+            ndc_hi = max(ndc_hi, bits);
+        }
+    }
+    z_lo = subgroupMin(z_lo);
+    z_hi = subgroupMax(z_hi);
+    if (subgroupElect()) {
+        atomicMin(wg_lo[0], z_lo);
+        atomicMax(wg_hi[0], z_hi);
+    }
+    for (uint c = 0u; c < light.cascade_count; ++c) {
+        bool mine = tested && k == c;
+        uint count = subgroupAdd(mine ? 1u : 0u);
+        uvec2 lo = subgroupMin(mine ? ndc_lo : uvec2(0xFFFFFFFFu));
+        uvec2 hi = subgroupMax(mine ? ndc_hi : uvec2(0u));
+        if (count != 0u && subgroupElect()) {
+            atomicAdd(wg_count[c], count);
+            atomicMin(wg_ndc_lo[c][0], lo.x);
+            atomicMin(wg_ndc_lo[c][1], lo.y);
+            atomicMax(wg_ndc_hi[c][0], hi.x);
+            atomicMax(wg_ndc_hi[c][1], hi.y);
         }
     }
     barrier();

@@ -53,11 +53,14 @@ shared_constants! {
         /// order-preserving distance word per texel (empty texels
         /// `u32::MAX`); 4 bytes in an IZB frame.
         SHADOW_MAP = 19;
+        /// Evaluate's heavy step: per queued pixel, its index and cascade
+        /// (`uvec2`), `FrameParams::heavy_capacity` of them.
+        HEAVY_PIXELS = 20;
     }
 }
 
 /// Number of bindings (one past the last of [`binding`]).
-pub const BINDING_COUNT: u32 = binding::SHADOW_MAP + 1;
+pub const BINDING_COUNT: u32 = binding::HEAVY_PIXELS + 1;
 
 shared_constants! {
     /// Word indices into the counters buffer (`C_*`); 64-bit counters take
@@ -97,8 +100,12 @@ shared_constants! {
         CELLS_UNTOUCHED = 28;
         /// 64-bit.
         MASKS_NONEMPTY = 29;
+        /// Pixels whose grid candidates went to evaluate's heavy step
+        /// (those past `FrameParams::heavy_capacity` stayed in the tile
+        /// step).
+        HEAVY_PIXELS = 31;
         /// Words in the counters buffer.
-        WORDS = 31;
+        WORDS = 32;
     }
 }
 
@@ -194,6 +201,9 @@ shared_constants! {
         MAX_CASCADES = 4;
         /// Cells along either side of one cascade's finest grid, at most.
         MAX_GRID_SIDE = 4096;
+        /// Cells per block of the bin's prefix sum (a workgroup each; the
+        /// block sums follow `cell_start`'s cells and total).
+        SCAN_BLOCK_CELLS = 4096;
     }
 }
 
@@ -331,7 +341,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 77, "members of the five shared structs");
+        assert_eq!(checked, 79, "members of the five shared structs");
     }
 
     #[test]

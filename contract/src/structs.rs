@@ -87,6 +87,11 @@ shared_struct! {
         /// direction toward the light (eye-relative), the near end of the
         /// map's depth range; 0 otherwise.
         pub map_near: f32 => "float map_near",
+        /// Evaluate: a pixel whose cells list more entries than this hands
+        /// them to the heavy step (a workgroup per pixel); 0: never.
+        pub heavy_entries: u32 => "uint heavy_entries",
+        /// Entries of the heavy step's queue (`B_HEAVY_PIXELS`).
+        pub heavy_capacity: u32 => "uint heavy_capacity",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// `MODE_PAIRED32` frame under an area light.

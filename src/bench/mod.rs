@@ -444,6 +444,21 @@ pub fn relative_to(path: &Path, base: &Path) -> String {
     path.strip_prefix(dir).unwrap_or(path).display().to_string()
 }
 
+/// Repetitions of the passes per timed GPU frame on a GPU
+/// ([`crate::gpu::GpuRenderer::timed`]); a CPU device (lavapipe) runs
+/// them once, its clocks do not idle and its frames take seconds.
+pub const GPU_TIMED_REPEATS: u32 = 8;
+
+/// `gpu` set up for timing: [`GPU_TIMED_REPEATS`] on a GPU, 1 on a CPU.
+pub fn timed_renderer(gpu: crate::gpu::GpuRenderer) -> crate::gpu::GpuRenderer {
+    let repeats = if gpu.context.info().kind == "CPU" {
+        1
+    } else {
+        GPU_TIMED_REPEATS
+    };
+    gpu.timed(repeats)
+}
+
 /// Measures the IZB and shadow-map methods of `methods` on a Vulkan
 /// device (full pipeline from the GPU G-buffer, timestamp queries),
 /// repetitions interleaved, against `shared.truth`. `rt32` has no Vulkan
@@ -478,6 +493,7 @@ pub fn bench_scene_vulkan(
                     gpu.render(scene, settings, GBufferSource::Gpu).map(|out| {
                         let details = json!({
                             "device": device,
+                            "steps_ms": out.report.gpu_step_milliseconds,
                             "counters": out.report.counters,
                             "memory_total_bytes": out.report.memory_total_bytes,
                             "memory": out.report.memory,

@@ -149,6 +149,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
                 device_index: args.device,
                 ..GpuOptions::from_env()
             })
+            .map(bench::timed_renderer)
             .context("bench --backend vulkan")?,
         )
     };

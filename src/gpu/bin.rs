@@ -2,7 +2,8 @@
 //! grid pyramid by counting sort ([Compute IZB]) — each triangle placed on
 //! its level from its light-view vertices and counted in the cells its
 //! projection touches (the overflow list only for triangles crossing a
-//! point light's image plane), an in-place prefix sum, a scatter by atomic
+//! point light's image plane), an in-place prefix sum (reduce, then scan,
+//! over blocks of `SCAN_BLOCK_CELLS` cells), a scatter by atomic
 //! decrement — the twin of [`crate::cpu::bin::bin`].
 //!
 //! The cell list's size is only known after the prefix sum, inside the
@@ -14,18 +15,26 @@
 
 use super::{Kernels, Recorder};
 
-/// Records the pass over `triangles` triangles; with `pixels` (the
-/// behind-receivers skip) it first gathers each cell's receivers
-/// (`STEP_RECEIVERS`, [`crate::cpu::bin::cell_receivers`]).
-pub fn bin(rec: &Recorder, kernels: &Kernels, triangles: u32, pixels: Option<u32>) {
+/// Records the pass over `triangles` triangles and at most `max_cells`
+/// cells; with `pixels` (the behind-receivers skip) it first gathers each
+/// cell's receivers on the used levels (`STEP_RECEIVERS`,
+/// [`crate::cpu::receivers::cell_receivers`]).
+pub fn bin(rec: &Recorder, kernels: &Kernels, triangles: u32, max_cells: u64, pixels: Option<u32>) {
     rec.begin_label("bin");
+    rec.dispatch_linear(&kernels.bin_levels, triangles);
+    rec.barrier();
     if let Some(pixels) = pixels {
         rec.dispatch_linear(&kernels.bin_receivers, pixels);
         rec.barrier();
     }
     rec.dispatch_linear(&kernels.bin_count, triangles);
     rec.barrier();
-    rec.dispatch(&kernels.bin_prefix_sum, [1, 1, 1]);
+    let blocks = super::frame_memory::scan_blocks(max_cells).max(1) as u32;
+    rec.dispatch(&kernels.bin_scan_blocks, [blocks, 1, 1]);
+    rec.barrier();
+    rec.dispatch(&kernels.bin_scan_top, [1, 1, 1]);
+    rec.barrier();
+    rec.dispatch(&kernels.bin_scan_apply, [blocks, 1, 1]);
     rec.barrier();
     rec.dispatch_linear(&kernels.bin_scatter, triangles);
     rec.barrier();

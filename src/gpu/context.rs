@@ -13,45 +13,11 @@ use std::ffi::{c_void, CStr, CString};
 use std::mem::ManuallyDrop;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+
+pub use super::options::{frame_timeout, GpuOptions, FRAME_TIMEOUT};
 
 /// The validation layer's name.
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
-
-/// How long one submission may run before it is reported as hung, unless
-/// `IZB_GPU_TIMEOUT_S` says otherwise. Generous for lavapipe on 2 cores at
-/// 960×540; a real GPU takes milliseconds.
-pub const FRAME_TIMEOUT: Duration = Duration::from_secs(600);
-
-/// [`FRAME_TIMEOUT`] or the `IZB_GPU_TIMEOUT_S` override.
-pub fn frame_timeout() -> Duration {
-    std::env::var("IZB_GPU_TIMEOUT_S")
-        .ok()
-        .and_then(|v| v.parse::<f64>().ok())
-        .filter(|s| *s > 0.0 && s.is_finite())
-        .map_or(FRAME_TIMEOUT, Duration::from_secs_f64)
-}
-
-/// How to pick and set up the device.
-#[derive(Clone, Debug, Default)]
-pub struct GpuOptions {
-    /// Index into the list of suitable devices (`izb devices` order);
-    /// `None`: the best-ranked one.
-    pub device_index: Option<usize>,
-    /// Enable `VK_LAYER_KHRONOS_validation` and collect its messages; the
-    /// device fails to open if the layer is missing.
-    pub validation: bool,
-}
-
-impl GpuOptions {
-    /// Options from the environment: `IZB_VALIDATION=1` turns validation on.
-    pub fn from_env() -> Self {
-        GpuOptions {
-            device_index: None,
-            validation: std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1"),
-        }
-    }
-}
 
 /// A suitable device as enumerated.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
@@ -223,8 +189,8 @@ impl Drop for GpuContext {
 }
 
 /// Subgroup operations the shaders use in compute: `subgroupElect`
-/// (basic), `subgroupAllEqual` (vote), `subgroupAdd`/`Min`/`Max`/`Or`
-/// (arithmetic), `subgroupBallot` (ballot).
+/// (basic), `subgroupAllEqual`/`Any` (vote), `subgroupAdd`/`Min`/`Max`/`Or`
+/// (arithmetic), `subgroupBallot`/`Broadcast` (ballot).
 const REQUIRED_SUBGROUP_OPERATIONS: vk::SubgroupFeatureFlags = vk::SubgroupFeatureFlags::from_raw(
     vk::SubgroupFeatureFlags::BASIC.as_raw()
         | vk::SubgroupFeatureFlags::VOTE.as_raw()
@@ -270,7 +236,9 @@ fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
         if !subgroup
             .supported_stages
             .contains(vk::ShaderStageFlags::COMPUTE)
-            || !subgroup.supported_operations.contains(REQUIRED_SUBGROUP_OPERATIONS)
+            || !subgroup
+                .supported_operations
+                .contains(REQUIRED_SUBGROUP_OPERATIONS)
         {
             continue;
         }

@@ -4,13 +4,43 @@
 //! cooperative shared-memory batches ([Compute IZB]) — the twin of
 //! [`crate::cpu::evaluate::evaluate`]. Sample mode (1, 32 LUT, 32 exact)
 //! comes from `FrameParams::mode`; the LUT is the build-time table.
+//!
+//! Two steps: the tiles, then the heavy step, where a workgroup takes
+//! each pixel whose cells list more than `FrameParams::heavy_entries`
+//! candidates (the tile step queued it). Only how the work is split
+//! differs from the CPU twin: a mask is the OR of its candidates' masks
+//! in any order.
 
 use super::{Kernels, Recorder};
 
-/// Records the pass.
-pub fn evaluate(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+/// Workgroups of the heavy step on a GPU; each takes every n-th queued
+/// pixel. About what an H200 keeps resident (132 multiprocessors, 8
+/// workgroups of 256 each); idle ones cost nothing there.
+const HEAVY_WORKGROUPS_GPU: u32 = 1024;
+
+/// Workgroups of the heavy step on `device`: on a CPU implementation
+/// (lavapipe) one per core, since each of its workgroups runs its 256
+/// invocations in turn, queue or not (1 024 took 4 s at 160×90).
+pub fn heavy_workgroups(device: &super::context::DeviceInfo) -> u32 {
+    if device.kind == "CPU" {
+        std::thread::available_parallelism().map_or(1, |n| n.get() as u32)
+    } else {
+        HEAVY_WORKGROUPS_GPU
+    }
+}
+
+/// Records the pass; `heavy`: (the heavy step's queue length,
+/// `FrameParams::heavy_capacity`, and its workgroups) when the step runs.
+pub fn evaluate(rec: &Recorder, kernels: &Kernels, size: [u32; 2], heavy: Option<(u32, u32)>) {
     rec.begin_label("evaluate");
     rec.dispatch_pixels(&kernels.evaluate, size);
     rec.barrier();
+    if let Some((capacity, workgroups)) = heavy {
+        rec.dispatch(
+            &kernels.evaluate_heavy,
+            [capacity.clamp(1, workgroups.max(1)), 1, 1],
+        );
+        rec.barrier();
+    }
     rec.end_label();
 }

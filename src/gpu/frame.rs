@@ -7,7 +7,9 @@
 
 use super::context::{DeviceShared, GpuContext, GpuOptions};
 pub use super::frame_inputs::LLVMPIPE_LOOP_CAP;
-use super::frame_inputs::{frame_params, grid_budget_side, loop_budget, SceneUpload};
+use super::frame_inputs::{
+    frame_params, grid_budget_side, heavy_entries, loop_budget, SceneUpload,
+};
 pub use super::frame_memory::{frame_buffer_descs, planned_memory, FrameSizes};
 use super::frame_memory::{initial_cell_capacity, memory_by_pass};
 pub use super::frame_report::{
@@ -17,7 +19,7 @@ pub use super::frame_report::{
 use super::pipeline::{BindingLayout, DescriptorSet};
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{self, binding, counter, LightState};
-use super::timestamps::TimestampPool;
+use super::timestamps::{StepMarks, TimestampPool};
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::ShadowMapSettings;
 use crate::gbuffer::GBuffer;
@@ -45,6 +47,10 @@ pub struct GpuRenderer {
     pub kernels: Kernels,
     pub layout: BindingLayout,
     pub context: GpuContext,
+    /// Repetitions of the passes per frame ([`GpuRenderer::timed`]).
+    timed_repeats: u32,
+    /// `FrameParams::heavy_entries` of every frame.
+    heavy_entries: u32,
 }
 
 /// The frame's device buffers, one per binding, in binding order.
@@ -68,11 +74,26 @@ impl GpuRenderer {
         let context = GpuContext::new(options)?;
         let layout = BindingLayout::new(&context.shared)?;
         let kernels = Kernels::new(&context.shared, &layout)?;
+        let heavy_entries = heavy_entries(context.info(), options.heavy_entries);
         Ok(GpuRenderer {
             kernels,
             layout,
             context,
+            timed_repeats: 1,
+            heavy_entries,
         })
+    }
+
+    /// For timing: every frame runs its passes `repeats` times in one
+    /// submission and reports the median of the repetitions after the
+    /// first. An idle GPU lowers its clocks between frames (an H200 idles
+    /// at 345 MHz against 1 980 MHz under load), so one short frame after
+    /// host work is timed at whatever clock it finds; back-to-back
+    /// repetitions are timed under load. Results are the last
+    /// repetition's, the same as a single run's.
+    pub fn timed(mut self, repeats: u32) -> Self {
+        self.timed_repeats = repeats.max(1);
+        self
     }
 
     pub(super) fn shared(&self) -> &Arc<DeviceShared> {
@@ -245,6 +266,7 @@ impl GpuRenderer {
             max_cells,
             cell_capacity,
             loop_budget(&shared.info.name),
+            self.heavy_entries,
         );
         if let FramePasses::ShadowMap(map) = passes {
             super::shadow_map::map_params(&mut params, scene, triangles, map);
@@ -308,15 +330,22 @@ impl GpuRenderer {
             })
             .collect::<Result<_, _>>()?;
 
-        let timestamps = TimestampPool::new(shared, 6)?;
+        // Several repetitions of the passes in one submission keep the GPU
+        // busy (its clocks up) for the timed ones; each starts from the
+        // same state, so the last one's results are a single frame's.
+        let repeats = self.timed_repeats.max(1);
+        let timestamps = TimestampPool::new(shared, TIMESTAMPS_PER_FRAME * repeats)?;
+        let light_reset = uploads.iter().find(|(_, b)| *b == binding::LIGHT);
         let device = &shared.device;
         let start = Instant::now();
+        let steps = StepMarks::new(shared)?;
         self.context.submit_and_wait(|cmd| {
-            let rec = Recorder {
+            let mut rec = Recorder {
                 shared,
                 cmd,
                 layout: &self.layout,
                 set: set.set,
+                steps: None,
             };
             // SAFETY: `cmd` is recording; every buffer belongs to this frame and
             // lives until after its fence wait; copies stay within each buffer.
@@ -325,71 +354,70 @@ impl GpuRenderer {
                     let region = [vk::BufferCopy::default().size(staging.size())];
                     device.cmd_copy_buffer(cmd, staging.buffer, fb.get(*b).buffer, &region);
                 }
-                device.cmd_fill_buffer(cmd, fb.get(binding::COUNTERS).buffer, 0, vk::WHOLE_SIZE, 0);
-                device.cmd_fill_buffer(
-                    cmd,
-                    fb.get(binding::CELL_START).buffer,
-                    0,
-                    vk::WHOLE_SIZE,
-                    0,
-                );
-                // No cover triangle anywhere yet (floor bits 0, !id 0).
-                device.cmd_fill_buffer(
-                    cmd,
-                    fb.get(binding::CELL_COVER).buffer,
-                    0,
-                    vk::WHOLE_SIZE,
-                    0,
-                );
-                // Empty cells: no receiver (z = ~0), reach 0 (stored as !0).
-                device.cmd_fill_buffer(
-                    cmd,
-                    fb.get(binding::CELL_RECEIVERS).buffer,
-                    0,
-                    vk::WHOLE_SIZE,
-                    u32::MAX,
-                );
-                // Every texel empty (the largest ordered distance).
-                device.cmd_fill_buffer(
-                    cmd,
-                    fb.get(binding::SHADOW_MAP).buffer,
-                    0,
-                    vk::WHOLE_SIZE,
-                    u32::MAX,
-                );
             }
-            rec.barrier();
             timestamps.reset(cmd);
-            timestamps.write(cmd, 0);
-            if let GBufferSource::Gpu = source {
-                super::gbuffer::gbuffer(&rec, &self.kernels, [w, h]);
+            steps.reset(cmd);
+            for rep in 0..repeats {
+                if rep > 0 {
+                    // The previous repetition's passes are done with the
+                    // state reset below.
+                    rec.barrier();
+                    if let Some((staging, b)) = light_reset {
+                        let region = [vk::BufferCopy::default().size(staging.size())];
+                        // SAFETY: as above.
+                        unsafe {
+                            device.cmd_copy_buffer(cmd, staging.buffer, fb.get(*b).buffer, &region)
+                        };
+                    }
+                }
+                reset_pass_state(device, cmd, fb);
+                rec.barrier();
+                let mark = |j: u32| timestamps.write(cmd, rep * TIMESTAMPS_PER_FRAME + j);
+                mark(0);
+                if rep + 1 == repeats {
+                    steps.mark(cmd, "start");
+                    rec.steps = Some(&steps);
+                }
+                if let GBufferSource::Gpu = source {
+                    super::gbuffer::gbuffer(&rec, &self.kernels, [w, h]);
+                }
+                mark(1);
+                super::light_setup::light_setup(&rec, &self.kernels, [w, h]);
+                mark(2);
+                match passes {
+                    FramePasses::Izb => {
+                        let receivers = settings.skips.behind_receivers.then_some(w * h);
+                        super::bin::bin(
+                            &rec,
+                            &self.kernels,
+                            triangles.len() as u32,
+                            max_cells,
+                            receivers,
+                        );
+                        mark(3);
+                        let heavy = (params.heavy_entries != 0).then_some((
+                            params.heavy_capacity,
+                            super::evaluate::heavy_workgroups(&shared.info),
+                        ));
+                        super::evaluate::evaluate(&rec, &self.kernels, [w, h], heavy);
+                        mark(4);
+                        super::resolve::resolve(&rec, &self.kernels, [w, h]);
+                    }
+                    FramePasses::ShadowMap(_) => {
+                        super::shadow_map::shadow_map(&rec, &self.kernels, triangles.len() as u32);
+                        mark(3);
+                        super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
+                        mark(4);
+                    }
+                    FramePasses::ShadowRays => {
+                        mark(3);
+                        super::shadow_rays::shadow_rays(&rec, &self.kernels, [w, h]);
+                        mark(4);
+                        super::resolve::resolve(&rec, &self.kernels, [w, h]);
+                    }
+                }
+                mark(5);
             }
-            timestamps.write(cmd, 1);
-            super::light_setup::light_setup(&rec, &self.kernels, [w, h]);
-            timestamps.write(cmd, 2);
-            match passes {
-                FramePasses::Izb => {
-                    let receivers = settings.skips.behind_receivers.then_some(w * h);
-                    super::bin::bin(&rec, &self.kernels, triangles.len() as u32, receivers);
-                    timestamps.write(cmd, 3);
-                    super::evaluate::evaluate(&rec, &self.kernels, [w, h]);
-                    timestamps.write(cmd, 4);
-                    super::resolve::resolve(&rec, &self.kernels, [w, h]);
-                }
-                FramePasses::ShadowMap(_) => {
-                    super::shadow_map::shadow_map(&rec, &self.kernels, triangles.len() as u32);
-                    timestamps.write(cmd, 3);
-                    super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
-                    timestamps.write(cmd, 4);
-                }
-                FramePasses::ShadowRays => {
-                    timestamps.write(cmd, 3);
-                    super::shadow_rays::shadow_rays(&rec, &self.kernels, [w, h]);
-                    timestamps.write(cmd, 4);
-                    super::resolve::resolve(&rec, &self.kernels, [w, h]);
-                }
-            }
-            timestamps.write(cmd, 5);
             for (rb, b) in &readbacks {
                 let region = [vk::BufferCopy::default().size(rb.size())];
                 // SAFETY: as above; each read-back buffer is its source's size.
@@ -413,7 +441,8 @@ impl GpuRenderer {
             Ok(())
         })?;
         let wall_seconds = start.elapsed().as_secs_f64();
-        let millis = timestamps.millis()?;
+        let millis = timestamps.millis(repeats)?;
+        let step_millis = steps.millis()?;
 
         let read = |b: u32| -> Result<&[u8], GpuError> {
             let (rb, _) = readbacks
@@ -446,6 +475,7 @@ impl GpuRenderer {
             axis_y: vec3s(binding::G_AXIS_Y)?,
             id_flags: words(binding::G_ID_FLAGS)?,
             millis,
+            step_millis,
             wall_seconds,
             memory,
         })
@@ -483,6 +513,8 @@ pub(super) struct FrameOutput {
     pub(super) axis_y: Vec<Vec3>,
     pub(super) id_flags: Vec<u32>,
     pub(super) millis: Option<GpuPassMillis>,
+    /// Per dispatch of the timed repetition: kernel and milliseconds.
+    pub(super) step_millis: Vec<(String, f64)>,
     pub(super) wall_seconds: f64,
     pub(super) memory: Vec<PassMemory>,
 }
@@ -502,5 +534,30 @@ impl FrameOutput {
                 }
             })
             .collect()
+    }
+}
+
+/// Timestamps of one repetition of a frame's passes: before the G-buffer,
+/// then after each pass.
+const TIMESTAMPS_PER_FRAME: u32 = 6;
+
+/// What the passes accumulate into, back to its starting state: counters
+/// 0, empty cell counts, no cover triangle, no receiver, empty shadow-map
+/// texels. (The light state is copied again from its upload.)
+fn reset_pass_state(device: &ash::Device, cmd: vk::CommandBuffer, fb: &FrameBuffers) {
+    let fills = [
+        (binding::COUNTERS, 0),
+        (binding::CELL_START, 0),
+        // Floor bits 0, !id 0.
+        (binding::CELL_COVER, 0),
+        // z = ~0, reach 0 stored as !0.
+        (binding::CELL_RECEIVERS, u32::MAX),
+        // The largest ordered distance.
+        (binding::SHADOW_MAP, u32::MAX),
+    ];
+    for (b, word) in fills {
+        // SAFETY: `cmd` is recording; the buffer belongs to the frame and
+        // lives until after its fence wait; the fill covers the whole buffer.
+        unsafe { device.cmd_fill_buffer(cmd, fb.get(b).buffer, 0, vk::WHOLE_SIZE, word) };
     }
 }

@@ -103,6 +103,27 @@ pub(super) fn loop_budget(device_name: &str) -> u32 {
     }
 }
 
+/// Default of `FrameParams::heavy_entries`: a pixel whose cells list more
+/// candidates than this is evaluated by a whole workgroup in the heavy
+/// step. On a GPU one thread's sequential candidates are the pass's tail:
+/// courtyard at 960×540 has a pixel with 40 967 tests (CPU twin), which
+/// one thread runs alone long after its tile's others are done.
+pub const HEAVY_ENTRIES: u32 = 128;
+
+/// `FrameParams::heavy_entries` on `device`: `requested`
+/// (`GpuOptions::heavy_entries`), else [`HEAVY_ENTRIES`] on a GPU and 0
+/// (no heavy step) on a CPU implementation: lavapipe runs a subgroup as a
+/// SIMD loop on one core, where a long list holds no other lanes back,
+/// and runs a heavy workgroup's 256 invocations in turn (at 160×90
+/// `default` the step took 2.8 s of lavapipe's 3.8 s frame).
+pub(super) fn heavy_entries(device: &super::context::DeviceInfo, requested: Option<u32>) -> u32 {
+    requested.unwrap_or(if device.kind == "CPU" {
+        0
+    } else {
+        HEAVY_ENTRIES
+    })
+}
+
 /// The largest cell budget (as a square's side) the light setup may choose:
 /// its upper bound, every receiver being a pixel.
 pub(super) fn grid_budget_side(pixels: usize, triangles: usize, hint: Option<u32>) -> u32 {
@@ -119,6 +140,7 @@ pub(super) fn frame_params(
     max_cells: u64,
     cell_capacity: u64,
     loop_budget: u32,
+    heavy_entries: u32,
 ) -> FrameParams {
     let frame = scene.camera.frame(scene.resolution);
     let corner = frame.direction(0.0, 0.0);
@@ -178,6 +200,9 @@ pub(super) fn frame_params(
         sun_axis_v: sun_axis_v.to_array(),
         map_light_size: 0.0,
         map_near: 0.0,
+        heavy_entries,
+        heavy_capacity: super::frame_memory::heavy_capacity(scene.pixel_count() as u64)
+            .min(u64::from(u32::MAX)) as u32,
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
     }

@@ -77,6 +77,8 @@ pub struct GpuCounters {
     pub cells_untouched: u32,
     /// Tests whose mask was not empty.
     pub masks_nonempty: u64,
+    /// Pixels evaluated by the heavy step (a workgroup each).
+    pub heavy_pixels: u32,
     /// Per cascade, bit l set when pyramid level l holds a placement.
     pub levels: Vec<u32>,
 }
@@ -90,6 +92,9 @@ pub struct GpuRenderReport {
     pub gbuffer_source: &'static str,
     /// `None` when the queue has no timestamps.
     pub gpu_milliseconds: Option<GpuPassMillis>,
+    /// Each dispatch of the timed repetition: kernel name and milliseconds
+    /// (empty without timestamps).
+    pub gpu_step_milliseconds: Vec<(String, f64)>,
     /// Host wall time of the frame (submit to fence), seconds.
     pub wall_seconds: f64,
     /// Host seconds spent building the G-buffer BVH.
@@ -202,6 +207,7 @@ impl GpuRenderer {
             levels_visited: wide(counter::LEVELS_VISITED),
             cells_untouched: c[counter::CELLS_UNTOUCHED],
             masks_nonempty: wide(counter::MASKS_NONEMPTY),
+            heavy_pixels: c[counter::HEAVY_PIXELS],
             levels: (0..out.light.cascade_count as usize)
                 .map(|k| c[counter::LEVELS + k])
                 .collect(),
@@ -268,6 +274,7 @@ impl GpuRenderer {
                 GBufferSource::Upload(_) => "uploaded",
             },
             gpu_milliseconds: out.millis,
+            gpu_step_milliseconds: out.step_millis,
             wall_seconds: out.wall_seconds,
             bvh_build_seconds,
             counters,

@@ -24,6 +24,7 @@ pub mod frame_memory;
 pub mod frame_report;
 pub mod gbuffer;
 pub mod light_setup;
+pub mod options;
 pub mod pipeline;
 pub mod resolve;
 pub mod resources;
@@ -101,17 +102,21 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 14] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 18] = [
     ("gbuffer", spirv!("gbuffer")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
     ("light_setup_extent", spirv!("light_setup_extent")),
     ("light_setup_grid", spirv!("light_setup_grid")),
+    ("bin_levels", spirv!("bin_levels")),
     ("bin_receivers", spirv!("bin_receivers")),
     ("bin_count", spirv!("bin_count")),
-    ("bin_prefix_sum", spirv!("bin_prefix_sum")),
+    ("bin_scan_blocks", spirv!("bin_scan_blocks")),
+    ("bin_scan_top", spirv!("bin_scan_top")),
+    ("bin_scan_apply", spirv!("bin_scan_apply")),
     ("bin_scatter", spirv!("bin_scatter")),
     ("evaluate", spirv!("evaluate")),
+    ("evaluate_heavy", spirv!("evaluate_heavy")),
     ("resolve", spirv!("resolve")),
     ("shadow_map", spirv!("shadow_map")),
     ("shadow_lookup", spirv!("shadow_lookup")),
@@ -125,11 +130,15 @@ pub struct Kernels {
     pub light_setup_frame: ComputeKernel,
     pub light_setup_extent: ComputeKernel,
     pub light_setup_grid: ComputeKernel,
+    pub bin_levels: ComputeKernel,
     pub bin_receivers: ComputeKernel,
     pub bin_count: ComputeKernel,
-    pub bin_prefix_sum: ComputeKernel,
+    pub bin_scan_blocks: ComputeKernel,
+    pub bin_scan_top: ComputeKernel,
+    pub bin_scan_apply: ComputeKernel,
     pub bin_scatter: ComputeKernel,
     pub evaluate: ComputeKernel,
+    pub evaluate_heavy: ComputeKernel,
     pub resolve: ComputeKernel,
     pub shadow_map: ComputeKernel,
     pub shadow_lookup: ComputeKernel,
@@ -148,11 +157,15 @@ impl Kernels {
             light_setup_frame: k("light_setup_frame", spirv!("light_setup_frame"))?,
             light_setup_extent: k("light_setup_extent", spirv!("light_setup_extent"))?,
             light_setup_grid: k("light_setup_grid", spirv!("light_setup_grid"))?,
+            bin_levels: k("bin_levels", spirv!("bin_levels"))?,
             bin_receivers: k("bin_receivers", spirv!("bin_receivers"))?,
             bin_count: k("bin_count", spirv!("bin_count"))?,
-            bin_prefix_sum: k("bin_prefix_sum", spirv!("bin_prefix_sum"))?,
+            bin_scan_blocks: k("bin_scan_blocks", spirv!("bin_scan_blocks"))?,
+            bin_scan_top: k("bin_scan_top", spirv!("bin_scan_top"))?,
+            bin_scan_apply: k("bin_scan_apply", spirv!("bin_scan_apply"))?,
             bin_scatter: k("bin_scatter", spirv!("bin_scatter"))?,
             evaluate: k("evaluate", spirv!("evaluate"))?,
+            evaluate_heavy: k("evaluate_heavy", spirv!("evaluate_heavy"))?,
             resolve: k("resolve", spirv!("resolve"))?,
             shadow_map: k("shadow_map", spirv!("shadow_map"))?,
             shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,
@@ -168,6 +181,8 @@ pub struct Recorder<'a> {
     pub cmd: vk::CommandBuffer,
     pub layout: &'a BindingLayout,
     pub set: vk::DescriptorSet,
+    /// Where to time each dispatch (the timed repetition of a frame).
+    pub steps: Option<&'a timestamps::StepMarks>,
 }
 
 impl Recorder<'_> {
@@ -191,6 +206,9 @@ impl Recorder<'_> {
                 &[],
             );
             d.cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]);
+        }
+        if let Some(steps) = self.steps {
+            steps.mark(self.cmd, kernel.name);
         }
     }
 
