@@ -262,6 +262,48 @@ void main() {
 #ifdef STEP_HEAVY
 shared uint sm_mask;
 
+// The pixel's frustum (pixel_frustum.glsl's px_* state), set up once per
+// queued pixel by the first subgroup and read by the others: 256
+// invocations each setting up the same pixel cost, in warps, eight times
+// the tile step's setup of 32 pixels per warp.
+struct PixelState {
+    vec3 p, normal, ex, ey, light;
+    float size;
+    uint receiver, cascade, has_cells, cover, soft;
+    vec2 lo, hi;
+    vec3 disk_c, disk_u, disk_v;
+};
+shared PixelState sm_pixel;
+
+void share_pixel(uint i, uint cascade) {
+    if (gl_SubgroupID == 0u) {
+        pixel_frustum(i, cascade);
+        if (subgroupElect()) {
+            sm_pixel = PixelState(px_p, px_normal, px_ex, px_ey, px_light, px_size, px_receiver,
+                                  px_cascade, px_has_cells ? 1u : 0u, px_cover, px_soft ? 1u : 0u,
+                                  px_lo, px_hi, px_disk_c, px_disk_u, px_disk_v);
+        }
+    }
+    barrier();
+    PixelState s = sm_pixel;
+    px_p = s.p;
+    px_normal = s.normal;
+    px_ex = s.ex;
+    px_ey = s.ey;
+    px_light = s.light;
+    px_size = s.size;
+    px_receiver = s.receiver;
+    px_cascade = s.cascade;
+    px_has_cells = s.has_cells != 0u;
+    px_cover = s.cover;
+    px_soft = s.soft != 0u;
+    px_lo = s.lo;
+    px_hi = s.hi;
+    px_disk_c = s.disk_c;
+    px_disk_u = s.disk_u;
+    px_disk_v = s.disk_v;
+}
+
 void main() {
     loop_budget_reset();
     uint lid = gl_LocalInvocationIndex;
@@ -272,9 +314,8 @@ void main() {
     for (uint q = gl_WorkGroupID.x; q < queued; q += gl_NumWorkGroups.x) {
         uvec2 item = heavy_pixels[q];
         uint i = item.x;
-        pixel_frustum(i, item.y);
         if (lid == 0u) sm_mask = masks[i];
-        barrier();
+        share_pixel(i, item.y);
         // The tile step's mask (cover triangle, overflow list), then the
         // grid's candidates: thread lid takes every WORKGROUP_LINEAR-th
         // entry of each cell, sharing its bits for the full-mask stop.
