@@ -15,11 +15,10 @@
 
 mod common;
 
-use common::gpu::{assert_no_validation_messages, own_renderer};
+use common::gpu::{assert_mismatch_within, own_renderer, render_uploaded};
 use izb::bvh::SceneBvh;
-use izb::cpu::{render_cpu, IzbSettings, SampleMode};
-use izb::gbuffer::flags;
-use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
+use izb::cpu::SampleMode;
+use izb::gpu::{GpuOptions, GpuRenderer};
 use izb::scene::Scene;
 
 const RESOLUTION: [u32; 2] = [128, 72];
@@ -45,17 +44,7 @@ fn check(r: &GpuRenderer, scene: Scene, modes: &[SampleMode]) -> usize {
             (true, _) => 0.0,
             (false, _) => 1e-4,
         };
-        let settings = IzbSettings {
-            mode,
-            ..Default::default()
-        };
-        let cpu = render_cpu(&scene, &bvh, settings);
-        let gpu = r
-            .render(&scene, settings, GBufferSource::Upload(&cpu.gbuffer))
-            .unwrap_or_else(|e| panic!("{} {mode:?}: {e}", scene.name));
-        assert_no_validation_messages(r, &scene.name);
-        let tested = |i: usize| cpu.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
-        let (diff, total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
+        let (cpu, gpu, diff, total) = render_uploaded(r, &scene, &bvh, mode);
         let heavy = gpu.report.counters.heavy_pixels;
         println!(
             "{} {mode:?}: {heavy} pixels in the heavy step, {diff} of {total} samples differ; \
@@ -67,12 +56,7 @@ fn check(r: &GpuRenderer, scene: Scene, modes: &[SampleMode]) -> usize {
             "{} {mode:?}: no pixel reached the heavy step",
             scene.name
         );
-        let rate = diff as f64 / total.max(1) as f64;
-        assert!(
-            rate <= allowed,
-            "{} {mode:?}: {diff} of {total} samples differ ({rate:.2e} > {allowed:.0e})",
-            scene.name
-        );
+        assert_mismatch_within(diff, total, allowed, &format!("{} {mode:?}", scene.name));
         compared += 1;
     }
     compared

@@ -13,11 +13,11 @@
 
 mod common;
 
-use common::gpu::{assert_no_validation_messages, lock, renderer};
+use common::gpu::{assert_mismatch_within, lock, render_uploaded, renderer};
 use izb::bvh::SceneBvh;
-use izb::cpu::{render_cpu, IzbSettings, SampleMode};
+use izb::cpu::SampleMode;
 use izb::gbuffer::flags;
-use izb::gpu::{GBufferSource, GpuRenderer};
+use izb::gpu::GpuRenderer;
 use izb::scene::Scene;
 
 const RESOLUTION: [u32; 2] = [160, 90];
@@ -40,17 +40,8 @@ fn check(r: &GpuRenderer, scene: Scene) -> usize {
             (true, _) => 1e-5,
             (false, _) => 1e-4,
         };
-        let settings = IzbSettings {
-            mode,
-            ..Default::default()
-        };
-        let cpu = render_cpu(&scene, &bvh, settings);
-        let gpu = r
-            .render(&scene, settings, GBufferSource::Upload(&cpu.gbuffer))
-            .unwrap_or_else(|e| panic!("{} {mode:?}: {e}", scene.name));
-        assert_no_validation_messages(r, &scene.name);
+        let (cpu, gpu, diff, total) = render_uploaded(r, &scene, &bvh, mode);
         let tested = |i: usize| cpu.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
-        let (diff, total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
         let penumbra = cpu
             .masks
             .iter()
@@ -66,12 +57,7 @@ fn check(r: &GpuRenderer, scene: Scene) -> usize {
             cpu.report.evaluate.tests_spawned
         );
         assert!(penumbra > 0, "{}: no penumbra to compare", scene.name);
-        let rate = diff as f64 / total.max(1) as f64;
-        assert!(
-            rate <= allowed,
-            "{} {mode:?}: {diff} of {total} light samples differ ({rate:.2e})",
-            scene.name
-        );
+        assert_mismatch_within(diff, total, allowed, &format!("{} {mode:?}", scene.name));
         compared += 1;
     }
     compared

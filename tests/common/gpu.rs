@@ -3,7 +3,11 @@
 //! slow to open). Without a device the tests print that they skipped;
 //! with `IZB_REQUIRE_GPU=1` they fail instead.
 
-use izb::gpu::{GpuOptions, GpuRenderer};
+use izb::bvh::SceneBvh;
+use izb::cpu::{render_cpu, IzbSettings, SampleMode, ShadowRender};
+use izb::gbuffer::flags;
+use izb::gpu::{GBufferSource, GpuOptions, GpuRender, GpuRenderer};
+use izb::scene::Scene;
 use std::sync::{Mutex, MutexGuard, OnceLock};
 
 /// The binary's renderer, or `None` (with a printed skip) without a
@@ -52,5 +56,38 @@ pub fn assert_no_validation_messages(r: &GpuRenderer, what: &str) {
         "{what}: {} validation message(s):\n{}",
         messages.join("\n").lines().count(),
         messages.join("\n")
+    );
+}
+
+/// One frame of `scene` on the CPU twin and on `r` from the CPU's
+/// G-buffer (so every GPU pass after it sees the twin's very input), with
+/// no validation message: both renders and (differing, compared) samples
+/// over the shadow-tested pixels.
+pub fn render_uploaded(
+    r: &GpuRenderer,
+    scene: &Scene,
+    bvh: &SceneBvh,
+    mode: SampleMode,
+) -> (ShadowRender, GpuRender, u64, u64) {
+    let settings = IzbSettings {
+        mode,
+        ..Default::default()
+    };
+    let cpu = render_cpu(scene, bvh, settings);
+    let gpu = r
+        .render(scene, settings, GBufferSource::Upload(&cpu.gbuffer))
+        .unwrap_or_else(|e| panic!("{} {mode:?}: {e}", scene.name));
+    assert_no_validation_messages(r, &scene.name);
+    let tested = |i: usize| cpu.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
+    let (diff, total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
+    (cpu, gpu, diff, total)
+}
+
+/// Fails when more than `allowed` of `total` samples differ (`diff`).
+pub fn assert_mismatch_within(diff: u64, total: u64, allowed: f64, what: &str) {
+    let rate = diff as f64 / total.max(1) as f64;
+    assert!(
+        rate <= allowed,
+        "{what}: {diff} of {total} samples differ ({rate:.2e} > {allowed:.0e})"
     );
 }
