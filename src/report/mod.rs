@@ -166,10 +166,12 @@ where
             .y_label_area_size(56)
             .build_cartesian_2d((t_lo..t_hi).log_scale(), 0.0..y_hi)
             .map_err(err)?;
+        let y_decimals = axis_decimals(y_hi / 5.0);
         chart
             .configure_mesh()
             .x_desc("shadow seconds (log)")
-            .x_label_formatter(&|x| format!("{x:.3}"))
+            .x_label_formatter(&log_tick_label)
+            .y_label_formatter(&|y| format!("{y:.y_decimals$}"))
             .label_style(("sans-serif", 11))
             .draw()
             .map_err(err)?;
@@ -212,6 +214,31 @@ where
         }
     }
     Ok(())
+}
+
+/// A log axis's tick label at 1, 2 and 5 times a power of ten only (a label
+/// at every multiple crowded the axis).
+fn log_tick_label(x: &f64) -> String {
+    if !(x.is_finite() && *x > 0.0) {
+        return String::new();
+    }
+    let decade = x.log10().floor();
+    let mantissa = x / 10f64.powf(decade);
+    let near = |m: f64| (mantissa - m).abs() < 1e-6 * m;
+    if near(1.0) || near(2.0) || near(5.0) || near(10.0) {
+        format!("{x:.*}", axis_decimals(*x))
+    } else {
+        String::new()
+    }
+}
+
+/// Decimals that show a step of `step` (edge MAE's axis read "0.0" before).
+fn axis_decimals(step: f64) -> usize {
+    if step.is_finite() && step > 0.0 {
+        (-step.log10()).ceil().clamp(0.0, 9.0) as usize
+    } else {
+        1
+    }
 }
 
 /// Writes the Pareto chart of `points` as `<stem>.png` and `<stem>.svg`.
@@ -540,6 +567,14 @@ mod tests {
     fn pareto_front_keeps_only_undominated_points() {
         let pts = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 1.0), (0.5, 9.0)];
         assert_eq!(pareto_front(&pts), vec![4, 0, 1, 3]);
+    }
+
+    #[test]
+    fn axis_labels_are_sparse_and_precise() {
+        let ticks = [0.001, 0.002, 0.003, 0.005, 0.01, 0.2, 3.0];
+        let labels: Vec<String> = ticks.iter().map(log_tick_label).collect();
+        assert_eq!(labels, ["0.001", "0.002", "", "0.005", "0.01", "0.2", ""]);
+        assert_eq!([0.04, 0.2, 5.0].map(axis_decimals), [2, 1, 0]);
     }
 
     #[test]
