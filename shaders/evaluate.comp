@@ -255,6 +255,8 @@ void main() {
     count_add(C_PIXELS_TESTED, 1u);
     count_add(C_SHADOW_MAP_EARLY_OUTS, covered ? 1u : 0u);
     count_add(C_EARLY_OUTS, !covered && !deferred && done(mask) ? 1u : 0u);
+    uint longest = subgroupMax(tests_spawned);
+    if (subgroupElect()) atomicMax(counters[C_LONGEST_TILE_TESTS], longest);
     add_work_counters();
 }
 #endif

@@ -104,8 +104,11 @@ shared_constants! {
         /// (those past `FrameParams::heavy_capacity` stayed in the tile
         /// step).
         HEAVY_PIXELS = 31;
+        /// The most tests one pixel ran in evaluate's tile step (atomicMax):
+        /// with the heavy step, about its threshold at most.
+        LONGEST_TILE_TESTS = 32;
         /// Words in the counters buffer.
-        WORDS = 32;
+        WORDS = 33;
     }
 }
 

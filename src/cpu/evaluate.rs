@@ -53,6 +53,9 @@ pub struct EvaluateStats {
     /// subgroup): `tests_spawned / (32 · Σ longest)` is the SIMD
     /// efficiency of a one-pixel-per-lane evaluate.
     pub group_longest_tests: u64,
+    /// The most tests one pixel ran: a one-pixel-per-thread GPU evaluate
+    /// waits for it (the tail the GPU's heavy step splits).
+    pub longest_pixel_tests: u64,
     /// Tests whose mask was not empty.
     pub masks_nonempty: u64,
     /// Pixels whose cover triangle (the conservative shadow map) alone
@@ -507,6 +510,7 @@ pub fn evaluate(
                     let px = pixel_frustum(setup, g, i, boxes.ndc[i], rule);
                     let (mask, tests) =
                         evaluate_pixel(setup, bins, triangles, &px, rule, &mut stats);
+                    stats.longest_pixel_tests = stats.longest_pixel_tests.max(tests);
                     let group = &mut longest[(i % w) / GROUP[0]];
                     *group = (*group).max(tests);
                     if g.flags[i] & flags::SHADOW_TESTED == 0 {
@@ -533,6 +537,7 @@ pub fn evaluate(
         stats.cells_visited += s.cells_visited;
         stats.levels_visited += s.levels_visited;
         stats.group_longest_tests += s.group_longest_tests;
+        stats.longest_pixel_tests = stats.longest_pixel_tests.max(s.longest_pixel_tests);
         stats.shadow_map_early_outs += s.shadow_map_early_outs;
     }
     (masks, stats)

@@ -79,6 +79,8 @@ pub struct GpuCounters {
     pub masks_nonempty: u64,
     /// Pixels evaluated by the heavy step (a workgroup each).
     pub heavy_pixels: u32,
+    /// The most tests one pixel ran in the tile step (one thread's walk).
+    pub longest_tile_tests: u32,
     /// Per cascade, bit l set when pyramid level l holds a placement.
     pub levels: Vec<u32>,
 }
@@ -208,6 +210,7 @@ impl GpuRenderer {
             cells_untouched: c[counter::CELLS_UNTOUCHED],
             masks_nonempty: wide(counter::MASKS_NONEMPTY),
             heavy_pixels: c[counter::HEAVY_PIXELS],
+            longest_tile_tests: c[counter::LONGEST_TILE_TESTS],
             levels: (0..out.light.cascade_count as usize)
                 .map(|k| c[counter::LEVELS + k])
                 .collect(),
