@@ -265,9 +265,9 @@ void main() {
 shared uint sm_mask;
 
 // The pixel's frustum (pixel_frustum.glsl's px_* state), set up once per
-// queued pixel by the first subgroup and read by the others: 256
-// invocations each setting up the same pixel cost, in warps, eight times
-// the tile step's setup of 32 pixels per warp.
+// queued pixel by the first subgroup and read by the others (before, all
+// eight warps of the workgroup set up the same pixel, where a tile-step
+// warp sets up 32 pixels at once).
 struct PixelState {
     vec3 p, normal, ex, ey, light;
     float size;
