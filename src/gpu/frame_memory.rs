@@ -166,10 +166,9 @@ pub(super) fn heavy_capacity(pixels: u64) -> u64 {
     pixels.div_ceil(HEAVY_QUEUE_FRACTION).max(1)
 }
 
-/// One queue entry per this many pixels. On the CPU twin the 90th
-/// percentile of tests per shadow-tested pixel is 32–130 on courtyard and
-/// ficus (960×540 and 1920×1080): about a tenth of the tested pixels at
-/// worst pass the default threshold, and fewer than all pixels are tested.
+/// One queue entry per this many pixels. Measured on an H200 with the
+/// default threshold: courtyard queued 44 765 pixels at 960×540 (8.6 % of
+/// all pixels) and 89 299 at 1080p, ficus 96 834 at 1080p (4.7 %).
 const HEAVY_QUEUE_FRACTION: u64 = 8;
 
 /// First guess of the cell list's entries: 4 per triangle, at least 2^16.
