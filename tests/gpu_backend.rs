@@ -52,7 +52,7 @@ const MAX_SAMPLE_MISMATCH: f64 = 1e-4;
 /// device (lavapipe: IEEE `f32` arithmetic, as the CPU twin, and 0 samples
 /// measured on every scene and mode), [`MAX_SAMPLE_MISMATCH`] on a GPU.
 fn uploaded_allowance(r: &GpuRenderer) -> f64 {
-    if r.context.info().kind == "CPU" {
+    if r.context.info().is_cpu() {
         0.0
     } else {
         MAX_SAMPLE_MISMATCH

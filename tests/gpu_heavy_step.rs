@@ -31,7 +31,7 @@ const HEAVY_ENTRIES: u32 = 24;
 fn check(r: &GpuRenderer, scene: Scene, modes: &[SampleMode]) -> usize {
     let scene = scene.with_resolution(RESOLUTION).unwrap();
     let bvh = SceneBvh::build(&scene);
-    let on_cpu = r.context.info().kind == "CPU";
+    let on_cpu = r.context.info().is_cpu();
     let mut compared = 0;
     for &mode in modes {
         // The LUT's row comes from atan2, which neither libm nor lavapipe

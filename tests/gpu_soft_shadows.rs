@@ -26,7 +26,7 @@ const RESOLUTION: [u32; 2] = [160, 90];
 fn check(r: &GpuRenderer, scene: Scene) -> usize {
     let scene = scene.with_resolution(RESOLUTION).unwrap();
     let bvh = SceneBvh::build(&scene);
-    let on_cpu = r.context.info().kind == "CPU";
+    let on_cpu = r.context.info().is_cpu();
     let mut compared = 0;
     for mode in [SampleMode::Lut32, SampleMode::Exact32, SampleMode::Paired32] {
         // Exact mode has no transcendental function: bit for bit on

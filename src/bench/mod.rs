@@ -451,7 +451,7 @@ pub const GPU_TIMED_REPEATS: u32 = 8;
 
 /// `gpu` set up for timing: [`GPU_TIMED_REPEATS`] on a GPU, 1 on a CPU.
 pub fn timed_renderer(gpu: crate::gpu::GpuRenderer) -> crate::gpu::GpuRenderer {
-    let repeats = if gpu.context.info().kind == "CPU" {
+    let repeats = if gpu.context.info().is_cpu() {
         1
     } else {
         GPU_TIMED_REPEATS

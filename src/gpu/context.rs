@@ -30,6 +30,18 @@ pub struct DeviceInfo {
     pub max_compute_work_group_count: [u32; 3],
 }
 
+/// [`DeviceInfo::kind`] of a CPU implementation (Mesa's lavapipe).
+const CPU_KIND: &str = "CPU";
+
+impl DeviceInfo {
+    /// Whether the device is a CPU implementation: its subgroups run as
+    /// SIMD loops on a core, its clocks do not idle, its frames take
+    /// seconds, and its arithmetic is the CPU twin's IEEE `f32`.
+    pub fn is_cpu(&self) -> bool {
+        self.kind == CPU_KIND
+    }
+}
+
 /// What the device owns, destroyed in order when the last user drops it.
 pub struct DeviceShared {
     // Kept alive for the function pointers of everything below.
@@ -149,7 +161,7 @@ fn device_kind(t: vk::PhysicalDeviceType) -> (u32, &'static str) {
         vk::PhysicalDeviceType::DISCRETE_GPU => (0, "discrete GPU"),
         vk::PhysicalDeviceType::INTEGRATED_GPU => (1, "integrated GPU"),
         vk::PhysicalDeviceType::VIRTUAL_GPU => (2, "virtual GPU"),
-        vk::PhysicalDeviceType::CPU => (3, "CPU"),
+        vk::PhysicalDeviceType::CPU => (3, CPU_KIND),
         _ => (4, "other"),
     }
 }

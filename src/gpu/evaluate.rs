@@ -22,7 +22,7 @@ const HEAVY_WORKGROUPS_GPU: u32 = 1024;
 /// (lavapipe) one per core, since each of its workgroups runs its 256
 /// invocations in turn, queue or not (1 024 took 4 s at 160×90).
 pub fn heavy_workgroups(device: &super::context::DeviceInfo) -> u32 {
-    if device.kind == "CPU" {
+    if device.is_cpu() {
         std::thread::available_parallelism().map_or(1, |n| n.get() as u32)
     } else {
         HEAVY_WORKGROUPS_GPU

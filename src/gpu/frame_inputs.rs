@@ -117,11 +117,7 @@ pub const HEAVY_ENTRIES: u32 = 128;
 /// and runs a heavy workgroup's 256 invocations in turn (at 160×90
 /// `default` the step took 2.8 s of lavapipe's 3.8 s frame).
 pub(super) fn heavy_entries(device: &super::context::DeviceInfo, requested: Option<u32>) -> u32 {
-    requested.unwrap_or(if device.kind == "CPU" {
-        0
-    } else {
-        HEAVY_ENTRIES
-    })
+    requested.unwrap_or(if device.is_cpu() { 0 } else { HEAVY_ENTRIES })
 }
 
 /// The largest cell budget (as a square's side) the light setup may choose:

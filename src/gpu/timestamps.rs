@@ -62,16 +62,16 @@ impl TimestampPool {
         }
     }
 
-    /// Milliseconds per pass, from `repeats` repetitions of the frame's
-    /// timestamps: the median of each pass over the repetitions after the
-    /// first (the only one when there is one).
-    pub(super) fn millis(&self, repeats: u32) -> Result<Option<GpuPassMillis>, GpuError> {
+    /// The first `n` timestamps in milliseconds (the device's ticks
+    /// scaled by its period), or `None` without timestamps. Call after the
+    /// frame's fence wait, with every one of them written.
+    fn read_millis(&self, n: u32) -> Result<Option<Vec<f64>>, GpuError> {
         let (Some(pool), Some(period)) = (self.pool, self.shared.timestamp_period_ns) else {
             return Ok(None);
         };
-        let mut ticks = vec![0u64; self.count as usize];
-        // SAFETY: called after the frame's fence wait returned, so every
-        // query was written; `ticks` holds `count` 64-bit results.
+        let mut ticks = vec![0u64; n.min(self.count) as usize];
+        // SAFETY: called after the frame's fence wait returned, so the
+        // queries read were written; `ticks` holds that many 64-bit results.
         unsafe {
             self.shared.device.get_query_pool_results(
                 pool,
@@ -81,6 +81,23 @@ impl TimestampPool {
             )
         }
         .map_err(GpuError::vk)?;
+        // Differences of ticks stay exact: relative to the first one.
+        let first = ticks.first().copied().unwrap_or(0);
+        Ok(Some(
+            ticks
+                .iter()
+                .map(|t| t.wrapping_sub(first) as f64 * period * 1e-6)
+                .collect(),
+        ))
+    }
+
+    /// Milliseconds per pass, from `repeats` repetitions of the frame's
+    /// timestamps: the median of each pass over the repetitions after the
+    /// first (the only one when there is one).
+    pub(super) fn millis(&self, repeats: u32) -> Result<Option<GpuPassMillis>, GpuError> {
+        let Some(t) = self.read_millis(self.count)? else {
+            return Ok(None);
+        };
         let per = (self.count / repeats.max(1)) as usize;
         let timed = if repeats > 1 {
             1..repeats as usize
@@ -92,7 +109,7 @@ impl TimestampPool {
         let ms = |a: usize, b: usize| {
             let mut v: Vec<f64> = timed
                 .clone()
-                .map(|r| ticks[r * per + b].wrapping_sub(ticks[r * per + a]) as f64 * period * 1e-6)
+                .map(|r| t[r * per + b] - t[r * per + a])
                 .collect();
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
@@ -143,31 +160,15 @@ impl StepMarks {
     /// (name, milliseconds since the previous mark) per mark after the
     /// first; empty without timestamps.
     pub(super) fn millis(&self) -> Result<Vec<(String, f64)>, GpuError> {
-        let (Some(pool), Some(period)) = (self.pool.pool, self.pool.shared.timestamp_period_ns)
-        else {
-            return Ok(Vec::new());
-        };
         let names = self.names.borrow();
         if names.len() < 2 {
             return Ok(Vec::new());
         }
-        let mut ticks = vec![0u64; names.len()];
-        // SAFETY: called after the frame's fence wait returned, so every
-        // query written (one per name) is available; `ticks` holds them.
-        unsafe {
-            self.pool.shared.device.get_query_pool_results(
-                pool,
-                0,
-                &mut ticks,
-                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-            )
-        }
-        .map_err(GpuError::vk)?;
+        let Some(t) = self.pool.read_millis(names.len() as u32)? else {
+            return Ok(Vec::new());
+        };
         Ok((1..names.len())
-            .map(|i| {
-                let ms = ticks[i].wrapping_sub(ticks[i - 1]) as f64 * period * 1e-6;
-                (names[i].to_string(), ms)
-            })
+            .map(|i| (names[i].to_string(), t[i] - t[i - 1]))
             .collect())
     }
 }
