@@ -124,6 +124,16 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ("bin_scatter", "bin.comp", &[("STEP_SCATTER", "1")]),
     ("evaluate", "evaluate.comp", &[("STEP_TILES", "1")]),
     ("evaluate_heavy", "evaluate.comp", &[("STEP_HEAVY", "1")]),
+    (
+        "evaluate_high",
+        "evaluate.comp",
+        &[("STEP_TILES", "1"), ("MASK_HALF_HIGH", "1")],
+    ),
+    (
+        "evaluate_heavy_high",
+        "evaluate.comp",
+        &[("STEP_HEAVY", "1"), ("MASK_HALF_HIGH", "1")],
+    ),
     ("resolve", "resolve.comp", &[]),
     ("shadow_map", "shadow_map.comp", &[]),
     ("shadow_lookup", "shadow_lookup.comp", &[]),

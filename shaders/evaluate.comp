@@ -25,6 +25,12 @@
 // stops when the shared mask is full. Wyman et al. (TVCG 2016) balance
 // long lists the same way.
 //
+// MASK_HALF_HIGH (with either step): MODE_PAIRED64's second 32 pairs,
+// the same steps with the turned patterns (pixel_frustum.glsl's
+// PAIR_LIGHT, PAIR_PIXEL), written to B_MASKS_HIGH with their own heavy
+// queue count. The host runs them first: a pixel's cascade is read from
+// its B_MASKS word, which the first half overwrites.
+//
 // The test itself: pixel_frustum.glsl. Masks are ORed per pixel, stopping
 // when full (Wyman et al. 2015, §6.6).
 #extension GL_GOOGLE_include_directive : require
@@ -56,6 +62,15 @@ layout(scalar, binding = B_EDGE_LUT) readonly buffer LutBuf { uint edge_lut[]; }
 layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 // The heavy step's queue: (pixel, cascade).
 layout(scalar, binding = B_HEAVY_PIXELS) buffer HeavyBuf { uvec2 heavy_pixels[]; };
+
+#ifdef MASK_HALF_HIGH
+layout(scalar, binding = B_MASKS_HIGH) buffer MaskHighBuf { uint masks_high[]; };
+#define HALF_MASKS masks_high        // where this half's masks go
+#define C_HALF_HEAVY_PIXELS C_HEAVY_PIXELS_HIGH
+#else
+#define HALF_MASKS masks
+#define C_HALF_HEAVY_PIXELS C_HEAVY_PIXELS
+#endif
 
 #include "light_view.glsl"
 #include "loop_budget.glsl"
@@ -122,7 +137,7 @@ void main() {
         pixel_frustum(i, masks[i]);
         if (!grid_usable) px_cover = NO_COVER;
         // An area light's samples below the horizon: the receiver's own.
-        if (px_soft && frame.mode == MODE_PAIRED32) {
+        if (px_soft && paired_mode()) {
             mask = paired_below_horizon();
         } else if (px_soft) {
             bool cheap;
@@ -139,7 +154,7 @@ void main() {
         covered = mask == FULL_MASK;
         if (!done(mask) && px_has_cells && grid_usable && frame.heavy_entries != 0u
                 && listed_entries(frame.heavy_entries) > frame.heavy_entries) {
-            uint slot = atomicAdd(counters[C_HEAVY_PIXELS], 1u);
+            uint slot = atomicAdd(counters[C_HALF_HEAVY_PIXELS], 1u);
             if (slot < frame.heavy_capacity) {
                 heavy_pixels[slot] = uvec2(i, px_cascade);
                 deferred = true;
@@ -249,10 +264,12 @@ void main() {
     if (!inside) return;
     // Facing-away pixels tested with that skip off keep mask 0, as skipped.
     // A deferred pixel's partial mask: the heavy step reads it and goes on.
-    masks[i] = (pixel_flags & FLAG_SHADOW_TESTED) != 0u ? mask : 0u;
+    HALF_MASKS[i] = (pixel_flags & FLAG_SHADOW_TESTED) != 0u ? mask : 0u;
     if (!live) return;
     loop_budget_report();
-    count_add(C_PIXELS_TESTED, 1u);
+#ifndef MASK_HALF_HIGH
+    count_add(C_PIXELS_TESTED, 1u);   // once per pixel, not per half
+#endif
     count_add(C_SHADOW_MAP_EARLY_OUTS, covered ? 1u : 0u);
     count_add(C_EARLY_OUTS, !covered && !deferred && done(mask) ? 1u : 0u);
     uint longest = subgroupMax(tests_spawned);
@@ -310,13 +327,13 @@ void main() {
     loop_budget_reset();
     uint lid = gl_LocalInvocationIndex;
     stop_when_full = (frame.skips & SKIP_FULL_MASK) != 0u;
-    uint queued = min(counters[C_HEAVY_PIXELS], frame.heavy_capacity);
+    uint queued = min(counters[C_HALF_HEAVY_PIXELS], frame.heavy_capacity);
     uint early_outs = 0u;
     // Uniform per workgroup: the barriers below are reached by all.
     for (uint q = gl_WorkGroupID.x; q < queued; q += gl_NumWorkGroups.x) {
         uvec2 item = heavy_pixels[q];
         uint i = item.x;
-        if (lid == 0u) sm_mask = masks[i];
+        if (lid == 0u) sm_mask = HALF_MASKS[i];
         share_pixel(i, item.y);
         // The tile step's mask (cover triangle, overflow list), then the
         // grid's candidates: thread lid takes every WORKGROUP_LINEAR-th
@@ -351,7 +368,7 @@ void main() {
         barrier();
         if (lid == 0u) {
             bool tested = (gbuffer_flags(g_id_flags[i]) & FLAG_SHADOW_TESTED) != 0u;
-            masks[i] = tested ? sm_mask : 0u;
+            HALF_MASKS[i] = tested ? sm_mask : 0u;
             if (done(sm_mask)) early_outs += 1u;
         }
         // Every thread has read sm_mask before the next pixel resets it.

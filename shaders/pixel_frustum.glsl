@@ -221,12 +221,27 @@ uint soft_triangle_mask(vec3 t0, vec3 t1, vec3 t2) {
     return mask;
 }
 
+// Whether masks pair µQuad samples with light samples (SampleMode::is_paired).
+bool paired_mode() {
+    return frame.mode == MODE_PAIRED32 || frame.mode == MODE_PAIRED64;
+}
+
+// The (light, µQuad) samples of this step's mask half
+// (lut::paired_patterns): MODE_PAIRED64's second half turns both.
+#ifdef MASK_HALF_HIGH
+#define PAIR_LIGHT(i) frame.second_pattern[i]
+#define PAIR_PIXEL(i) frame.second_pair_pattern[i]
+#else
+#define PAIR_LIGHT(i) frame.pattern[i]
+#define PAIR_PIXEL(i) frame.pair_pattern[i]
+#endif
+
 // light_samples::PairedRays: pair i's offset from P to µQuad sample i,
 // the disk point c_i from P, and the ray's direction from S_i.
 void paired_ray(int i, out vec3 delta, out vec3 c, out vec3 d) {
-    precise vec3 dl = px_ex * (frame.pair_pattern[i].x - 0.5) + px_ey * (frame.pair_pattern[i].y - 0.5);
-    precise vec3 cl = px_disk_c + px_disk_u * (frame.pattern[i].x - 0.5)
-        + px_disk_v * (frame.pattern[i].y - 0.5);
+    precise vec3 dl = px_ex * (PAIR_PIXEL(i).x - 0.5) + px_ey * (PAIR_PIXEL(i).y - 0.5);
+    precise vec3 cl = px_disk_c + px_disk_u * (PAIR_LIGHT(i).x - 0.5)
+        + px_disk_v * (PAIR_LIGHT(i).y - 0.5);
     delta = dl;
     c = cl;
     d = light.projection != 0u ? cl - dl : cl;
@@ -290,7 +305,7 @@ uint triangle_mask(Triangle tri) {
     precise vec3 t1 = tri.b - px_p;
     precise vec3 t2 = tri.c - px_p;
     if (px_soft) {
-        return frame.mode == MODE_PAIRED32 ? paired_triangle_mask(t0, t1, t2)
+        return paired_mode() ? paired_triangle_mask(t0, t1, t2)
                                            : soft_triangle_mask(t0, t1, t2);
     }
     vec3 light_rel = px_light;

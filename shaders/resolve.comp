@@ -3,7 +3,8 @@
 // `izb::output::shade_pixel`: the shaded image (ambient + Lambert × lit
 // fraction, display gamma 2.2) as packed RGB8, with the lit fraction in
 // alpha as the count of lit samples, 32 − popcount(mask), exact (the host
-// divides by 32), or ALPHA_NOT_TESTED.
+// divides by 32), or ALPHA_NOT_TESTED. A MODE_PAIRED64 frame's 64 samples:
+// 64 − both halves' popcounts (the host divides by 64).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -14,6 +15,7 @@ layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint masks[]; };
+layout(scalar, binding = B_MASKS_HIGH) readonly buffer MaskHighBuf { uint masks_high[]; };
 layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; };
 
 // output::AMBIENT, output::DIFFUSE and output::SKY_RGB.
@@ -28,14 +30,17 @@ void main() {
     uint word = g_id_flags[i];
     uint flags = gbuffer_flags(word);
     bool tested = (flags & FLAG_SHADOW_TESTED) != 0u;
-    uint lit_samples = 32u - uint(bitCount(masks[i]));
+    uint samples = 32u * frame.mask_halves;
+    uint hidden = uint(bitCount(masks[i]));
+    if (frame.mask_halves == 2u) hidden += uint(bitCount(masks_high[i]));
+    uint lit_samples = samples - hidden;
     vec3 rgb = SKY;
     if ((flags & FLAG_HIT) != 0u) {
         vec3 p = g_position[i];
         vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
         vec3 n = receiver_normal(triangle_normals[gbuffer_triangle(word)], word);
         float lambert = max(dot(n, toward), 0.0);
-        float v = tested ? float(lit_samples) / 32.0 : 0.0;
+        float v = tested ? float(lit_samples) / float(samples) : 0.0;
         rgb = vec3(AMBIENT + (1.0 - AMBIENT) * DIFFUSE * lambert * v);
     }
     uvec3 c = uvec3(round(pow(clamp(rgb, 0.0, 1.0), vec3(1.0 / 2.2)) * 255.0));

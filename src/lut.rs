@@ -64,6 +64,24 @@ pub fn tables_for(light_samples: bool) -> (&'static EdgeLut, &'static SamplePatt
     }
 }
 
+/// The (light, µQuad) patterns of one half of the paired rays: half 0 is
+/// ([`light_pattern`], [`sample_pattern`]), pair i joining sample i of
+/// each; half 1 (`izb64-paired`'s samples 32–63) both turned
+/// ([`izb_lut::pairs`]).
+pub fn paired_patterns(half: usize) -> (&'static SamplePattern, &'static SamplePattern) {
+    static SECOND: OnceLock<(SamplePattern, SamplePattern)> = OnceLock::new();
+    if half == 0 {
+        return (light_pattern(), sample_pattern());
+    }
+    let (light, pixel) = SECOND.get_or_init(|| {
+        (
+            izb_lut::second_half_light_pattern(light_pattern()),
+            izb_lut::second_half_pixel_pattern(sample_pattern()),
+        )
+    });
+    (light, pixel)
+}
+
 /// Random edges behind each table's statistics [`regenerate_tables`]
 /// returns.
 pub const REGENERATE_STATISTICS_LINES: usize = 1_000_000;

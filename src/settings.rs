@@ -23,6 +23,30 @@ pub enum SampleMode {
     /// ground truth integrates it (`cpu::light_samples`). Under a
     /// point-like light it is `Exact32`.
     Paired32,
+    /// `Paired32` twice: 32 more pairs, both patterns turned
+    /// ([`izb_lut::pairs`]), in a second 32-bit mask (bits 32–63 of the
+    /// pixel's 64). Each half is evaluated as `Paired32` evaluates its
+    /// own, over the same bins; the lit fraction counts all 64. Under a
+    /// point-like light it is `Exact32`.
+    Paired64,
+}
+
+impl SampleMode {
+    /// Whether rays pair µQuad samples with light samples (under an area
+    /// light).
+    pub fn is_paired(self) -> bool {
+        matches!(self, SampleMode::Paired32 | SampleMode::Paired64)
+    }
+
+    /// The 32-bit mask halves a pixel has under an area light: 2 for
+    /// `Paired64`, else 1.
+    pub fn halves(self) -> usize {
+        if self == SampleMode::Paired64 {
+            2
+        } else {
+            1
+        }
+    }
 }
 
 /// How to render.
@@ -52,6 +76,16 @@ impl IzbSettings {
     /// light's centre alone, a hard shadow whatever the light's size.
     pub fn light_samples(&self, scene: &crate::scene::Scene) -> bool {
         scene.has_area_light() && self.mode != SampleMode::One
+    }
+
+    /// The 32-bit mask halves per pixel a render of `scene` forms: 2 for
+    /// `Paired64` under an area light, else 1.
+    pub fn mask_halves(&self, scene: &crate::scene::Scene) -> usize {
+        if self.light_samples(scene) {
+            self.mode.halves()
+        } else {
+            1
+        }
     }
 }
 

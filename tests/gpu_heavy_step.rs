@@ -83,11 +83,17 @@ fn heavy_step_masks_equal_the_cpu_twin() {
             shared += 1;
         }
     }
-    // An area light: the light-sample test and the paired rays, split.
+    // An area light: the light-sample test and the paired rays, split
+    // (Paired64: both mask halves, each with its own heavy queue).
     let soft = izb::scene::load("hairball")
         .unwrap()
         .with_light_size(2.0)
         .unwrap();
-    compared += check(&r, soft, &[SampleMode::Lut32, SampleMode::Paired32]);
-    assert_eq!(compared, 2 * (3 + shared) + 2, "cases compared");
+    let soft_modes = [
+        SampleMode::Lut32,
+        SampleMode::Paired32,
+        SampleMode::Paired64,
+    ];
+    compared += check(&r, soft, &soft_modes);
+    assert_eq!(compared, 2 * (3 + shared) + 3, "cases compared");
 }

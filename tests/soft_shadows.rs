@@ -132,14 +132,12 @@ fn padded_grid_offers_every_occluder_of_a_light_sample() {
 const RESOLUTION: [u32; 2] = [160, 90];
 
 /// (differing samples, compared samples) of exact soft mode against
-/// `rt-soft`, after checking every difference lies within float rounding
+/// `rt-soft` (both mask halves of `Paired64`, each against the same rays
+/// traced), after checking every difference lies within float rounding
 /// of a boundary.
 fn check_exact_soft(scene: Scene, mode: SampleMode) -> (u64, u64) {
     let scene = scene.with_resolution(RESOLUTION).unwrap();
     let bvh = SceneBvh::build(&scene);
-    let pattern = izb::lut::light_pattern();
-    let paired = (mode == SampleMode::Paired32).then(izb::lut::sample_pattern);
-    let reference = soft_same_sample_masks(&scene, &bvh, pattern, paired);
     let exact = render_cpu(
         &scene,
         &bvh,
@@ -148,16 +146,61 @@ fn check_exact_soft(scene: Scene, mode: SampleMode) -> (u64, u64) {
             ..Default::default()
         },
     );
+    assert_eq!(
+        exact.masks_high.len(),
+        if mode.halves() == 2 {
+            exact.masks.len()
+        } else {
+            0
+        },
+        "{mode:?}: the second mask half"
+    );
+    let (mut diff, mut total) = (0, 0);
+    for (half, masks) in [&exact.masks, &exact.masks_high].into_iter().enumerate() {
+        if half < mode.halves() {
+            let (d, t) = check_half(&scene, &bvh, &exact.gbuffer, masks, mode, half);
+            diff += d;
+            total += t;
+        }
+    }
     let tested = |i: usize| exact.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
-    let (diff, total) = izb::metrics::sample_mismatches(&exact.masks, &reference, tested);
+    let partial = exact
+        .masks
+        .iter()
+        .enumerate()
+        .filter(|&(i, &m)| tested(i) && m != 0 && m != u32::MAX)
+        .count();
+    println!(
+        "{} (light radius {:.4}, {mode:?}): {diff} of {total} light samples differ; \
+         {partial} penumbra pixels",
+        scene.name, scene.light_radius
+    );
+    assert!(total > 0, "{}: nothing shadow-tested", scene.name);
+    (diff, total)
+}
+
+/// [`check_exact_soft`] for mask half `half` (`masks`): its rays traced.
+fn check_half(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    g: &izb::gbuffer::GBuffer,
+    masks: &[u32],
+    mode: SampleMode,
+    half: usize,
+) -> (u64, u64) {
+    let (pattern, pixel_pattern) = izb::lut::paired_patterns(half);
+    let paired = mode.is_paired().then_some(pixel_pattern);
+    let reference = soft_same_sample_masks(scene, bvh, pattern, paired);
+    let tested = |i: usize| g.flags[i] & flags::SHADOW_TESTED != 0;
+    let (diff, total) = izb::metrics::sample_mismatches(masks, &reference, tested);
     let frame = scene.camera.frame(scene.resolution);
     let light = scene.light.relative_to(scene.camera.eye);
     let triangles = scene.eye_relative_triangles();
     let mut worst = 0.0f64;
-    for i in (0..reference.len()).filter(|&i| tested(i) && exact.masks[i] != reference[i]) {
+    for i in (0..reference.len()).filter(|&i| tested(i) && masks[i] != reference[i]) {
         let (x, y) = (i as u32 % RESOLUTION[0], i as u32 / RESOLUTION[0]);
-        let px = pixel_surface(&bvh, &scene, &frame, x, y).unwrap();
-        let differing = exact.masks[i] ^ reference[i];
+        let px = pixel_surface(bvh, scene, &frame, x, y).unwrap();
+        let differing = masks[i] ^ reference[i];
         for bit in (0..32).filter(|b| differing & (1 << b) != 0) {
             let margin = soft_decision_margin(
                 &triangles,
@@ -170,26 +213,15 @@ fn check_exact_soft(scene: Scene, mode: SampleMode) -> (u64, u64) {
             worst = worst.max(margin);
             assert!(
                 margin < FLOAT_DECISION_TOLERANCE,
-                "{}: pixel ({x}, {y}) light sample {bit}: IZB {} and rt-soft {} disagree with a \
-                 decision margin {margin:.3e}",
+                "{}: pixel ({x}, {y}) half {half} light sample {bit}: IZB {} and rt-soft {} \
+                 disagree with a decision margin {margin:.3e}",
                 scene.name,
-                exact.masks[i] >> bit & 1,
+                masks[i] >> bit & 1,
                 reference[i] >> bit & 1
             );
         }
     }
-    let partial = exact
-        .masks
-        .iter()
-        .enumerate()
-        .filter(|&(i, &m)| tested(i) && m != 0 && m != u32::MAX)
-        .count();
-    println!(
-        "{} (light radius {:.4}, {mode:?}): {diff} of {total} light samples differ, worst margin {worst:.2e}; \
-         {partial} penumbra pixels",
-        scene.name, scene.light_radius
-    );
-    assert!(total > 0, "{}: nothing shadow-tested", scene.name);
+    println!("  half {half}: {diff} of {total} differ, worst margin {worst:.2e}");
     (diff, total)
 }
 
@@ -198,7 +230,11 @@ fn exact_soft_matches_rt_soft_on_procedural_scenes() {
     let (mut diff, mut total, mut cases) = (0, 0, 0);
     for name in scene::procedural::NAMES {
         for size in [0.25, 1.0, 3.0] {
-            for mode in [SampleMode::Exact32, SampleMode::Paired32] {
+            for mode in [
+                SampleMode::Exact32,
+                SampleMode::Paired32,
+                SampleMode::Paired64,
+            ] {
                 let scene = scene::load(name).unwrap().with_light_size(size).unwrap();
                 let (d, t) = check_exact_soft(scene, mode);
                 diff += d;
@@ -207,7 +243,7 @@ fn exact_soft_matches_rt_soft_on_procedural_scenes() {
             }
         }
     }
-    assert_eq!(cases, 6 * scene::procedural::NAMES.len());
+    assert_eq!(cases, 9 * scene::procedural::NAMES.len());
     let rate = diff as f64 / total as f64;
     println!("all: {diff} of {total} light samples within rounding of a boundary ({rate:.2e})");
     assert!(rate < 1e-5, "{diff} of {total} samples differ ({rate:.2e})");
@@ -218,7 +254,11 @@ fn exact_soft_matches_rt_soft_under_a_sphere_light() {
     let Some(engine) = common::shared_scene("engine") else {
         return;
     };
-    for mode in [SampleMode::Exact32, SampleMode::Paired32] {
+    for mode in [
+        SampleMode::Exact32,
+        SampleMode::Paired32,
+        SampleMode::Paired64,
+    ] {
         let scene = engine.clone().with_light_size(20.0).unwrap();
         let (diff, total) = check_exact_soft(scene, mode);
         assert!(

@@ -56,11 +56,14 @@ shared_constants! {
         /// Evaluate's heavy step: per queued pixel, its index and cascade
         /// (`uvec2`), `FrameParams::heavy_capacity` of them.
         HEAVY_PIXELS = 20;
+        /// Bits 32–63 of a `MODE_PAIRED64` frame's masks under an area
+        /// light (evaluate's second half writes them); 4 bytes otherwise.
+        MASKS_HIGH = 21;
     }
 }
 
 /// Number of bindings (one past the last of [`binding`]).
-pub const BINDING_COUNT: u32 = binding::HEAVY_PIXELS + 1;
+pub const BINDING_COUNT: u32 = binding::MASKS_HIGH + 1;
 
 shared_constants! {
     /// Word indices into the counters buffer (`C_*`); 64-bit counters take
@@ -107,8 +110,11 @@ shared_constants! {
         /// The most tests one pixel ran in evaluate's tile step (atomicMax):
         /// with the heavy step, about its threshold at most.
         LONGEST_TILE_TESTS = 32;
+        /// `HEAVY_PIXELS` of evaluate's second mask half (`MODE_PAIRED64`),
+        /// which runs first and has its own queue count.
+        HEAVY_PIXELS_HIGH = 33;
         /// Words in the counters buffer.
-        WORDS = 33;
+        WORDS = 34;
     }
 }
 
@@ -131,6 +137,9 @@ shared_constants! {
         /// Under an area light: 32 (µQuad sample, light sample) pairs,
         /// evaluated exactly; under a point-like light as `EXACT32`.
         PAIRED32 = 3;
+        /// `PAIRED32` twice: a second 32 pairs from `second_pattern` and
+        /// `second_pair_pattern`, in `B_MASKS_HIGH`.
+        PAIRED64 = 4;
     }
 }
 
@@ -344,7 +353,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 79, "members of the five shared structs");
+        assert_eq!(checked, 82, "members of the five shared structs");
     }
 
     #[test]

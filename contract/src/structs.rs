@@ -75,6 +75,9 @@ shared_struct! {
         /// 1 when masks are over the light's samples (soft shadows): then
         /// `pattern`, `pattern_radius` and the LUT buffer are the light's.
         pub light_samples: u32 => "uint light_samples",
+        /// 32-bit mask halves per pixel: 2 in a `MODE_PAIRED64` IZB frame
+        /// under an area light (`B_MASKS_HIGH` holds bits 32–63), else 1.
+        pub mask_halves: u32 => "uint mask_halves",
         /// A directional light's disk axes (`LightSetup::sun_disk`, host
         /// `f64` then `f32`).
         pub sun_axis_u: [f32; 3] => "vec3 sun_axis_u",
@@ -94,8 +97,13 @@ shared_struct! {
         pub heavy_capacity: u32 => "uint heavy_capacity",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
-        /// `MODE_PAIRED32` frame under an area light.
+        /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area
+        /// light.
         pub pair_pattern: [[f32; 2]; 32] => "vec2 pair_pattern[32]",
+        /// `MODE_PAIRED64`: the light and µQuad samples of the second 32
+        /// pairs (`izb_lut::pairs`).
+        pub second_pattern: [[f32; 2]; 32] => "vec2 second_pattern[32]",
+        pub second_pair_pattern: [[f32; 2]; 32] => "vec2 second_pair_pattern[32]",
     }
 }
 

@@ -15,9 +15,12 @@
 //!   their coverage error on lines across the disk
 //!   ([`disk_coverage_error`]), the chosen [`light_pattern`] and
 //!   [`light_lut_statistics`] for its table.
+//! - [`pairs`]: the second half of the 64 paired rays (pixel and light
+//!   patterns turned).
 
 pub mod edge;
 pub mod light;
+pub mod pairs;
 pub mod pattern;
 mod rng;
 pub mod table;
@@ -32,6 +35,7 @@ pub use light::{
     vogel_spiral, LIGHT_CANDIDATE_NAMES, LIGHT_DISK_RADIUS, LIGHT_EVALUATION_LINES,
     LIGHT_PATTERN_NAME, OPTIMISED_LLOYD_32,
 };
+pub use pairs::{second_half_light_pattern, second_half_pixel_pattern, SECOND_LIGHT_TURN_DEG};
 pub use pattern::{
     candidate_patterns, coverage_error, sample_pattern, CoverageError, PatternCandidate,
     SamplePattern, PATTERN_EVALUATION_LINES, SAMPLE_PATTERN_NAME,

@@ -70,6 +70,7 @@ pub fn parse_methods(
             "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
             "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
             "izb32-paired" => out.push((name.to_string(), izb_mode(SampleMode::Paired32))),
+            "izb64-paired" => out.push((name.to_string(), izb_mode(SampleMode::Paired64))),
             // Under an area light the same-sample reference traces the
             // 32 light samples (`rt-soft`); the two names are one method.
             "rt32" | "rt-soft" => out.push((name.to_string(), MethodKind::RayTraced32)),
@@ -97,7 +98,7 @@ pub fn parse_methods(
                 other.to_string(),
                 MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
                     format!(
-                        "{e}; or one of reference, izb1, izb32, izb32-exact, izb32-paired, rt32, rt-soft, rt32-rays, \
+                        "{e}; or one of reference, izb1, izb32, izb32-exact, izb32-paired, izb64-paired, rt32, rt-soft, rt32-rays, \
                          rt32-embree, shadow-maps"
                     )
                 })?),

@@ -33,7 +33,8 @@ pub struct BenchArgs {
     #[arg(long, value_parser = parse_resolution, value_delimiter = ',')]
     resolution: Vec<[u32; 2]>,
     /// Methods, comma separated: izb1, izb32, izb32-exact, izb32-paired
-    /// (area lights: light samples paired with µQuad samples), rt32 (the
+    /// (area lights: light samples paired with µQuad samples),
+    /// izb64-paired (64 such pairs, two mask words), rt32 (the
     /// 32 µQuad samples ray traced; under an area light the 32 light
     /// samples, also named rt-soft), shadow maps `sm-R`, `pcf3-R`, `pcf5-R`,
     /// `csmN-pcfK-R`, `pcss-R` (soft, Fernando 2005; R texels a side), or

@@ -30,6 +30,10 @@ pub struct RenderArgs {
     /// --exact.
     #[arg(long)]
     paired: bool,
+    /// --paired with 64 pairs: a second 32, both patterns turned, in a
+    /// second mask word (`mask_high` in visibility.exr).
+    #[arg(long)]
+    paired64: bool,
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     backend: Backend,
     /// Vulkan device index (see `izb devices`; default: the best one).
@@ -50,11 +54,12 @@ pub struct RenderArgs {
     threads: Option<usize>,
 }
 
-pub fn mode_for(spp: u32, exact: bool, paired: bool) -> SampleMode {
-    match (spp, exact, paired) {
-        (1, _, _) => SampleMode::One,
-        (_, _, true) => SampleMode::Paired32,
-        (_, true, _) => SampleMode::Exact32,
+pub fn mode_for(spp: u32, exact: bool, paired: bool, paired64: bool) -> SampleMode {
+    match (spp, exact, paired, paired64) {
+        (1, _, _, _) => SampleMode::One,
+        (_, _, _, true) => SampleMode::Paired64,
+        (_, _, true, _) => SampleMode::Paired32,
+        (_, true, _, _) => SampleMode::Exact32,
         _ => SampleMode::Lut32,
     }
 }
@@ -62,11 +67,11 @@ pub fn mode_for(spp: u32, exact: bool, paired: bool) -> SampleMode {
 pub fn run_render(args: RenderArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
     anyhow::ensure!(
-        !((args.exact || args.paired) && args.spp == 1),
-        "--exact and --paired apply to 32 spp; 1 spp is always an exact point test"
+        !((args.exact || args.paired || args.paired64) && args.spp == 1),
+        "--exact, --paired and --paired64 apply to 32 spp; 1 spp is always an exact point test"
     );
     let settings = args.grid.apply(IzbSettings {
-        mode: mode_for(args.spp, args.exact, args.paired),
+        mode: mode_for(args.spp, args.exact, args.paired, args.paired64),
         skips: args.skip,
         ..Default::default()
     })?;
@@ -110,20 +115,26 @@ pub fn is_loop_cap(e: &anyhow::Error) -> bool {
     })
 }
 
-/// Writes `visibility.exr` (lit fraction + masks) and `visibility.png`.
+/// Writes `visibility.exr` (lit fraction + masks; `mask_high` with bits
+/// 32–63 when `masks_high` is not empty) and `visibility.png`.
 pub fn write_mask_outputs(
     out: &Path,
     scene: &Scene,
     visibility: &[f32],
     masks: &[u32],
+    masks_high: &[u32],
 ) -> Result<()> {
     let [w, h] = scene.resolution;
+    let mut channels = vec![("mask", masks)];
+    if !masks_high.is_empty() {
+        channels.push(("mask_high", masks_high));
+    }
     write_exr_with_masks(
         &out.join("visibility.exr"),
         w,
         h,
         &[("visibility", visibility)],
-        &[("mask", masks)],
+        &channels,
     )?;
     write_visibility_png(&out.join("visibility.png"), w, h, visibility)
 }
@@ -175,7 +186,13 @@ pub fn render_on_gpu(
         eprintln!("validation: {m}");
     }
     let [w, h] = scene.resolution;
-    write_mask_outputs(&args.out, scene, &render.visibility, &render.masks)?;
+    write_mask_outputs(
+        &args.out,
+        scene,
+        &render.visibility,
+        &render.masks,
+        &render.masks_high,
+    )?;
     let shaded =
         image::RgbImage::from_raw(w, h, render.shaded.concat()).context("shaded image size")?;
     write_png(&args.out.join("shaded.png"), &shaded)?;
@@ -220,7 +237,13 @@ pub fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) ->
         let bvh_seconds = t.elapsed().as_secs_f64();
         (render_cpu(scene, &bvh, settings), bvh_seconds)
     });
-    write_mask_outputs(&args.out, scene, &render.visibility, &render.masks)?;
+    write_mask_outputs(
+        &args.out,
+        scene,
+        &render.visibility,
+        &render.masks,
+        &render.masks_high,
+    )?;
     let light = scene.light.relative_to(scene.camera.eye);
     write_shaded_png(
         &args.out.join("shaded.png"),

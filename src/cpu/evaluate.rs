@@ -86,8 +86,8 @@ struct PixelFrustum {
     /// The light's disk seen from P, when the light has a size: the mask
     /// is then over the light's samples (`light_samples`).
     soft: Option<LightView>,
-    /// With [`SampleMode::Paired32`] under an area light: the pixel's 32
-    /// (µQuad sample, light sample) rays.
+    /// With a paired mode under an area light: the pixel's 32
+    /// (µQuad sample, light sample) rays of the rule's half.
     paired: Option<PairedRays>,
 }
 
@@ -126,8 +126,8 @@ fn pixel_frustum(
         });
     let paired = soft
         .as_ref()
-        .filter(|_| rule.mode == SampleMode::Paired32)
-        .map(|view| PairedRays::new(view, ex, ey, crate::lut::sample_pattern(), rule.pattern));
+        .filter(|_| rule.mode.is_paired())
+        .map(|view| PairedRays::new(view, ex, ey, rule.pair_pattern, rule.pattern));
     PixelFrustum {
         p,
         normal: g.normal[i],
@@ -179,6 +179,9 @@ fn levels_of(mask: u32) -> impl Iterator<Item = u32> {
 pub struct MaskRule<'a> {
     pub mode: SampleMode,
     pub pattern: &'a [[f32; 2]; 32],
+    /// Paired modes: the µQuad sample each of `pattern`'s light samples is
+    /// paired with (sample i with sample i).
+    pub pair_pattern: &'a [[f32; 2]; 32],
     pub lut: &'a izb_lut::EdgeLut,
     pub skips: Skips,
     /// [`crate::frustum::pattern_radius`] of `pattern`.
@@ -201,10 +204,24 @@ impl<'a> MaskRule<'a> {
         MaskRule {
             mode,
             pattern,
+            pair_pattern: crate::lut::sample_pattern(),
             lut,
             skips,
             radius: crate::frustum::pattern_radius(pattern),
             light_samples: soft,
+        }
+    }
+
+    /// The rule of mask half `half` of a paired mode under an area light
+    /// (1: `Paired64`'s samples 32–63, [`crate::lut::paired_patterns`]);
+    /// `self` for half 0.
+    pub fn half(self, half: usize) -> MaskRule<'a> {
+        let (pattern, pair_pattern) = crate::lut::paired_patterns(half);
+        MaskRule {
+            pattern,
+            pair_pattern,
+            radius: crate::frustum::pattern_radius(pattern),
+            ..self
         }
     }
 
@@ -221,10 +238,12 @@ impl<'a> MaskRule<'a> {
                 let cheap = matches!(cell, izb_lut::LutCell::Constant(_));
                 (self.lut.cell_mask(cell), cheap)
             }
-            SampleMode::Exact32 | SampleMode::Paired32 => match saturated_edge(e, self.radius) {
-                Some(mask) => (mask, true),
-                None => (exact_edge_mask(e, self.pattern), false),
-            },
+            SampleMode::Exact32 | SampleMode::Paired32 | SampleMode::Paired64 => {
+                match saturated_edge(e, self.radius) {
+                    Some(mask) => (mask, true),
+                    None => (exact_edge_mask(e, self.pattern), false),
+                }
+            }
         }
     }
 }
@@ -528,22 +547,29 @@ pub fn evaluate(
     let mut stats = EvaluateStats::default();
     for (m, s) in bands {
         masks.extend(m);
-        stats.pixels_tested += s.pixels_tested;
-        stats.tests_spawned += s.tests_spawned;
-        stats.depth_passed += s.depth_passed;
-        stats.saturated_masks += s.saturated_masks;
-        stats.masks_nonempty += s.masks_nonempty;
-        stats.early_outs += s.early_outs;
-        stats.cells_visited += s.cells_visited;
-        stats.levels_visited += s.levels_visited;
-        stats.group_longest_tests += s.group_longest_tests;
-        stats.longest_pixel_tests = stats.longest_pixel_tests.max(s.longest_pixel_tests);
-        stats.shadow_map_early_outs += s.shadow_map_early_outs;
+        stats.add(&s);
     }
     (masks, stats)
 }
 
 impl EvaluateStats {
+    /// Adds the counters of `s` (another band of pixels, or another mask
+    /// half of the same pixels: the caller then keeps one half's
+    /// `pixels_tested`).
+    pub fn add(&mut self, s: &EvaluateStats) {
+        self.pixels_tested += s.pixels_tested;
+        self.tests_spawned += s.tests_spawned;
+        self.depth_passed += s.depth_passed;
+        self.saturated_masks += s.saturated_masks;
+        self.masks_nonempty += s.masks_nonempty;
+        self.early_outs += s.early_outs;
+        self.cells_visited += s.cells_visited;
+        self.levels_visited += s.levels_visited;
+        self.group_longest_tests += s.group_longest_tests;
+        self.longest_pixel_tests = self.longest_pixel_tests.max(s.longest_pixel_tests);
+        self.shadow_map_early_outs += s.shadow_map_early_outs;
+    }
+
     /// Tests over 32 × the longest pixel of each 8×4 group: the share of
     /// SIMD lanes doing useful tests in a one-pixel-per-lane evaluate.
     pub fn simd_efficiency(&self) -> f64 {

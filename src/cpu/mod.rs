@@ -60,6 +60,9 @@ pub struct ShadowRender {
     /// Occlusion mask per pixel: bit i set = sample i in shadow (0 where not
     /// shadow-tested).
     pub masks: Vec<u32>,
+    /// Bits 32–63 of a 64-sample mask ([`SampleMode::Paired64`] under an
+    /// area light), empty otherwise.
+    pub masks_high: Vec<u32>,
     /// Lit fraction per pixel, NaN where not shadow-tested.
     pub visibility: Vec<f32>,
     pub report: RenderReport,
@@ -67,14 +70,20 @@ pub struct ShadowRender {
 
 /// Pass 4: lit fraction = 1 − popcount / 32, NaN where not shadow-tested.
 pub fn resolve(masks: &[u32], g: &GBuffer) -> Vec<f32> {
-    masks
-        .iter()
-        .zip(&g.flags)
-        .map(|(&m, &f)| {
-            if f & flags::SHADOW_TESTED == 0 {
+    resolve_halves(masks, &[], g)
+}
+
+/// [`resolve`] of 64-sample masks: bits 0–31 in `masks`, 32–63 in
+/// `high` (1 − popcount / 64), or of 32-sample ones when `high` is empty.
+pub fn resolve_halves(masks: &[u32], high: &[u32], g: &GBuffer) -> Vec<f32> {
+    let samples = if high.is_empty() { 32.0 } else { 64.0 };
+    (0..masks.len())
+        .map(|i| {
+            if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 f32::NAN
             } else {
-                1.0 - m.count_ones() as f32 / 32.0
+                let hidden = masks[i].count_ones() + high.get(i).map_or(0, |h| h.count_ones());
+                1.0 - hidden as f32 / samples
             }
         })
         .collect()
@@ -112,9 +121,20 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
-    let (masks, eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule);
+    let (masks, mut eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule);
+    // Paired64: the second half, the same pass with the turned patterns.
+    let masks_high = if settings.mask_halves(scene) == 2 {
+        let (high, stats) =
+            evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule.half(1));
+        let pixels_tested = eval_stats.pixels_tested;
+        eval_stats.add(&stats);
+        eval_stats.pixels_tested = pixels_tested;
+        high
+    } else {
+        Vec::new()
+    };
     seconds.evaluate = lap();
-    let visibility = resolve(&masks, &g);
+    let visibility = resolve_halves(&masks, &masks_high, &g);
     seconds.resolve = lap();
     seconds.total = start.elapsed().as_secs_f64();
     let evaluate_ns_per_test_per_thread =
@@ -133,6 +153,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
         },
         gbuffer: g,
         masks,
+        masks_high,
         visibility,
     }
 }

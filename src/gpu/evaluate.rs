@@ -30,17 +30,29 @@ pub fn heavy_workgroups(device: &super::context::DeviceInfo) -> u32 {
 }
 
 /// Records the pass; `heavy`: (the heavy step's queue length,
-/// `FrameParams::heavy_capacity`, and its workgroups) when the step runs.
-pub fn evaluate(rec: &Recorder, kernels: &Kernels, size: [u32; 2], heavy: Option<(u32, u32)>) {
+/// `FrameParams::heavy_capacity`, and its workgroups) when the step runs;
+/// `halves`: 2 for `MODE_PAIRED64` under an area light. The second half
+/// (`B_MASKS_HIGH`) runs first: both halves read the pixel's cascade from
+/// its `B_MASKS` word, which the first half then overwrites.
+pub fn evaluate(
+    rec: &Recorder,
+    kernels: &Kernels,
+    size: [u32; 2],
+    heavy: Option<(u32, u32)>,
+    halves: usize,
+) {
     rec.begin_label("evaluate");
-    rec.dispatch_pixels(&kernels.evaluate, size);
-    rec.barrier();
-    if let Some((capacity, workgroups)) = heavy {
-        rec.dispatch(
-            &kernels.evaluate_heavy,
-            [capacity.clamp(1, workgroups.max(1)), 1, 1],
-        );
+    let steps = [
+        (&kernels.evaluate_high, &kernels.evaluate_heavy_high),
+        (&kernels.evaluate, &kernels.evaluate_heavy),
+    ];
+    for (tiles, heavy_step) in &steps[2 - halves.clamp(1, 2)..] {
+        rec.dispatch_pixels(tiles, size);
         rec.barrier();
+        if let Some((capacity, workgroups)) = heavy {
+            rec.dispatch(heavy_step, [capacity.clamp(1, workgroups.max(1)), 1, 1]);
+            rec.barrier();
+        }
     }
     rec.end_label();
 }

@@ -237,6 +237,10 @@ impl GpuRenderer {
         let pixels = scene.pixel_count() as u64;
         let t = triangles.len() as u64;
         let (lut, _) = crate::lut::tables_for(settings.light_samples(scene));
+        let halves = match passes {
+            FramePasses::Izb => settings.mask_halves(scene),
+            _ => 1,
+        };
         let descs = frame_buffer_descs(&FrameSizes {
             pixels,
             triangles: t,
@@ -246,6 +250,7 @@ impl GpuRenderer {
             cell_capacity,
             lut_entries: lut.masks.len() as u64,
             shadow_map_texels: passes.shadow_map_texels(),
+            mask_halves: halves as u64,
         });
         let frame_buffers = FrameBuffers {
             buffers: descs
@@ -268,6 +273,7 @@ impl GpuRenderer {
             loop_budget(&shared.info.name),
             self.heavy_entries,
         );
+        params.mask_halves = halves as u32;
         if let FramePasses::ShadowMap(map) = passes {
             super::shadow_map::map_params(&mut params, scene, triangles, map);
         }
@@ -308,6 +314,7 @@ impl GpuRenderer {
             binding::COUNTERS,
             binding::LIGHT,
             binding::MASKS,
+            binding::MASKS_HIGH,
             binding::SHADED,
             binding::G_POSITION,
             binding::G_AXIS_X,
@@ -399,7 +406,7 @@ impl GpuRenderer {
                             params.heavy_capacity,
                             super::evaluate::heavy_workgroups(&shared.info),
                         ));
-                        super::evaluate::evaluate(&rec, &self.kernels, [w, h], heavy);
+                        super::evaluate::evaluate(&rec, &self.kernels, [w, h], heavy, halves);
                         mark(4);
                         super::resolve::resolve(&rec, &self.kernels, [w, h]);
                     }
@@ -469,6 +476,11 @@ impl GpuRenderer {
             counters,
             light,
             masks: words(binding::MASKS)?,
+            masks_high: if halves == 2 {
+                words(binding::MASKS_HIGH)?
+            } else {
+                Vec::new()
+            },
             shaded: words(binding::SHADED)?,
             position: vec3s(binding::G_POSITION)?,
             axis_x: vec3s(binding::G_AXIS_X)?,
@@ -507,6 +519,8 @@ pub(super) struct FrameOutput {
     pub(super) counters: Vec<u32>,
     pub(super) light: LightState,
     pub(super) masks: Vec<u32>,
+    /// Bits 32–63 of `MODE_PAIRED64` masks, empty otherwise.
+    pub(super) masks_high: Vec<u32>,
     pub(super) shaded: Vec<u32>,
     pub(super) position: Vec<Vec3>,
     pub(super) axis_x: Vec<Vec3>,

@@ -86,6 +86,7 @@ fn mode_code(mode: SampleMode) -> u32 {
         SampleMode::Lut32 => shared::mode::LUT32,
         SampleMode::Exact32 => shared::mode::EXACT32,
         SampleMode::Paired32 => shared::mode::PAIRED32,
+        SampleMode::Paired64 => shared::mode::PAIRED64,
     }
 }
 
@@ -192,6 +193,7 @@ pub(super) fn frame_params(
         map_reach: 0,
         light_radius,
         light_samples: soft as u32,
+        mask_halves: settings.mask_halves(scene) as u32,
         sun_axis_u: sun_axis_u.to_array(),
         sun_axis_v: sun_axis_v.to_array(),
         map_light_size: 0.0,
@@ -201,5 +203,7 @@ pub(super) fn frame_params(
             .min(u64::from(u32::MAX)) as u32,
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
+        second_pattern: *crate::lut::paired_patterns(1).0,
+        second_pair_pattern: *crate::lut::paired_patterns(1).1,
     }
 }

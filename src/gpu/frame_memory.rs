@@ -20,6 +20,8 @@ pub struct FrameSizes {
     pub lut_entries: u64,
     /// Texels of every cascade's shadow map (0 in an IZB frame).
     pub shadow_map_texels: u64,
+    /// 32-bit mask halves per pixel ([`IzbSettings::mask_halves`]).
+    pub mask_halves: u64,
 }
 
 /// Bindings of the frame's descriptor set.
@@ -76,6 +78,10 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         ),
         (binding::MASKS, d("evaluate", "masks", p * 4)),
         (
+            binding::MASKS_HIGH,
+            d("evaluate", "masks_high", p * 4 * (z.mask_halves - 1)),
+        ),
+        (
             binding::SHADED,
             d("resolve", "shaded_and_lit_samples", p * 4),
         ),
@@ -127,6 +133,7 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
         shadow_map_texels: 0,
+        mask_halves: settings.mask_halves(scene) as u64,
     });
     Ok(group_by_pass(descs.iter().map(|d| {
         (d.pass, d.name, d.size.max(4).next_multiple_of(4))

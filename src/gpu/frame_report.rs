@@ -77,7 +77,8 @@ pub struct GpuCounters {
     pub cells_untouched: u32,
     /// Tests whose mask was not empty.
     pub masks_nonempty: u64,
-    /// Pixels evaluated by the heavy step (a workgroup each).
+    /// Pixels evaluated by the heavy step (a workgroup each; a `Paired64`
+    /// pixel once per mask half).
     pub heavy_pixels: u32,
     /// The most tests one pixel ran in the tile step (one thread's walk).
     pub longest_tile_tests: u32,
@@ -114,6 +115,9 @@ pub struct GpuRenderReport {
 pub struct GpuRender {
     /// Occlusion mask per pixel (bit i = sample i in shadow).
     pub masks: Vec<u32>,
+    /// Bits 32–63 of 64-sample masks (`Paired64` under an area light),
+    /// empty otherwise: [`crate::cpu::ShadowRender::masks_high`]'s twin.
+    pub masks_high: Vec<u32>,
     /// Lit fraction, NaN where not shadow-tested.
     pub visibility: Vec<f32>,
     /// Shaded image, RGB8 per pixel.
@@ -209,7 +213,7 @@ impl GpuRenderer {
             levels_visited: wide(counter::LEVELS_VISITED),
             cells_untouched: c[counter::CELLS_UNTOUCHED],
             masks_nonempty: wide(counter::MASKS_NONEMPTY),
-            heavy_pixels: c[counter::HEAVY_PIXELS],
+            heavy_pixels: c[counter::HEAVY_PIXELS] + c[counter::HEAVY_PIXELS_HIGH],
             longest_tile_tests: c[counter::LONGEST_TILE_TESTS],
             levels: (0..out.light.cascade_count as usize)
                 .map(|k| c[counter::LEVELS + k])
@@ -327,13 +331,15 @@ impl GpuRenderer {
             .iter()
             .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
             .collect();
+        let samples = if out.masks_high.is_empty() { 32 } else { 64 };
         let visibility = out
             .shaded
             .iter()
-            .map(|&p| shared::lit_fraction_of_alpha((p >> 24) as u8))
+            .map(|&p| shared::lit_fraction_of_alpha((p >> 24) as u8, samples))
             .collect();
         GpuRender {
             masks: out.masks,
+            masks_high: out.masks_high,
             visibility,
             shaded,
             gbuffer,

@@ -102,7 +102,7 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 18] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 20] = [
     ("gbuffer", spirv!("gbuffer")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
@@ -117,6 +117,8 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 18] = [
     ("bin_scatter", spirv!("bin_scatter")),
     ("evaluate", spirv!("evaluate")),
     ("evaluate_heavy", spirv!("evaluate_heavy")),
+    ("evaluate_high", spirv!("evaluate_high")),
+    ("evaluate_heavy_high", spirv!("evaluate_heavy_high")),
     ("resolve", spirv!("resolve")),
     ("shadow_map", spirv!("shadow_map")),
     ("shadow_lookup", spirv!("shadow_lookup")),
@@ -139,6 +141,9 @@ pub struct Kernels {
     pub bin_scatter: ComputeKernel,
     pub evaluate: ComputeKernel,
     pub evaluate_heavy: ComputeKernel,
+    /// Evaluate's steps for `MODE_PAIRED64`'s second mask half.
+    pub evaluate_high: ComputeKernel,
+    pub evaluate_heavy_high: ComputeKernel,
     pub resolve: ComputeKernel,
     pub shadow_map: ComputeKernel,
     pub shadow_lookup: ComputeKernel,
@@ -166,6 +171,8 @@ impl Kernels {
             bin_scatter: k("bin_scatter", spirv!("bin_scatter"))?,
             evaluate: k("evaluate", spirv!("evaluate"))?,
             evaluate_heavy: k("evaluate_heavy", spirv!("evaluate_heavy"))?,
+            evaluate_high: k("evaluate_high", spirv!("evaluate_high"))?,
+            evaluate_heavy_high: k("evaluate_heavy_high", spirv!("evaluate_heavy_high"))?,
             resolve: k("resolve", spirv!("resolve"))?,
             shadow_map: k("shadow_map", spirv!("shadow_map"))?,
             shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,

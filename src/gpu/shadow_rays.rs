@@ -64,7 +64,7 @@ impl GpuRenderer {
         )?;
         self.check_loop_budget(&out)?;
         let visibility = out.per_tested_pixel(&out.shaded, |p| {
-            shared::lit_fraction_of_alpha((p >> 24) as u8)
+            shared::lit_fraction_of_alpha((p >> 24) as u8, 32)
         });
         Ok(GpuShadowRaysRender {
             masks: out.masks,

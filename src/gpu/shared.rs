@@ -32,13 +32,14 @@ pub const FLAG_NORMAL_FLIPPED: u32 = izb_contract::flags::NORMAL_FLIPPED;
 /// otherwise alpha is the count of lit samples, 0..=32.
 pub const ALPHA_NOT_TESTED: u8 = izb_contract::word::ALPHA_NOT_TESTED as u8;
 
-/// The lit fraction a shaded pixel's alpha encodes: exact (k/32), NaN
-/// where not shadow-tested, as [`crate::cpu::resolve`] gives it.
-pub fn lit_fraction_of_alpha(alpha: u8) -> f32 {
+/// The lit fraction a shaded pixel's alpha encodes with `samples` (32,
+/// or 64 for `Paired64`) per pixel: exact (k/samples), NaN where not
+/// shadow-tested, as [`crate::cpu::resolve_halves`] gives it.
+pub fn lit_fraction_of_alpha(alpha: u8, samples: u32) -> f32 {
     if alpha == ALPHA_NOT_TESTED {
         f32::NAN
     } else {
-        f32::from(alpha) / 32.0
+        f32::from(alpha) / samples as f32
     }
 }
 

@@ -79,7 +79,18 @@ pub fn render_uploaded(
         .unwrap_or_else(|e| panic!("{} {mode:?}: {e}", scene.name));
     assert_no_validation_messages(r, &scene.name);
     let tested = |i: usize| cpu.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
-    let (diff, total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
+    let (mut diff, mut total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
+    // Paired64's bits 32–63, when the CPU twin formed them.
+    assert_eq!(
+        gpu.masks_high.len(),
+        cpu.masks_high.len(),
+        "{} {mode:?}: the second mask half",
+        scene.name
+    );
+    if !cpu.masks_high.is_empty() {
+        let (d, t) = izb::metrics::sample_mismatches(&gpu.masks_high, &cpu.masks_high, tested);
+        (diff, total) = (diff + d, total + t);
+    }
     (cpu, gpu, diff, total)
 }
 
