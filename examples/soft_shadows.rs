@@ -2,8 +2,9 @@
 //! (paper-notes/soft-shadows.md): the `analytic` scene under a sun of a
 //! given angular radius, the IZB's 32 light samples per pixel against
 //! `rt-soft` (the same samples ray traced in `f64`) and against the
-//! area-light ground truth, and the paired mode (each light sample from
-//! its own point of the pixel) against the same truth.
+//! area-light ground truth, and the paired modes (each light sample from
+//! its own point of the pixel; 32 pairs, or 64 in two mask words) against
+//! the same truth.
 //!
 //! `cargo run --release --example soft_shadows -- [SUN_DEGREES]` (default 1)
 
@@ -50,21 +51,24 @@ fn main() -> anyhow::Result<()> {
         m.smooth_penumbra_mae,
         m.smooth_penumbra_pixels
     );
-    // Paired: each light sample from its own point of the pixel.
-    let paired = render_cpu(
-        &scene,
-        &bvh,
-        IzbSettings {
-            mode: SampleMode::Paired32,
-            ..Default::default()
-        },
-    );
-    let m = izb::metrics::metrics(&paired.visibility, &truth.visibility, &truth.smooth);
-    println!(
-        "paired: {:.1} ms; MAE {:.4} (smooth penumbra {:.4})",
-        paired.report.seconds.shadow() * 1e3,
-        m.mae,
-        m.smooth_penumbra_mae
-    );
+    // Paired: each light sample from its own point of the pixel; 32
+    // pairs, or 64 in two mask words.
+    for mode in [SampleMode::Paired32, SampleMode::Paired64] {
+        let paired = render_cpu(
+            &scene,
+            &bvh,
+            IzbSettings {
+                mode,
+                ..Default::default()
+            },
+        );
+        let m = izb::metrics::metrics(&paired.visibility, &truth.visibility, &truth.smooth);
+        println!(
+            "{mode:?}: {:.1} ms; MAE {:.4} (smooth penumbra {:.4})",
+            paired.report.seconds.shadow() * 1e3,
+            m.mae,
+            m.smooth_penumbra_mae
+        );
+    }
     Ok(())
 }

@@ -30,38 +30,7 @@ use rayon::prelude::*;
 /// A full 32-sample mask.
 pub const FULL: u32 = izb_contract::word::FULL_MASK;
 
-/// Counters of the evaluate pass.
-#[derive(Clone, Debug, Default, serde::Serialize)]
-pub struct EvaluateStats {
-    pub pixels_tested: usize,
-    /// Frustum-triangle tests started (candidate triangles visited).
-    pub tests_spawned: u64,
-    /// Of those, triangles that passed the depth test at P.
-    pub depth_passed: u64,
-    /// Pixels that stopped early because their mask was full.
-    pub early_outs: usize,
-    /// Depth-passing triangles whose mask the cheap path decided (shadow
-    /// prism containing or missing the whole µQuad: no LUT read, no sample
-    /// loop, later edges not computed).
-    pub saturated_masks: u64,
-    /// Grid cells visited over all pixels.
-    pub cells_visited: u64,
-    /// Pyramid levels visited over all pixels.
-    pub levels_visited: u64,
-    /// Triangles offered by the cells whose per-pixel test ran; with the
-    /// tests of the longest pixel in each 8×4 group of 32 pixels (a GPU
-    /// subgroup): `tests_spawned / (32 · Σ longest)` is the SIMD
-    /// efficiency of a one-pixel-per-lane evaluate.
-    pub group_longest_tests: u64,
-    /// The most tests one pixel ran: a one-pixel-per-thread GPU evaluate
-    /// waits for it (the tail the GPU's heavy step splits).
-    pub longest_pixel_tests: u64,
-    /// Tests whose mask was not empty.
-    pub masks_nonempty: u64,
-    /// Pixels whose cover triangle (the conservative shadow map) alone
-    /// filled the mask: their triangle loop was skipped.
-    pub shadow_map_early_outs: usize,
-}
+pub use super::evaluate_stats::{EvaluateStats, WorkPerPixel};
 
 /// What evaluate needs of one pixel. The frustum test runs in eye space,
 /// relative to P (see [`triangle_mask`] for why not in light view): `p`,
@@ -550,61 +519,4 @@ pub fn evaluate(
         stats.add(&s);
     }
     (masks, stats)
-}
-
-impl EvaluateStats {
-    /// Adds the counters of `s` (another band of pixels, or another mask
-    /// half of the same pixels: the caller then keeps one half's
-    /// `pixels_tested`).
-    pub fn add(&mut self, s: &EvaluateStats) {
-        self.pixels_tested += s.pixels_tested;
-        self.tests_spawned += s.tests_spawned;
-        self.depth_passed += s.depth_passed;
-        self.saturated_masks += s.saturated_masks;
-        self.masks_nonempty += s.masks_nonempty;
-        self.early_outs += s.early_outs;
-        self.cells_visited += s.cells_visited;
-        self.levels_visited += s.levels_visited;
-        self.group_longest_tests += s.group_longest_tests;
-        self.longest_pixel_tests = self.longest_pixel_tests.max(s.longest_pixel_tests);
-        self.shadow_map_early_outs += s.shadow_map_early_outs;
-    }
-
-    /// Tests over 32 × the longest pixel of each 8×4 group: the share of
-    /// SIMD lanes doing useful tests in a one-pixel-per-lane evaluate.
-    pub fn simd_efficiency(&self) -> f64 {
-        self.tests_spawned as f64 / (32.0 * self.group_longest_tests as f64).max(1.0)
-    }
-
-    /// The counters per tested pixel, as `report.json` and `bench.json`
-    /// show them.
-    pub fn per_pixel(&self) -> WorkPerPixel {
-        let px = self.pixels_tested.max(1) as f64;
-        WorkPerPixel {
-            tests: self.tests_spawned as f64 / px,
-            depth_passed: self.depth_passed as f64 / px,
-            masks_nonempty: self.masks_nonempty as f64 / px,
-            cells: self.cells_visited as f64 / px,
-            levels: self.levels_visited as f64 / px,
-            simd_efficiency: self.simd_efficiency(),
-        }
-    }
-}
-
-/// The evaluate pass's work per tested pixel (issue 13's counters): stable
-/// where times are noisy.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct WorkPerPixel {
-    /// Frustum-triangle tests started.
-    pub tests: f64,
-    /// Tests passing the depth test at P.
-    pub depth_passed: f64,
-    /// Tests whose mask was not empty.
-    pub masks_nonempty: f64,
-    /// Grid cells visited, over all pyramid levels.
-    pub cells: f64,
-    /// Pyramid levels visited.
-    pub levels: f64,
-    /// [`EvaluateStats::simd_efficiency`].
-    pub simd_efficiency: f64,
 }

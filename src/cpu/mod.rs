@@ -13,6 +13,7 @@
 
 pub mod bin;
 pub mod evaluate;
+pub mod evaluate_stats;
 pub mod footprint;
 pub mod light_samples;
 pub mod light_setup;
