@@ -16,7 +16,6 @@ mod common;
 use common::gpu::{assert_mismatch_within, lock, render_uploaded, renderer};
 use izb::bvh::SceneBvh;
 use izb::cpu::SampleMode;
-use izb::gbuffer::flags;
 use izb::gpu::GpuRenderer;
 use izb::scene::Scene;
 
@@ -49,13 +48,7 @@ fn check(r: &GpuRenderer, scene: Scene, modes: &[SampleMode]) -> usize {
             (false, _) => 1e-4,
         };
         let (cpu, gpu, diff, total) = render_uploaded(r, &scene, &bvh, mode);
-        let tested = |i: usize| cpu.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
-        let penumbra = cpu
-            .masks
-            .iter()
-            .enumerate()
-            .filter(|&(i, &m)| tested(i) && m != 0 && m != u32::MAX)
-            .count();
+        let penumbra = common::penumbra_pixels(&cpu.masks, &cpu.gbuffer);
         println!(
             "{} (light radius {:.4}) {mode:?}: {diff} of {total} light samples differ; {penumbra} \
              penumbra pixels; tests GPU {} CPU {}",

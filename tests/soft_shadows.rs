@@ -163,13 +163,7 @@ fn check_exact_soft(scene: Scene, mode: SampleMode) -> (u64, u64) {
             total += t;
         }
     }
-    let tested = |i: usize| exact.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
-    let partial = exact
-        .masks
-        .iter()
-        .enumerate()
-        .filter(|&(i, &m)| tested(i) && m != 0 && m != u32::MAX)
-        .count();
+    let partial = common::penumbra_pixels(&exact.masks, &exact.gbuffer);
     println!(
         "{} (light radius {:.4}, {mode:?}): {diff} of {total} light samples differ; \
          {partial} penumbra pixels",

@@ -182,8 +182,9 @@ impl<'a> MaskRule<'a> {
     }
 
     /// The rule of mask half `half` of a paired mode under an area light
-    /// (1: `Paired64`'s samples 32–63, [`crate::lut::paired_patterns`]);
-    /// `self` for half 0.
+    /// ([`crate::lut::paired_patterns`]: half 0 the light and µQuad
+    /// patterns, as [`Self::for_light`] has them; half 1 `Paired64`'s
+    /// samples 32–63).
     pub fn half(self, half: usize) -> MaskRule<'a> {
         let (pattern, pair_pattern) = crate::lut::paired_patterns(half);
         MaskRule {

@@ -19,6 +19,15 @@ use std::path::{Path, PathBuf};
 /// first.
 pub const SHARED_SCENES: [&str; 5] = ["deckchair", "tablefan", "ficus", "engine", "courtyard"];
 
+/// Shadow-tested pixels of G-buffer `g` whose mask is partly set: the
+/// penumbra a soft-shadow comparison must have something of.
+pub fn penumbra_pixels(masks: &[u32], g: &izb::gbuffer::GBuffer) -> usize {
+    let tested = |i: usize| g.flags[i] & izb::gbuffer::flags::SHADOW_TESTED != 0;
+    (0..masks.len())
+        .filter(|&i| tested(i) && masks[i] != 0 && masks[i] != u32::MAX)
+        .count()
+}
+
 /// `../shared/scenes`, or `None` with a printed skip when it is missing;
 /// with `IZB_REQUIRE_SCENES=1` (CI) a missing folder fails the test.
 pub fn shared_scenes_dir() -> Option<PathBuf> {
