@@ -32,6 +32,7 @@ pub mod report;
 pub mod scene;
 pub mod settings;
 pub mod skips;
+pub mod view;
 
 /// Visibility samples per pixel: one bit each in a `u32` occlusion mask.
 pub const SAMPLES_PER_PIXEL: usize = izb_lut::SAMPLES_PER_PIXEL;

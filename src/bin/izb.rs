@@ -6,6 +6,7 @@ use izb::cli::bench::{run_bench, BenchArgs};
 use izb::cli::reference::{run_compare, run_reference, CompareArgs, ReferenceArgs};
 use izb::cli::render::{run_render, RenderArgs};
 use izb::cli::tools::{run_devices, run_info, run_lut, run_report, InfoArgs, LutArgs, ReportArgs};
+use izb::cli::view::{run_view_command, ViewArgs};
 
 #[derive(Parser)]
 #[command(
@@ -36,6 +37,8 @@ enum Command {
     Info(InfoArgs),
     /// List the Vulkan devices `--device` can pick, best first.
     Devices,
+    /// Interactive window: orbit, turn the light, compare methods side by side, live pass times and error.
+    View(ViewArgs),
 }
 
 fn main() {
@@ -49,6 +52,7 @@ fn main() {
         Command::Report(a) => run_report(a),
         Command::Info(a) => run_info(a),
         Command::Devices => run_devices(),
+        Command::View(a) => run_view_command(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -7,6 +7,7 @@ pub mod bench;
 pub mod reference;
 pub mod render;
 pub mod tools;
+pub mod view;
 
 use crate::bvh::SceneBvh;
 use crate::cascades::CascadeCount;
@@ -154,15 +155,5 @@ pub fn trace_reference(
 }
 
 pub fn scene_summary(scene: &Scene) -> serde_json::Value {
-    serde_json::json!({
-        "name": scene.name,
-        "resolution": scene.resolution,
-        "triangles": scene.triangles.len(),
-        "source_triangles": scene.stats.source_triangles,
-        "dropped_degenerate_triangles": scene.stats.dropped_degenerate,
-        "skipped_non_triangle_primitives": scene.stats.skipped_non_triangle_primitives,
-        "camera": scene.camera,
-        "light": scene.light,
-        "light_radius": scene.light_radius,
-    })
+    scene.summary()
 }

@@ -4,9 +4,7 @@ use super::{load_scene, scene_summary, thread_pool, Backend, GridArgs, SceneArgs
 use crate::bvh::SceneBvh;
 use crate::cpu::{render_cpu, IzbSettings, SampleMode, Skips};
 use crate::gpu::{GBufferSource, GpuOptions, GpuRenderer};
-use crate::output::{
-    write_exr_with_masks, write_json, write_png, write_shaded_png, write_visibility_png,
-};
+use crate::output::{write_json, write_mask_outputs, write_png, write_shaded_png};
 use crate::scene::Scene;
 use anyhow::{Context, Result};
 use clap::builder::TypedValueParser;
@@ -113,30 +111,6 @@ pub fn is_loop_cap(e: &anyhow::Error) -> bool {
             Some(crate::gpu::GpuError::LoopCap { .. })
         )
     })
-}
-
-/// Writes `visibility.exr` (lit fraction + masks; `mask_high` with bits
-/// 32–63 when `masks_high` is not empty) and `visibility.png`.
-pub fn write_mask_outputs(
-    out: &Path,
-    scene: &Scene,
-    visibility: &[f32],
-    masks: &[u32],
-    masks_high: &[u32],
-) -> Result<()> {
-    let [w, h] = scene.resolution;
-    let mut channels = vec![("mask", masks)];
-    if !masks_high.is_empty() {
-        channels.push(("mask_high", masks_high));
-    }
-    write_exr_with_masks(
-        &out.join("visibility.exr"),
-        w,
-        h,
-        &[("visibility", visibility)],
-        &channels,
-    )?;
-    write_visibility_png(&out.join("visibility.png"), w, h, visibility)
 }
 
 /// The one-line summary of a render: cascades and grids, binning, tests,

@@ -158,3 +158,31 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
         visibility,
     }
 }
+
+/// Candidates per pixel: how many triangles `evaluate` would visit for
+/// each shadow-tested pixel (every cell list under its µQuad and the
+/// overflow list, no early exit), 0 elsewhere. The heat map of the
+/// viewer (`izb view`): where the grid concentrates its work.
+pub fn candidate_counts(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Vec<u32> {
+    use rayon::prelude::*;
+    let g = gbuffer(scene, bvh);
+    let setup = light_setup(scene, &g, GridRequest::from(&settings));
+    let triangles = eye_relative_f32(scene);
+    let boxes = setup.microquad_boxes(&g, settings.skips);
+    let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
+    let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
+    (0..g.flags.len())
+        .into_par_iter()
+        .map(|i| {
+            if g.flags[i] & flags::SHADOW_TESTED == 0 {
+                return 0;
+            }
+            let mut n = 0u32;
+            evaluate::for_each_candidate(&setup, &bins, &g, i, |_| {
+                n += 1;
+                false
+            });
+            n
+        })
+        .collect()
+}

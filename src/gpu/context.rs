@@ -17,7 +17,7 @@ use std::sync::{Arc, Mutex};
 pub use super::options::{frame_timeout, GpuOptions, FRAME_TIMEOUT};
 
 /// The validation layer's name.
-const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+pub(crate) const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
 /// A suitable device as enumerated.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
@@ -131,7 +131,7 @@ impl Drop for DeviceShared {
 /// `user_data` the messenger's `Mutex<Vec<String>>` (see `GpuContext::new`).
 // SAFETY: only the loader calls it, with the arguments its signature
 // promises (`# Safety` above); the body checks both pointers for null.
-unsafe extern "system" fn debug_callback(
+pub(crate) unsafe extern "system" fn debug_callback(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
     kind: vk::DebugUtilsMessageTypeFlagsEXT,
     data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
@@ -297,7 +297,7 @@ fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
     Ok(out)
 }
 
-fn load_entry() -> Result<ash::Entry, GpuError> {
+pub(crate) fn load_entry() -> Result<ash::Entry, GpuError> {
     // SAFETY: loading the system's Vulkan loader runs its initialisers;
     // it is the library this crate is written against.
     unsafe { ash::Entry::load() }.map_err(|e| GpuError::NoVulkan(format!("no Vulkan loader ({e})")))

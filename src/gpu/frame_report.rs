@@ -171,6 +171,8 @@ impl ShadowMapMillis {
 pub struct GpuShadowMapRender {
     /// Lit fraction, NaN where not shadow-tested.
     pub visibility: Vec<f32>,
+    /// The G-buffer as the GPU saw it (read back), for shading.
+    pub gbuffer: GBuffer,
     pub gpu_milliseconds: Option<ShadowMapMillis>,
     pub wall_seconds: f64,
     pub map_bytes: u64,
@@ -184,7 +186,7 @@ impl GpuRenderer {
         scene: &Scene,
         settings: IzbSettings,
         source: GBufferSource,
-        out: FrameOutput,
+        mut out: FrameOutput,
         frames_run: u32,
         bvh_build_seconds: f64,
         upload: &SceneUpload,
@@ -219,57 +221,7 @@ impl GpuRenderer {
                 .map(|k| c[counter::LEVELS + k])
                 .collect(),
         };
-        let [w, h] = scene.resolution;
-        let frame = scene.camera.frame(scene.resolution);
-        let forward = frame.forward.as_vec3();
-        let gbuffer = match source {
-            GBufferSource::Upload(g) => g.clone(),
-            GBufferSource::Gpu => {
-                let (triangle_id, gpu_flags): (Vec<u32>, Vec<u32>) = out
-                    .id_flags
-                    .iter()
-                    .map(|&w| shared::unpack_id_flags(w))
-                    .unzip();
-                let normal = triangle_id
-                    .iter()
-                    .zip(&gpu_flags)
-                    .map(|(&id, &f)| upload.receiver_normal(id, f))
-                    .collect();
-                let flags: Vec<u32> = gpu_flags
-                    .iter()
-                    .map(|f| f & !shared::FLAG_NORMAL_FLIPPED)
-                    .collect();
-                let depth = out
-                    .position
-                    .iter()
-                    .zip(&flags)
-                    .map(|(p, &f)| {
-                        if f & flags::HIT != 0 {
-                            p.dot(forward)
-                        } else {
-                            f32::INFINITY
-                        }
-                    })
-                    .collect();
-                GBuffer {
-                    width: w,
-                    height: h,
-                    triangle_id,
-                    depth,
-                    position: out.position,
-                    normal,
-                    axis_x: out.axis_x,
-                    axis_y: out.axis_y,
-                    flags,
-                    stats: GBufferStats {
-                        pixels: scene.pixel_count(),
-                        hits: counters.hits as usize,
-                        shadow_tested: counters.shadow_tested as usize,
-                        clamped_microquads: counters.clamped_microquads as usize,
-                    },
-                }
-            }
-        };
+        let gbuffer = read_back_gbuffer(scene, source, upload, &mut out);
         let memory_total_bytes: u64 = out.memory.iter().map(|m| m.bytes).sum();
         let l = &out.light;
         let report = GpuRenderReport {
@@ -344,6 +296,67 @@ impl GpuRenderer {
             shaded,
             gbuffer,
             report,
+        }
+    }
+}
+
+/// The G-buffer of a frame as the GPU saw it: read back (normals from the
+/// uploaded triangles, depth along the view axis), or the uploaded one.
+pub(super) fn read_back_gbuffer(
+    scene: &Scene,
+    source: GBufferSource,
+    upload: &SceneUpload,
+    out: &mut FrameOutput,
+) -> GBuffer {
+    let [w, h] = scene.resolution;
+    let frame = scene.camera.frame(scene.resolution);
+    let forward = frame.forward.as_vec3();
+    match source {
+        GBufferSource::Upload(g) => g.clone(),
+        GBufferSource::Gpu => {
+            let (triangle_id, gpu_flags): (Vec<u32>, Vec<u32>) = out
+                .id_flags
+                .iter()
+                .map(|&w| shared::unpack_id_flags(w))
+                .unzip();
+            let normal = triangle_id
+                .iter()
+                .zip(&gpu_flags)
+                .map(|(&id, &f)| upload.receiver_normal(id, f))
+                .collect();
+            let flags: Vec<u32> = gpu_flags
+                .iter()
+                .map(|f| f & !shared::FLAG_NORMAL_FLIPPED)
+                .collect();
+            let depth = out
+                .position
+                .iter()
+                .zip(&flags)
+                .map(|(p, &f)| {
+                    if f & flags::HIT != 0 {
+                        p.dot(forward)
+                    } else {
+                        f32::INFINITY
+                    }
+                })
+                .collect();
+            GBuffer {
+                width: w,
+                height: h,
+                triangle_id,
+                depth,
+                position: std::mem::take(&mut out.position),
+                normal,
+                axis_x: std::mem::take(&mut out.axis_x),
+                axis_y: std::mem::take(&mut out.axis_y),
+                flags,
+                stats: GBufferStats {
+                    pixels: scene.pixel_count(),
+                    hits: out.counters[counter::HITS] as usize,
+                    shadow_tested: out.counters[counter::SHADOW_TESTED] as usize,
+                    clamped_microquads: out.counters[counter::CLAMPED] as usize,
+                },
+            }
         }
     }
 }

@@ -95,7 +95,8 @@ impl GpuRenderer {
             ..Default::default()
         };
         let max_cells = crate::cascades::max_total_cells(8);
-        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
+        let mut out =
+            self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
         self.check_loop_budget(&out)?;
         if out.light.grid_disabled != 0 {
             return Err(GpuError::Unsupported(format!(
@@ -105,8 +106,10 @@ impl GpuRenderer {
         }
         // The lookup writes the lit fraction's bits in the masks buffer.
         let visibility = out.per_tested_pixel(&out.masks, f32::from_bits);
+        let gbuffer = super::frame_report::read_back_gbuffer(scene, source, &upload, &mut out);
         Ok(GpuShadowMapRender {
             visibility,
+            gbuffer,
             gpu_milliseconds: out.millis.as_ref().map(ShadowMapMillis::from_frame),
             wall_seconds: out.wall_seconds,
             map_bytes,

@@ -216,3 +216,30 @@ pub fn shade_pixel(
     };
     rgb.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8)
 }
+
+/// Writes `visibility.exr` (lit fraction + masks when not empty; `mask_high` with bits
+/// 32–63 when `masks_high` is not empty) and `visibility.png`.
+pub fn write_mask_outputs(
+    out: &Path,
+    scene: &crate::scene::Scene,
+    visibility: &[f32],
+    masks: &[u32],
+    masks_high: &[u32],
+) -> Result<()> {
+    let [w, h] = scene.resolution;
+    let mut channels = Vec::new();
+    if !masks.is_empty() {
+        channels.push(("mask", masks));
+    }
+    if !masks_high.is_empty() {
+        channels.push(("mask_high", masks_high));
+    }
+    write_exr_with_masks(
+        &out.join("visibility.exr"),
+        w,
+        h,
+        &[("visibility", visibility)],
+        &channels,
+    )?;
+    write_visibility_png(&out.join("visibility.png"), w, h, visibility)
+}

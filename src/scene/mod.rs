@@ -129,6 +129,21 @@ impl Scene {
     }
 
     /// Checks everything a renderer relies on; called by every constructor.
+    /// The scene as reports record it: name, size, counts, camera, light.
+    pub fn summary(&self) -> serde_json::Value {
+        serde_json::json!({
+            "name": self.name,
+            "resolution": self.resolution,
+            "triangles": self.triangles.len(),
+            "source_triangles": self.stats.source_triangles,
+            "dropped_degenerate_triangles": self.stats.dropped_degenerate,
+            "skipped_non_triangle_primitives": self.stats.skipped_non_triangle_primitives,
+            "camera": self.camera,
+            "light": self.light,
+            "light_radius": self.light_radius,
+        })
+    }
+
     pub fn validate(&self) -> Result<(), SceneError> {
         if self.triangles.is_empty() {
             return Err(SceneError::Invalid(format!(

@@ -1,0 +1,316 @@
+//! The shadow worker: a thread that owns the compute device
+//! ([`GpuRenderer`]) and renders the newest requested frame through the
+//! real passes, while the window thread keeps presenting. Older requests
+//! that piled up while a frame ran are dropped unrendered.
+//!
+//! Failures become messages the window shows: a lost device is reopened
+//! for the next frame; a frame lavapipe's loop cap refuses is rendered by
+//! the CPU twin instead (as `izb render --backend auto` does), and says so.
+
+use super::state::method_kind;
+use crate::bench::MethodKind;
+use crate::bvh::SceneBvh;
+use crate::cpu::{candidate_counts, render_cpu, IzbSettings};
+use crate::gbuffer::{gbuffer, GBuffer};
+use crate::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
+use crate::output::shade_pixel;
+use crate::scene::Scene;
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+/// One frame to render.
+pub struct FrameRequest {
+    pub generation: u64,
+    pub scene: Arc<Scene>,
+    /// Left (or only) method first.
+    pub methods: Vec<String>,
+    /// Also count candidates per pixel (the heat map view).
+    pub candidates: bool,
+}
+
+/// One method's image of a frame.
+pub struct MethodFrame {
+    pub name: String,
+    /// Set for IZB methods (the magnifier's sample layout).
+    pub izb: Option<IzbSettings>,
+    pub visibility: Vec<f32>,
+    /// The 32-bit masks of IZB methods, empty for shadow maps.
+    pub masks: Vec<u32>,
+    pub masks_high: Vec<u32>,
+    pub shaded: Vec<[u8; 3]>,
+    pub gbuffer: GBuffer,
+    /// `vulkan` or `cpu`, with the reason when the CPU twin stood in.
+    pub backend: String,
+    /// Per pass: name and GPU milliseconds (CPU seconds × 1000 on the CPU).
+    pub pass_millis: Vec<(&'static str, f64)>,
+    /// Tests per shadow-tested pixel (IZB methods).
+    pub tests_per_pixel: Option<f64>,
+    pub memory_bytes: u64,
+    /// The method's report, as `render` writes it in `report.json`.
+    pub report: serde_json::Value,
+}
+
+/// What the worker sends back for a request.
+pub struct FrameResult {
+    pub generation: u64,
+    pub scene: Arc<Scene>,
+    pub frames: Vec<MethodFrame>,
+    pub candidates: Option<Vec<u32>>,
+    /// Why the frame (or one of its methods) is missing.
+    pub errors: Vec<String>,
+    pub wall_seconds: f64,
+}
+
+/// The worker thread's handle.
+pub struct ShadowWorker {
+    requests: Option<Sender<FrameRequest>>,
+    pub results: Receiver<FrameResult>,
+    thread: Option<JoinHandle<Vec<String>>>,
+    pub device_name: Arc<std::sync::Mutex<String>>,
+}
+
+impl ShadowWorker {
+    /// Starts the thread; `wake` is called after each result (it wakes the
+    /// window's event loop).
+    pub fn start(options: GpuOptions, wake: impl Fn() + Send + 'static) -> ShadowWorker {
+        let (requests, inbox) = channel::<FrameRequest>();
+        let (outbox, results) = channel();
+        let device_name = Arc::new(std::sync::Mutex::new(String::from("(opening)")));
+        let name = device_name.clone();
+        let thread = std::thread::Builder::new()
+            .name("izb-view-shadows".into())
+            .spawn(move || run(options, inbox, outbox, wake, name))
+            .expect("spawning a thread");
+        ShadowWorker {
+            requests: Some(requests),
+            results,
+            thread: Some(thread),
+            device_name,
+        }
+    }
+
+    pub fn request(&self, r: FrameRequest) {
+        if let Some(tx) = &self.requests {
+            // A closed channel means the thread ended; the window shows
+            // the missing frames' absence, nothing to do here.
+            let _ = tx.send(r);
+        }
+    }
+
+    /// Stops the thread after its current frame; returns the compute
+    /// device's validation messages.
+    pub fn stop(mut self) -> Vec<String> {
+        self.requests = None;
+        self.thread
+            .take()
+            .and_then(|t| t.join().ok())
+            .unwrap_or_default()
+    }
+}
+
+fn run(
+    options: GpuOptions,
+    inbox: Receiver<FrameRequest>,
+    outbox: Sender<FrameResult>,
+    wake: impl Fn(),
+    device_name: Arc<std::sync::Mutex<String>>,
+) -> Vec<String> {
+    super::lower_thread_priority();
+    let mut renderer: Option<GpuRenderer> = None;
+    let mut validation = Vec::new();
+    while let Ok(mut request) = inbox.recv() {
+        while let Ok(newer) = inbox.try_recv() {
+            request = newer;
+        }
+        let start = Instant::now();
+        let mut errors = Vec::new();
+        if renderer.is_none() {
+            match GpuRenderer::new(&options) {
+                Ok(r) => {
+                    *device_name.lock().unwrap_or_else(|e| e.into_inner()) =
+                        format!("{} ({})", r.context.info().name, r.context.info().kind);
+                    renderer = Some(r)
+                }
+                Err(e) => errors.push(format!("compute device: {e}")),
+            }
+        }
+        let mut frames = Vec::new();
+        if let Some(r) = &renderer {
+            for name in &request.methods {
+                match render_method(r, &request.scene, name) {
+                    Ok(f) => frames.push(f),
+                    Err(e) => errors.push(format!("{name}: {e:#}")),
+                }
+            }
+            validation.extend(r.take_validation_messages());
+            if r.context.shared.is_poisoned() {
+                errors
+                    .push("the compute device was lost; it is reopened for the next frame".into());
+                renderer = None;
+            }
+        }
+        let candidates = request.candidates.then(|| {
+            let bvh = SceneBvh::build(&request.scene);
+            let settings = frames.first().and_then(|f| f.izb).unwrap_or_default();
+            candidate_counts(&request.scene, &bvh, settings)
+        });
+        let result = FrameResult {
+            generation: request.generation,
+            scene: request.scene,
+            frames,
+            candidates,
+            errors,
+            wall_seconds: start.elapsed().as_secs_f64(),
+        };
+        if outbox.send(result).is_err() {
+            break;
+        }
+        wake();
+    }
+    if let Some(r) = &renderer {
+        validation.extend(r.take_validation_messages());
+    }
+    validation
+}
+
+/// Renders one method on the GPU, or on the CPU twin when lavapipe's
+/// loop cap refuses the frame.
+fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<MethodFrame> {
+    let kind = method_kind(name).map_err(anyhow::Error::msg)?;
+    let device = format!("vulkan: {}", r.context.info().name);
+    let light = scene.light.relative_to(scene.camera.eye);
+    let shade = |g: &GBuffer, v: &[f32]| -> Vec<[u8; 3]> {
+        (0..v.len())
+            .map(|i| shade_pixel(g, i, &light, v[i]))
+            .collect()
+    };
+    match kind {
+        MethodKind::Izb(settings) => match r.render(scene, settings, GBufferSource::Gpu) {
+            Ok(out) => {
+                let rep = &out.report;
+                let pass_millis = rep.gpu_milliseconds.as_ref().map_or(Vec::new(), |m| {
+                    vec![
+                        ("gbuffer", m.gbuffer),
+                        ("light setup", m.light_setup),
+                        ("bin", m.bin),
+                        ("evaluate", m.evaluate),
+                        ("resolve", m.resolve),
+                        ("total", m.total),
+                    ]
+                });
+                let c = &rep.counters;
+                Ok(MethodFrame {
+                    name: name.into(),
+                    izb: Some(settings),
+                    tests_per_pixel: Some(
+                        c.tests_spawned as f64 / f64::from(c.pixels_tested.max(1)),
+                    ),
+                    memory_bytes: rep.memory_total_bytes,
+                    report: serde_json::to_value(rep)?,
+                    pass_millis,
+                    backend: device,
+                    visibility: out.visibility,
+                    masks: out.masks,
+                    masks_high: out.masks_high,
+                    shaded: out.shaded,
+                    gbuffer: out.gbuffer,
+                })
+            }
+            Err(e @ GpuError::LoopCap { .. }) => {
+                let bvh = SceneBvh::build(scene);
+                let out = render_cpu(scene, &bvh, settings);
+                let s = &out.report.seconds;
+                let ev = &out.report.evaluate;
+                Ok(MethodFrame {
+                    name: name.into(),
+                    izb: Some(settings),
+                    tests_per_pixel: Some(ev.tests_spawned as f64 / ev.pixels_tested.max(1) as f64),
+                    memory_bytes: 0,
+                    report: serde_json::to_value(&out.report)?,
+                    pass_millis: cpu_millis(s),
+                    backend: format!("cpu twin ({e})"),
+                    shaded: shade(&out.gbuffer, &out.visibility),
+                    visibility: out.visibility,
+                    masks: out.masks,
+                    masks_high: out.masks_high,
+                    gbuffer: out.gbuffer,
+                })
+            }
+            Err(e) => Err(e.into()),
+        },
+        MethodKind::ShadowMap(map) => match r.render_shadow_map(scene, map, GBufferSource::Gpu) {
+            Ok(out) => {
+                let pass_millis = out.gpu_milliseconds.as_ref().map_or(Vec::new(), |m| {
+                    vec![
+                        ("gbuffer", m.gbuffer),
+                        ("light setup", m.light_setup),
+                        ("raster", m.raster),
+                        ("lookup", m.lookup),
+                        ("total", m.total),
+                    ]
+                });
+                Ok(MethodFrame {
+                    name: name.into(),
+                    izb: None,
+                    tests_per_pixel: None,
+                    memory_bytes: out.memory_total_bytes,
+                    report: serde_json::json!({
+                        "method": name,
+                        "gpu_milliseconds": out.gpu_milliseconds,
+                        "wall_seconds": out.wall_seconds,
+                        "map_bytes": out.map_bytes,
+                        "memory_total_bytes": out.memory_total_bytes,
+                    }),
+                    pass_millis,
+                    backend: device,
+                    shaded: shade(&out.gbuffer, &out.visibility),
+                    visibility: out.visibility,
+                    masks: Vec::new(),
+                    masks_high: Vec::new(),
+                    gbuffer: out.gbuffer,
+                })
+            }
+            Err(e @ GpuError::LoopCap { .. }) => {
+                let bvh = SceneBvh::build(scene);
+                let g = gbuffer(scene, &bvh);
+                let out = crate::baseline::render_shadow_map(scene, &g, map)
+                    .map_err(anyhow::Error::msg)?;
+                let s = &out.report.seconds;
+                Ok(MethodFrame {
+                    name: name.into(),
+                    izb: None,
+                    tests_per_pixel: None,
+                    memory_bytes: out.report.map_bytes,
+                    report: serde_json::to_value(&out.report)?,
+                    pass_millis: vec![
+                        ("light setup", s.light_setup * 1e3),
+                        ("raster", s.shadow_map * 1e3),
+                        ("lookup", s.shadow_lookup * 1e3),
+                        ("total", s.shadow * 1e3),
+                    ],
+                    backend: format!("cpu twin ({e})"),
+                    shaded: shade(&g, &out.visibility),
+                    visibility: out.visibility,
+                    masks: Vec::new(),
+                    masks_high: Vec::new(),
+                    gbuffer: g,
+                })
+            }
+            Err(e) => Err(e.into()),
+        },
+        _ => anyhow::bail!("`{name}` is not a viewer method"),
+    }
+}
+
+fn cpu_millis(s: &crate::settings::PassSeconds) -> Vec<(&'static str, f64)> {
+    vec![
+        ("gbuffer", s.gbuffer * 1e3),
+        ("light setup", s.light_setup * 1e3),
+        ("bin", s.bin * 1e3),
+        ("evaluate", s.evaluate * 1e3),
+        ("resolve", s.resolve * 1e3),
+        ("total", s.total * 1e3),
+    ]
+}
