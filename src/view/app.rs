@@ -51,6 +51,8 @@ pub struct App {
     pub stats: ViewStats,
     last_ui_millis: f64,
     last_redraw: Instant,
+    /// Frames presented since `shown` last changed.
+    frames_since_shown: u32,
     window: Option<Arc<Window>>,
     presenter: Option<Presenter>,
     egui_state: Option<egui_winit::State>,
@@ -85,6 +87,7 @@ impl App {
             stats: ViewStats::default(),
             last_ui_millis: 0.0,
             last_redraw: Instant::now(),
+            frames_since_shown: 0,
             window: None,
             presenter: None,
             egui_state: None,
@@ -171,9 +174,11 @@ impl App {
                 self.stats.frame_seconds.push(r.wall_seconds);
             }
             self.stats.errors.extend(r.errors.iter().cloned());
+            self.frames_since_shown = 0;
             self.shown = Some(Shown {
                 result: r,
                 textures: Vec::new(),
+                pixels: Vec::new(),
                 texture_key: (self.state.view, u32::MAX),
             });
         }
@@ -215,16 +220,23 @@ impl App {
         let candidates = shown.result.candidates.as_deref();
         // A truth of another view size (a stale update) is not compared.
         let truth = truth.filter(|t| t.len() == (w * h) as usize);
+        shown.pixels = shown
+            .result
+            .frames
+            .iter()
+            .map(|f| view_image(f, view, candidates, truth))
+            .collect();
         shown.textures = shown
             .result
             .frames
             .iter()
-            .map(|f| {
-                let rgba = view_image(f, view, candidates, truth);
+            .zip(&shown.pixels)
+            .map(|(f, rgba)| {
                 let image = egui::ColorImage::from_rgba_unmultiplied(
                     [w as usize, h as usize],
-                    bytemuck::cast_slice(&rgba),
+                    bytemuck::cast_slice(rgba),
                 );
+                // The UI renderer samples bilinearly whatever the option says.
                 self.ctx.load_texture(
                     format!("frame-{}", f.name),
                     image,
@@ -252,8 +264,11 @@ impl App {
                 Action::Screenshot(path) => {
                     // The frame shown must be the current state's.
                     self.sync_requests();
+                    // ... and drawn before: egui lays a new area out
+                    // invisibly in its first frame.
                     if self.pending_since.is_some()
                         || self.shown.as_ref().map(|s| s.result.generation) != Some(self.generation)
+                        || self.frames_since_shown < 2
                     {
                         return;
                     }
@@ -289,7 +304,10 @@ impl App {
                         let _ = window.request_inner_size(winit::dpi::PhysicalSize::new(w, h));
                     }
                 }
-                Action::Magnify(p) => self.magnify = Some(p),
+                Action::Magnify(p) => {
+                    self.magnify = p;
+                }
+                Action::Overlay(on) => self.state.overlay = on,
             }
             self.script.pop_front();
         }
@@ -368,6 +386,9 @@ impl App {
             presenter.draw(&self.ctx, output, [size.width, size.height], capture)?;
         let millis = started.elapsed().as_secs_f64() * 1e3;
         // A screenshot frame waits for its read-back on purpose: not a UI frame.
+        if drawn == Drawn::Presented {
+            self.frames_since_shown += 1;
+        }
         if drawn == Drawn::Presented && !capture {
             self.last_ui_millis = millis;
             self.stats
@@ -376,8 +397,14 @@ impl App {
         if let (Some(dir), Some(image)) = (self.screenshot_to.take(), image) {
             match &self.shown {
                 Some(shown) => {
-                    let written =
-                        screenshot::write(&dir, &image, shown, &self.state, self.truth.as_ref());
+                    let written = screenshot::write(
+                        &dir,
+                        &image,
+                        requests.image_rect_px,
+                        shown,
+                        &self.state,
+                        self.truth.as_ref(),
+                    );
                     match written {
                         Ok(()) => {
                             eprintln!("screenshot -> {}", dir.display());

@@ -14,6 +14,7 @@ use std::path::Path;
 pub fn write(
     dir: &Path,
     window: &image::RgbaImage,
+    image_rect_px: Option<[f32; 4]>,
     shown: &Shown,
     state: &ViewState,
     truth: Option<&TruthUpdate>,
@@ -70,6 +71,11 @@ pub fn write(
             "orbit_deg_deg_factor": state.orbit,
             "light_turn_deg": state.light_turn,
             "light_size": state.light_size,
+            "overlay": state.overlay,
+        },
+        "window": {
+            "size": [window.width(), window.height()],
+            "image_rect_px": image_rect_px,
         },
         "errors": shown.result.errors,
     });

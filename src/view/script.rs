@@ -14,7 +14,8 @@
 //! | `orbit YAW PITCH` | the camera orbited from the scene's, degrees |
 //! | `zoom FACTOR` | the camera's distance to its target, × the scene's |
 //! | `resize W H` | ask the window for an inner size |
-//! | `magnify X Y` | put the magnifier on image pixel (X, Y) |
+//! | `magnify X Y` / `magnify off` | put the magnifier on image pixel (X, Y), or hide it |
+//! | `overlay on\|off` | show or hide the overlay of times and error |
 //! | `wait-truth SPP` | wait until the progressive truth has SPP samples |
 //! | `screenshot DIR` | once the frame shown is the current one: `render`'s outputs and `window.png` into DIR |
 //! | `quit` | close the window and exit 0 |
@@ -35,7 +36,8 @@ pub enum Action {
     Orbit([f64; 2]),
     Zoom(f64),
     Resize([u32; 2]),
-    Magnify([u32; 2]),
+    Magnify(Option<[u32; 2]>),
+    Overlay(bool),
     WaitTruth(u32),
     Screenshot(PathBuf),
     Quit,
@@ -141,9 +143,18 @@ fn parse_line(words: &[&str]) -> Result<Action, String> {
             want(2)?;
             Action::Resize([count(args[0])?, count(args[1])?])
         }
+        "magnify" if args == ["off"] => Action::Magnify(None),
         "magnify" => {
             want(2)?;
-            Action::Magnify([count(args[0])?, count(args[1])?])
+            Action::Magnify(Some([count(args[0])?, count(args[1])?]))
+        }
+        "overlay" => {
+            want(1)?;
+            match args[0] {
+                "on" => Action::Overlay(true),
+                "off" => Action::Overlay(false),
+                _ => return Err("overlay on or overlay off".into()),
+            }
         }
         "wait-truth" => {
             want(1)?;
@@ -169,12 +180,13 @@ mod tests {
     fn every_action_parses() {
         let text = "wait 0.5\nmethod izb32 # comment\nsplit pcf3-2048\nsplit off\ndivider 0.3\n\
                     view error\nlight 10 -5\nlight-size 1\norbit 20 5\nzoom 0.8\nresize 640 360\n\
-                    magnify 10 20\nwait-truth 16\nscreenshot out/a\nquit\n";
+                    magnify 10 20\nwait-truth 16\nscreenshot out/a\nmagnify off\noverlay off\nquit\n";
         let actions = parse(text).unwrap();
-        assert_eq!(actions.len(), 15);
+        assert_eq!(actions.len(), 17);
         assert_eq!(actions[2], Action::Split(Some("pcf3-2048".into())));
         assert_eq!(actions[6], Action::Light([10.0, -5.0]));
-        assert_eq!(actions[14], Action::Quit);
+        assert_eq!(actions[14], Action::Magnify(None));
+        assert_eq!(actions[16], Action::Quit);
     }
 
     #[test]

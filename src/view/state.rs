@@ -82,6 +82,8 @@ pub struct ViewState {
     /// The divider's position, as a fraction of the image width.
     pub divider: f32,
     pub view: ViewKind,
+    /// Show the overlay of times, work counters, memory and error.
+    pub overlay: bool,
 }
 
 /// The state a shadow frame depends on.
@@ -104,6 +106,7 @@ impl ViewState {
             split: None,
             divider: 0.5,
             view: ViewKind::Shaded,
+            overlay: true,
         }
     }
 

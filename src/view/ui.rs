@@ -14,6 +14,9 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Vec2};
 pub struct Shown {
     pub result: FrameResult,
     pub textures: Vec<egui::TextureHandle>,
+    /// The textures' pixels (the magnifier paints them as cells: the
+    /// UI renderer samples textures bilinearly).
+    pub pixels: Vec<Vec<[u8; 4]>>,
     /// (view, truth samples) the textures show.
     pub texture_key: (ViewKind, u32),
 }
@@ -36,6 +39,9 @@ pub struct Status<'a> {
 #[derive(Default)]
 pub struct UiRequests {
     pub screenshot: bool,
+    /// Where the image lies in the window, in physical pixels
+    /// (x0, y0, x1, y1): screenshots record it.
+    pub image_rect_px: Option<[f32; 4]>,
 }
 
 /// Draws the whole window.
@@ -54,7 +60,12 @@ pub fn draw(
         .show(root, |ui| controls(ui, state, base, &mut requests));
     egui::CentralPanel::default()
         .frame(egui::Frame::NONE.fill(Color32::from_gray(20)))
-        .show(root, |ui| image_area(ui, state, shown, status, magnify));
+        .show(root, |ui| {
+            let rect = image_area(ui, state, shown, status, magnify);
+            let scale = ui.ctx().pixels_per_point();
+            requests.image_rect_px =
+                rect.map(|r| [r.min.x, r.min.y, r.max.x, r.max.y].map(|v| v * scale));
+        });
     root.ctx().input(|i| {
         if i.key_pressed(egui::Key::S) {
             requests.screenshot = true;
@@ -177,6 +188,7 @@ fn controls(ui: &mut egui::Ui, state: &mut ViewState, base: &Scene, requests: &m
         state.light_size = fresh.light_size;
     }
     ui.separator();
+    ui.checkbox(&mut state.overlay, "Overlay: times, work, error");
     if ui.button("Screenshot (S)").clicked() {
         requests.screenshot = true;
     }
@@ -198,7 +210,7 @@ fn image_area(
     shown: Option<&Shown>,
     status: &Status,
     magnify: &mut Option<[u32; 2]>,
-) {
+) -> Option<Rect> {
     let area = ui.available_rect_before_wrap();
     let response = ui.allocate_rect(area, Sense::click_and_drag());
     let painter = ui.painter_at(area);
@@ -210,8 +222,10 @@ fn image_area(
             egui::FontId::proportional(18.0),
             Color32::LIGHT_GRAY,
         );
-        overlay(ui, area, None, status);
-        return;
+        if state.overlay {
+            overlay(ui, area, None, status);
+        }
+        return None;
     };
     let [w, h] = shown.result.scene.resolution;
     let rect = fit(area, w as f32 / h as f32);
@@ -263,7 +277,9 @@ fn image_area(
         if scroll != 0.0 {
             state.orbit[2] = (state.orbit[2] * f64::from(-scroll * 0.002).exp()).clamp(0.05, 20.0);
         }
-        if let Some(p) = response.hover_pos() {
+        // Only a moving pointer moves the magnifier (a script places it).
+        let moved = ui.input(|i| i.pointer.delta() != Vec2::ZERO);
+        if let Some(p) = response.hover_pos().filter(|_| moved) {
             if rect.contains(p) {
                 let x = ((p.x - rect.left()) / rect.width() * w as f32) as u32;
                 let y = ((p.y - rect.top()) / rect.height() * h as f32) as u32;
@@ -274,7 +290,10 @@ fn image_area(
     if let Some(px) = *magnify {
         magnifier(ui, area, rect, state, shown, px);
     }
-    overlay(ui, area, Some(shown), status);
+    if state.overlay {
+        overlay(ui, area, Some(shown), status);
+    }
+    Some(rect)
 }
 
 /// The per-method report in the image's top-left corner.
@@ -346,25 +365,16 @@ fn magnifier(
     shown: &Shown,
     px: [u32; 2],
 ) {
-    let [w, h] = shown.result.scene.resolution;
+    let w = shown.result.scene.resolution[0];
     let side = if shown.textures.len() > 1 && px[0] as f32 >= state.divider * w as f32 {
         1
     } else {
         0
     };
-    let (Some(frame), Some(texture)) = (shown.result.frames.get(side), shown.textures.get(side))
+    let (Some(frame), Some(pixels)) = (shown.result.frames.get(side), shown.pixels.get(side))
     else {
         return;
     };
-    let i = (px[1] * w + px[0]) as usize;
-    let radius = 7.0;
-    let uv = Rect::from_center_size(
-        Pos2::new(
-            (px[0] as f32 + 0.5) / w as f32,
-            (px[1] as f32 + 0.5) / h as f32,
-        ),
-        Vec2::new(2.0 * radius / w as f32, 2.0 * radius / h as f32),
-    );
     let box_size = 150.0;
     let origin = Pos2::new(area.right() - 2.0 * box_size - 24.0, area.top() + 8.0);
     let crop = Rect::from_min_size(origin, Vec2::splat(box_size));
@@ -372,17 +382,53 @@ fn magnifier(
         origin + Vec2::new(box_size + 8.0, 0.0),
         Vec2::splat(box_size),
     );
-    let painter = ui.ctx().layer_painter(egui::LayerId::new(
-        egui::Order::Foreground,
-        egui::Id::new("magnifier"),
-    ));
+    // An area of its own, above the image and the overlay.
+    egui::Area::new(egui::Id::new("magnifier"))
+        .order(egui::Order::Foreground)
+        .fixed_pos(crop.min)
+        .interactable(false)
+        .show(ui.ctx(), |ui| {
+            ui.allocate_space(crop.union(dots).size());
+            paint_magnifier(ui.painter(), [crop, dots, rect], shown, frame, pixels, px);
+        });
+}
+
+/// The magnifier's contents: `crop` (pixels as cells), `dots` (the mask's
+/// samples) and a marker on `image`.
+fn paint_magnifier(
+    painter: &egui::Painter,
+    [crop, dots, rect]: [Rect; 3],
+    shown: &Shown,
+    frame: &super::worker::MethodFrame,
+    pixels: &[[u8; 4]],
+    px: [u32; 2],
+) {
+    let [w, h] = shown.result.scene.resolution;
+    let i = (px[1] * w + px[0]) as usize;
+    let radius = 7i32;
+    let box_size = crop.width();
     painter.rect_filled(
         crop.union(dots).expand(6.0),
         4.0,
         Color32::from_black_alpha(200),
     );
-    painter.image(texture.id(), crop, uv, Color32::WHITE);
-    let cell = box_size / (2.0 * radius);
+    // The crop: one cell per image pixel, (2 radius + 1)² of them.
+    let cell = box_size / (2 * radius + 1) as f32;
+    for dy in -radius..=radius {
+        for dx in -radius..=radius {
+            let (x, y) = (px[0] as i32 + dx, px[1] as i32 + dy);
+            if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
+                continue;
+            }
+            let [r, g, b, _] = pixels[(y as u32 * w + x as u32) as usize];
+            let min = crop.min + Vec2::new((dx + radius) as f32, (dy + radius) as f32) * cell;
+            painter.rect_filled(
+                Rect::from_min_size(min, Vec2::splat(cell)),
+                0.0,
+                Color32::from_rgb(r, g, b),
+            );
+        }
+    }
     painter.rect_stroke(
         Rect::from_center_size(crop.center(), Vec2::splat(cell)),
         0.0,

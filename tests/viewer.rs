@@ -1,0 +1,273 @@
+//! `izb view` driven by a script in a real window (Xvfb when there is no
+//! display) on the real Vulkan device: the screenshots are not blank, the
+//! shadow moves when the light turns, the halves of a split show their own
+//! methods, resizing works, the error view compares against a progressive
+//! truth, and the validation layer stays silent. Without a display or a
+//! device the test prints that it skipped; with `IZB_REQUIRE_GPU=1` it
+//! fails instead.
+
+mod common;
+
+use common::TempDir;
+use izb::output::read_exr_channel;
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
+
+fn required() -> bool {
+    std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1")
+}
+
+fn skip(why: &str) {
+    assert!(!required(), "IZB_REQUIRE_GPU=1 but {why}");
+    eprintln!("skipped: {why}");
+}
+
+/// `izb view ARGS` in a window: on `DISPLAY` when set, else under
+/// `xvfb-run -a`; `None` (skipped) when neither exists.
+fn view_command(args: &[&str]) -> Option<Command> {
+    let izb = env!("CARGO_BIN_EXE_izb");
+    if std::env::var_os("DISPLAY").is_some() {
+        let mut c = Command::new(izb);
+        c.arg("view").args(args);
+        return Some(c);
+    }
+    let has_xvfb = Command::new("xvfb-run").arg("--help").output().is_ok();
+    if !has_xvfb {
+        skip("no DISPLAY and no xvfb-run (Debian: apt install xvfb xauth)");
+        return None;
+    }
+    let mut c = Command::new("xvfb-run");
+    c.args(["-a", "-s", "-screen 0 1280x1024x24", izb, "view"])
+        .args(args);
+    Some(c)
+}
+
+fn report(dir: &Path) -> Value {
+    let text = std::fs::read_to_string(dir.join("report.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+fn window(dir: &Path) -> image::RgbImage {
+    image::open(dir.join("window.png")).unwrap().to_rgb8()
+}
+
+fn luma(p: &image::Rgb<u8>) -> f64 {
+    0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])
+}
+
+/// The image area of a screenshot: (x0, y0, x1, y1) in window pixels.
+fn image_rect(dir: &Path) -> [u32; 4] {
+    let r = &report(dir)["window"]["image_rect_px"];
+    let v: Vec<u32> = (0..4)
+        .map(|i| r[i].as_f64().unwrap().round() as u32)
+        .collect();
+    [v[0], v[1], v[2], v[3]]
+}
+
+#[test]
+fn scripted_window_moves_the_shadow_and_splits_the_methods() {
+    match izb::gpu::list_devices() {
+        Ok(list) if !list.is_empty() => {}
+        other => return skip(&format!("no Vulkan device ({:?})", other.err())),
+    }
+    let tmp = TempDir::new("viewer_script");
+    let d = |name: &str| tmp.join(name).display().to_string();
+    let script = format!(
+        "overlay off\n\
+         screenshot {}\n\
+         light 50 0\n\
+         screenshot {}\n\
+         method izb32\nsplit sm-512\ndivider 0.5\n\
+         screenshot {}\n\
+         magnify 120 70\noverlay on\nview candidates\n\
+         screenshot {}\n\
+         resize 720 480\nview error\nwait-truth 8\n\
+         screenshot {}\n\
+         quit\n",
+        d("lit"),
+        d("turned"),
+        d("split"),
+        d("candidates"),
+        d("error")
+    );
+    let script_path = tmp.join("script.txt");
+    std::fs::write(&script_path, script).unwrap();
+    let stats_path = tmp.join("stats.json");
+    let Some(mut cmd) = view_command(&[
+        "default",
+        "--resolution",
+        "240x135",
+        "--window",
+        "960x600",
+        "--script",
+        script_path.to_str().unwrap(),
+        "--stats",
+        stats_path.to_str().unwrap(),
+    ]) else {
+        return;
+    };
+    let out = cmd.output().expect("izb view did not start");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "izb view failed:\n{stderr}");
+    let stats: Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats_path).unwrap()).unwrap();
+    assert_eq!(
+        stats["validation_messages"].as_array().unwrap().len(),
+        0,
+        "validation messages: {}",
+        stats["validation_messages"]
+    );
+    assert_eq!(
+        stats["errors"].as_array().unwrap().len(),
+        0,
+        "{}",
+        stats["errors"]
+    );
+    assert_eq!(stats["screenshots"].as_array().unwrap().len(), 5);
+
+    // Every screenshot holds render's files and a window that is not blank.
+    let shots = ["lit", "turned", "split", "candidates", "error"];
+    for name in shots {
+        let dir = tmp.join(name);
+        for file in [
+            "visibility.exr",
+            "visibility.png",
+            "shaded.png",
+            "report.json",
+            "window.png",
+        ] {
+            assert!(dir.join(file).is_file(), "{name}/{file} missing");
+        }
+        let w = window(&dir);
+        let [x0, y0, x1, y1] = image_rect(&dir);
+        let values: Vec<f64> = (y0..y1.min(w.height()))
+            .step_by(3)
+            .flat_map(|y| (x0..x1.min(w.width())).step_by(3).map(move |x| (x, y)))
+            .map(|(x, y)| luma(w.get_pixel(x, y)))
+            .collect();
+        let mean = values.iter().sum::<f64>() / values.len() as f64;
+        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / values.len() as f64;
+        assert!(
+            var.sqrt() > 10.0,
+            "{name}: the image area is flat (σ {:.1})",
+            var.sqrt()
+        );
+    }
+    assert_eq!(shots.len(), 5);
+
+    // The shadow moves when the light turns: many tested pixels change
+    // lit fraction by more than a half.
+    let (_, _, before) = read_exr_channel(&tmp.join("lit/visibility.exr"), "visibility").unwrap();
+    let (_, _, after) = read_exr_channel(&tmp.join("turned/visibility.exr"), "visibility").unwrap();
+    let moved = before
+        .iter()
+        .zip(&after)
+        .filter(|(a, b)| !a.is_nan() && !b.is_nan() && (*a - *b).abs() > 0.5)
+        .count();
+    assert!(
+        moved > before.len() / 100,
+        "only {moved} pixels changed under the turned light"
+    );
+    let (lit_w, turned_w) = (window(&tmp.join("lit")), window(&tmp.join("turned")));
+    let window_changed = lit_w
+        .pixels()
+        .zip(turned_w.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        window_changed > 1000,
+        "the window did not change ({window_changed} pixels)"
+    );
+
+    // The split: where the two methods' shaded images differ, the window
+    // shows the left method left of the divider and the right one right
+    // of it. Read at texel centres: the UI renderer filters bilinearly.
+    let split = tmp.join("split");
+    let left = image::open(split.join("shaded.png")).unwrap().to_rgb8();
+    let right = image::open(split.join("right/shaded.png"))
+        .unwrap()
+        .to_rgb8();
+    let w = window(&split);
+    let [x0, y0, x1, y1] = image_rect(&split);
+    let divider_x = x0 as f64 + 0.5 * f64::from(x1 - x0);
+    let (mut agree, mut checked) = ([0usize; 2], [0usize; 2]);
+    let scale = [
+        f64::from(x1 - x0) / f64::from(left.width()),
+        f64::from(y1 - y0) / f64::from(left.height()),
+    ];
+    for v in 0..left.height() {
+        for u in 0..left.width() {
+            let fx = f64::from(x0) + (f64::from(u) + 0.5) * scale[0];
+            let fy = f64::from(y0) + (f64::from(v) + 0.5) * scale[1];
+            let (x, y) = (fx as u32, fy as u32);
+            let (l, r) = (luma(left.get_pixel(u, v)), luma(right.get_pixel(u, v)));
+            if (l - r).abs() < 40.0 || (fx - divider_x).abs() < 4.0 {
+                continue;
+            }
+            let shown = luma(w.get_pixel(x, y));
+            let side = usize::from(fx > divider_x);
+            let closer_to_left = (shown - l).abs() < (shown - r).abs();
+            checked[side] += 1;
+            agree[side] += usize::from(closer_to_left == (side == 0));
+        }
+    }
+    for side in 0..2 {
+        assert!(
+            checked[side] > 40,
+            "side {side}: only {} differing pixels",
+            checked[side]
+        );
+        let share = agree[side] as f64 / checked[side] as f64;
+        assert!(
+            share > 0.9,
+            "side {side}: {share:.3} of differing pixels show their method"
+        );
+    }
+    let r = report(&split);
+    assert_eq!(r["methods"].as_array().unwrap().len(), 2);
+    assert_eq!(r["command"], "view");
+
+    // The resized window is screenshotted at its new size, with the error
+    // against a truth of at least 8 samples per pixel.
+    let error = tmp.join("error");
+    let w = window(&error);
+    assert_eq!((w.width(), w.height()), (720, 480));
+    let r = report(&error);
+    assert_eq!(r["view"]["view"], "error");
+    let e = &r["methods"][0]["error_against_truth"];
+    assert!(e["truth_spp"].as_u64().unwrap() >= 8, "{e}");
+    let mae = e["mae"].as_f64().unwrap();
+    assert!(mae < 0.1, "izb32's error against the truth is {mae}");
+}
+
+#[test]
+fn bad_scripts_are_refused_naming_the_line() {
+    let tmp = TempDir::new("viewer_bad_script");
+    let script = tmp.join("bad.txt");
+    std::fs::write(&script, "light 10 0\nsplit rt32\n").unwrap();
+    let out = common::izb_cli(&["view", "--script", script.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("line 2") && stderr.contains("rt32"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn without_a_vulkan_device_the_viewer_says_so() {
+    let out = Command::new(env!("CARGO_BIN_EXE_izb"))
+        .args(["view", "default"])
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .env_remove("DISPLAY")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("izb view needs a Vulkan device"),
+        "{stderr}"
+    );
+}
