@@ -56,7 +56,8 @@ pub fn write(
             "render": frame.report,
         }));
     }
-    let left = &methods[0];
+    // A frame whose methods all failed still gets its window and errors.
+    let left = methods.first().cloned().unwrap_or_default();
     let report = serde_json::json!({
         "command": "view",
         "backend": left["backend"],
