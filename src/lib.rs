@@ -11,8 +11,9 @@
 //! [`cpu`] is the irregular z-buffer on the CPU and [`gpu`] its Vulkan
 //! twin (sharing `izb-contract` with the shaders); [`mod@reference`] traces
 //! the ground truth; [`baseline`] holds the shadow maps and [`peer`] the
-//! ray tracers the IZB is measured against; [`mod@bench`], [`report`] and
-//! [`cli`] run and show it all; [`output`] writes files atomically.
+//! ray tracers the IZB is measured against; [`mod@bench`], [`report`],
+//! [`view`] (the interactive window) and [`cli`] run and show it all;
+//! [`output`] writes files atomically.
 
 pub mod baseline;
 pub mod bench;

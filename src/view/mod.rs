@@ -4,7 +4,7 @@
 //! counters, memory and the error against a progressive ray-traced truth.
 //!
 //! Three threads keep the window responsive: the window thread draws egui
-//! on its own Vulkan device ([`present`]); the shadow worker ([`worker`])
+//! on its own Vulkan device (`present`); the shadow worker ([`worker`])
 //! renders the newest request through the compute passes on the compute
 //! device; the truth thread ([`truth`]) traces the reference while the
 //! view is still. A shadow frame that takes seconds (lavapipe) never
