@@ -99,13 +99,14 @@ impl App {
         }
     }
 
-    /// Stops the threads; returns the compute device's validation messages.
+    /// Stops the threads and collects the presenting device's validation
+    /// messages.
     pub fn shut_down(&mut self) {
         if let Some(t) = self.truth_worker.take() {
             t.stop();
         }
         if let Some(w) = self.worker.take() {
-            self.stats.validation_messages.extend(w.stop());
+            w.stop(Duration::from_secs(5));
         }
         if let Some(p) = self.presenter.take() {
             self.stats.validation_messages.extend(p.take_messages());
@@ -162,6 +163,10 @@ impl App {
         let mut newest: Option<FrameResult> = None;
         if let Some(w) = &self.worker {
             while let Ok(r) = w.results.try_recv() {
+                self.stats.errors.extend(r.errors.iter().cloned());
+                self.stats
+                    .validation_messages
+                    .extend(r.validation.iter().cloned());
                 newest = Some(r);
             }
         }
@@ -173,7 +178,6 @@ impl App {
                 }
                 self.stats.frame_seconds.push(r.wall_seconds);
             }
-            self.stats.errors.extend(r.errors.iter().cloned());
             self.frames_since_shown = 0;
             self.shown = Some(Shown {
                 result: r,

@@ -60,6 +60,8 @@ pub struct FrameResult {
     pub candidates: Option<Vec<u32>>,
     /// Why the frame (or one of its methods) is missing.
     pub errors: Vec<String>,
+    /// The compute device's validation messages during this frame.
+    pub validation: Vec<String>,
     pub wall_seconds: f64,
 }
 
@@ -67,7 +69,7 @@ pub struct FrameResult {
 pub struct ShadowWorker {
     requests: Option<Sender<FrameRequest>>,
     pub results: Receiver<FrameResult>,
-    thread: Option<JoinHandle<Vec<String>>>,
+    thread: Option<JoinHandle<()>>,
     pub device_name: Arc<std::sync::Mutex<String>>,
 }
 
@@ -99,14 +101,22 @@ impl ShadowWorker {
         }
     }
 
-    /// Stops the thread after its current frame; returns the compute
-    /// device's validation messages.
-    pub fn stop(mut self) -> Vec<String> {
+    /// Stops the thread once its current frame ends, waiting at most
+    /// `patience`: a frame lavapipe needs minutes for is left to the
+    /// process's exit rather than holding the closed window.
+    pub fn stop(mut self, patience: std::time::Duration) {
         self.requests = None;
-        self.thread
-            .take()
-            .and_then(|t| t.join().ok())
-            .unwrap_or_default()
+        let Some(thread) = self.thread.take() else {
+            return;
+        };
+        let start = Instant::now();
+        while !thread.is_finished() && start.elapsed() < patience {
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        if thread.is_finished() {
+            // A panic in the worker already printed itself.
+            let _ = thread.join();
+        }
     }
 }
 
@@ -116,10 +126,9 @@ fn run(
     outbox: Sender<FrameResult>,
     wake: impl Fn(),
     device_name: Arc<std::sync::Mutex<String>>,
-) -> Vec<String> {
+) {
     super::lower_thread_priority();
     let mut renderer: Option<GpuRenderer> = None;
-    let mut validation = Vec::new();
     while let Ok(mut request) = inbox.recv() {
         while let Ok(newer) = inbox.try_recv() {
             request = newer;
@@ -137,6 +146,7 @@ fn run(
             }
         }
         let mut frames = Vec::new();
+        let mut validation = Vec::new();
         if let Some(r) = &renderer {
             for name in &request.methods {
                 match render_method(r, &request.scene, name) {
@@ -162,6 +172,7 @@ fn run(
             frames,
             candidates,
             errors,
+            validation,
             wall_seconds: start.elapsed().as_secs_f64(),
         };
         if outbox.send(result).is_err() {
@@ -169,10 +180,6 @@ fn run(
         }
         wake();
     }
-    if let Some(r) = &renderer {
-        validation.extend(r.take_validation_messages());
-    }
-    validation
 }
 
 /// Renders one method on the GPU, or on the CPU twin when lavapipe's
