@@ -65,11 +65,39 @@ fn image_rect(dir: &Path) -> [u32; 4] {
     [v[0], v[1], v[2], v[3]]
 }
 
+/// Runs `izb view ARGS --script` over `script` (written into `tmp`) with
+/// `env` added, asserts that it exits 0, and returns its `--stats`;
+/// `None` when skipped (no display).
+fn run_script(tmp: &TempDir, args: &[&str], script: &str, env: &[(&str, &str)]) -> Option<Value> {
+    let script_path = tmp.join("script.txt");
+    std::fs::write(&script_path, script).unwrap();
+    let stats_path = tmp.join("stats.json");
+    let (script_arg, stats_arg) = (script_path.to_str().unwrap(), stats_path.to_str().unwrap());
+    let mut all = args.to_vec();
+    all.extend(["--script", script_arg, "--stats", stats_arg]);
+    let mut cmd = view_command(&all)?;
+    cmd.envs(env.iter().copied());
+    let out = cmd.output().expect("izb view did not start");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "izb view failed:\n{stderr}");
+    Some(serde_json::from_str(&std::fs::read_to_string(&stats_path).unwrap()).unwrap())
+}
+
+/// Whether a Vulkan device opens; skips (or fails when required) if not.
+fn has_device() -> bool {
+    match izb::gpu::list_devices() {
+        Ok(list) if !list.is_empty() => true,
+        other => {
+            skip(&format!("no Vulkan device ({:?})", other.err()));
+            false
+        }
+    }
+}
+
 #[test]
 fn scripted_window_moves_the_shadow_and_splits_the_methods() {
-    match izb::gpu::list_devices() {
-        Ok(list) if !list.is_empty() => {}
-        other => return skip(&format!("no Vulkan device ({:?})", other.err())),
+    if !has_device() {
+        return;
     }
     let tmp = TempDir::new("viewer_script");
     let d = |name: &str| tmp.join(name).display().to_string();
@@ -91,27 +119,10 @@ fn scripted_window_moves_the_shadow_and_splits_the_methods() {
         d("candidates"),
         d("error")
     );
-    let script_path = tmp.join("script.txt");
-    std::fs::write(&script_path, script).unwrap();
-    let stats_path = tmp.join("stats.json");
-    let Some(mut cmd) = view_command(&[
-        "default",
-        "--resolution",
-        "240x135",
-        "--window",
-        "960x600",
-        "--script",
-        script_path.to_str().unwrap(),
-        "--stats",
-        stats_path.to_str().unwrap(),
-    ]) else {
+    let args = ["default", "--resolution", "240x135", "--window", "960x600"];
+    let Some(stats) = run_script(&tmp, &args, &script, &[]) else {
         return;
     };
-    let out = cmd.output().expect("izb view did not start");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "izb view failed:\n{stderr}");
-    let stats: Value =
-        serde_json::from_str(&std::fs::read_to_string(&stats_path).unwrap()).unwrap();
     assert_eq!(
         stats["validation_messages"].as_array().unwrap().len(),
         0,
@@ -274,43 +285,23 @@ fn without_a_vulkan_device_the_viewer_says_so() {
 
 #[test]
 fn a_hung_compute_device_is_a_message_in_the_window_not_a_crash() {
-    match izb::gpu::list_devices() {
-        Ok(list) if !list.is_empty() => {}
-        other => return skip(&format!("no Vulkan device ({:?})", other.err())),
+    if !has_device() {
+        return;
     }
     let tmp = TempDir::new("viewer_hung_device");
     let shot = tmp.join("hung");
-    let script = tmp.join("script.txt");
-    std::fs::write(
-        &script,
-        format!(
-            "screenshot {}\nlight 30 0\nscreenshot {}\nquit\n",
-            shot.display(),
-            tmp.join("again").display()
-        ),
-    )
-    .unwrap();
-    let stats_path = tmp.join("stats.json");
-    let Some(mut cmd) = view_command(&[
-        "default",
-        "--resolution",
-        "160x90",
-        "--window",
-        "640x400",
-        "--script",
-        script.to_str().unwrap(),
-        "--stats",
-        stats_path.to_str().unwrap(),
-    ]) else {
-        return;
-    };
+    let script = format!(
+        "screenshot {}\nlight 30 0\nscreenshot {}\nquit\n",
+        shot.display(),
+        tmp.join("again").display()
+    );
     // One microsecond: every frame outlives its limit, the device is
     // abandoned and reopened for the next frame.
-    let out = cmd.env("IZB_GPU_TIMEOUT_S", "0.000001").output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "izb view failed:\n{stderr}");
-    let stats: Value =
-        serde_json::from_str(&std::fs::read_to_string(&stats_path).unwrap()).unwrap();
+    let args = ["default", "--resolution", "160x90", "--window", "640x400"];
+    let timeout = [("IZB_GPU_TIMEOUT_S", "0.000001")];
+    let Some(stats) = run_script(&tmp, &args, &script, &timeout) else {
+        return;
+    };
     let errors: Vec<&str> = stats["errors"]
         .as_array()
         .unwrap()
@@ -343,9 +334,8 @@ fn a_frame_refused_by_the_loop_cap_is_rendered_by_the_cpu_twin_and_says_so() {
     };
     let tmp = TempDir::new("viewer_loop_cap");
     let shot = tmp.join("cap");
-    let script = tmp.join("script.txt");
-    std::fs::write(&script, format!("screenshot {}\nquit\n", shot.display())).unwrap();
-    let Some(mut cmd) = view_command(&[
+    let script = format!("screenshot {}\nquit\n", shot.display());
+    let args = [
         "hairball",
         "--light-size",
         "3",
@@ -353,18 +343,14 @@ fn a_frame_refused_by_the_loop_cap_is_rendered_by_the_cpu_twin_and_says_so() {
         "160x90",
         "--window",
         "640x400",
-        "--script",
-        script.to_str().unwrap(),
         "--device",
         &cpu_device,
-    ]) else {
-        return;
-    };
+    ];
     // Without the heavy step one subgroup of this frame needs more loop
     // trips than lavapipe allows (measured: 58 935 at the stop).
-    let out = cmd.env("IZB_GPU_HEAVY_ENTRIES", "0").output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "izb view failed:\n{stderr}");
+    if run_script(&tmp, &args, &script, &[("IZB_GPU_HEAVY_ENTRIES", "0")]).is_none() {
+        return;
+    }
     let r = report(&shot);
     let backend = r["backend"].as_str().unwrap();
     assert!(

@@ -1,9 +1,7 @@
 //! `izb bench`: run time against error for every method, one process,
 //! repetitions interleaved; `bench.json`.
 
-use super::{
-    load_scene, parse_resolution, progress_bar, scene_summary, thread_pool, BenchBackend, SceneArgs,
-};
+use super::{load_scene, parse_resolution, progress_bar, thread_pool, BenchBackend, SceneArgs};
 use crate::bench;
 use crate::bench::document::{
     BenchDocument, FlickerSettings, ResultRow, Scaling, SceneEntry, SceneFlicker, TruthEntry,
@@ -269,7 +267,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         }
         scene_rows.push(SceneEntry {
             name: scene.name.clone(),
-            summary: scene_summary(&scene),
+            summary: scene.summary(),
             truth: TruthEntry {
                 spp: reference_settings.spp(),
                 seconds: stats.seconds,

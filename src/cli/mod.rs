@@ -153,7 +153,3 @@ pub fn trace_reference(
     bar.finish_and_clear();
     (image, bvh, bvh_seconds)
 }
-
-pub fn scene_summary(scene: &Scene) -> serde_json::Value {
-    scene.summary()
-}

@@ -1,7 +1,7 @@
 //! `izb reference` (the supersampled ground truth, or the 32 same samples
 //! in `f64`) and `izb compare` (every IZB mode against it).
 
-use super::{load_scene, progress_bar, scene_summary, thread_pool, trace_reference, SceneArgs};
+use super::{load_scene, progress_bar, thread_pool, trace_reference, SceneArgs};
 use crate::bvh::SceneBvh;
 use crate::cpu::{render_cpu, IzbSettings, SampleMode};
 use crate::gbuffer::gbuffer;
@@ -83,7 +83,7 @@ pub fn run_same_sample_reference(args: ReferenceArgs) -> Result<()> {
     write_visibility_png(&args.run.out.join("visibility.png"), w, h, &visibility)?;
     let report = serde_json::json!({
         "command": "reference --same-samples",
-        "scene": scene_summary(&scene),
+        "scene": scene.summary(),
         "samples_per_pixel": 32,
         "threads": pool.current_num_threads(),
         "seconds": seconds,
@@ -130,7 +130,7 @@ pub fn run_reference(args: ReferenceArgs) -> Result<()> {
     )?;
     let report = serde_json::json!({
         "command": "reference",
-        "scene": scene_summary(&scene),
+        "scene": scene.summary(),
         "spp": settings.spp(),
         "seed": settings.seed,
         "threads": pool.current_num_threads(),
@@ -230,7 +230,7 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
     )?;
     let report = serde_json::json!({
         "command": "compare",
-        "scene": scene_summary(&scene),
+        "scene": scene.summary(),
         "reference_spp": settings.spp(),
         "reference_seconds": truth.stats.seconds,
         "threads": pool.current_num_threads(),

@@ -1,6 +1,6 @@
 //! `izb render`: one shadow mask, on Vulkan or the CPU twin.
 
-use super::{load_scene, scene_summary, thread_pool, Backend, GridArgs, SceneArgs};
+use super::{load_scene, thread_pool, Backend, GridArgs, SceneArgs};
 use crate::bvh::SceneBvh;
 use crate::cpu::{render_cpu, IzbSettings, SampleMode, Skips};
 use crate::gpu::{GBufferSource, GpuOptions, GpuRenderer};
@@ -173,7 +173,7 @@ pub fn render_on_gpu(
     let report = serde_json::json!({
         "command": "render",
         "backend": "vulkan",
-        "scene": scene_summary(scene),
+        "scene": scene.summary(),
         "render": render.report,
         "validation_messages": messages,
     });
@@ -228,7 +228,7 @@ pub fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) ->
     let report = serde_json::json!({
         "command": "render",
         "backend": "cpu",
-        "scene": scene_summary(scene),
+        "scene": scene.summary(),
         "threads": pool.current_num_threads(),
         "bvh_build_seconds": bvh_seconds,
         "render": render.report,

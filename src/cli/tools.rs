@@ -1,6 +1,6 @@
 //! The small commands: `izb lut`, `izb report`, `izb info`, `izb devices`.
 
-use super::{load_scene, scene_summary, SceneArgs};
+use super::{load_scene, SceneArgs};
 use crate::settings::IzbSettings;
 use anyhow::Result;
 use clap::Args;
@@ -92,7 +92,7 @@ pub fn run_lut(args: LutArgs) -> Result<()> {
 pub fn run_info(args: InfoArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
     let (lo, hi) = scene.bounds();
-    let mut summary = scene_summary(&scene);
+    let mut summary = scene.summary();
     summary["bounds"] = serde_json::json!({"min": lo, "max": hi});
     if args.gpu_memory {
         let plan = crate::gpu::frame::planned_memory(&scene, IzbSettings::default())?;

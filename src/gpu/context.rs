@@ -124,6 +124,27 @@ impl Drop for DeviceShared {
     }
 }
 
+/// The validation messenger every device of the crate uses (the compute
+/// context and the viewer's window): warnings and errors of every type,
+/// appended to `messages` by [`debug_callback`]. `messages` must outlive
+/// the messenger.
+pub(crate) fn messenger_info(
+    messages: &Mutex<Vec<String>>,
+) -> vk::DebugUtilsMessengerCreateInfoEXT<'static> {
+    vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+        )
+        .pfn_user_callback(Some(debug_callback))
+        .user_data(messages as *const Mutex<Vec<String>> as *mut c_void)
+}
+
 /// The validation layer's message callback: appends to the messages list.
 ///
 /// # Safety
@@ -131,7 +152,7 @@ impl Drop for DeviceShared {
 /// `user_data` the messenger's `Mutex<Vec<String>>` (see `GpuContext::new`).
 // SAFETY: only the loader calls it, with the arguments its signature
 // promises (`# Safety` above); the body checks both pointers for null.
-pub(crate) unsafe extern "system" fn debug_callback(
+unsafe extern "system" fn debug_callback(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
     kind: vk::DebugUtilsMessageTypeFlagsEXT,
     data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
@@ -384,18 +405,7 @@ impl GpuContext {
         let messages: Box<Mutex<Vec<String>>> = Box::default();
         let (debug_instance, messenger) = if options.validation {
             let debug = ash::ext::debug_utils::Instance::new(&entry, &instance);
-            let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                .message_severity(
-                    vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                        | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
-                )
-                .message_type(
-                    vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                        | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                        | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-                )
-                .pfn_user_callback(Some(debug_callback))
-                .user_data(&*messages as *const Mutex<Vec<String>> as *mut c_void);
+            let info = messenger_info(&messages);
             // SAFETY: `info`'s user data points at `messages`, which `DeviceShared`
             // keeps alive until after the messenger is destroyed.
             match unsafe { debug.create_debug_utils_messenger(&info, None) } {

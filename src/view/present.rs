@@ -9,12 +9,11 @@
 //! the window's submissions (Vulkan queues are externally synchronised).
 
 use super::swapchain::Swapchain;
-use crate::gpu::context::{debug_callback, load_entry, VALIDATION_LAYER};
+use crate::gpu::context::{load_entry, messenger_info, VALIDATION_LAYER};
 use anyhow::{anyhow, bail, Context, Result};
 use ash::vk;
 use egui_ash_renderer::{Options, RenderMode, Renderer};
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
-use std::ffi::c_void;
 use std::sync::Mutex;
 use winit::window::Window;
 
@@ -86,17 +85,7 @@ impl Presenter {
         let debug = validation
             .then(|| -> Result<_> {
                 let debug = ash::ext::debug_utils::Instance::new(&entry, &instance);
-                let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                    .message_severity(
-                        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                            | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
-                    )
-                    .message_type(
-                        vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                            | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION,
-                    )
-                    .pfn_user_callback(Some(debug_callback))
-                    .user_data(&*messages as *const Mutex<Vec<String>> as *mut c_void);
+                let info = messenger_info(&messages);
                 // SAFETY: the user data is the boxed list, which `Presenter`
                 // keeps until after the messenger is destroyed.
                 let m = unsafe { debug.create_debug_utils_messenger(&info, None) }?;
