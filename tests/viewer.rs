@@ -363,3 +363,23 @@ fn a_frame_refused_by_the_loop_cap_is_rendered_by_the_cpu_twin_and_says_so() {
         "the CPU twin's frame has no shadow"
     );
 }
+
+#[test]
+fn without_a_display_the_viewer_says_how_to_get_one() {
+    if !has_device() {
+        return;
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_izb"))
+        .args(["view", "default"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("WAYLAND_SOCKET")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("cannot reach a display") && stderr.contains("xvfb-run -a"),
+        "{stderr}"
+    );
+}

@@ -66,6 +66,10 @@ pub fn draw(
             requests.image_rect_px =
                 rect.map(|r| [r.min.x, r.min.y, r.max.x, r.max.y].map(|v| v * scale));
         });
+    // Keys belong to a text field while one has focus.
+    if root.ctx().egui_wants_keyboard_input() {
+        return requests;
+    }
     root.ctx().input(|i| {
         if i.key_pressed(egui::Key::S) {
             requests.screenshot = true;
