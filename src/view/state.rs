@@ -84,6 +84,10 @@ pub struct ViewState {
     pub view: ViewKind,
     /// Show the overlay of times, work counters, memory and error.
     pub overlay: bool,
+    /// The light-size slider's end: 5° for a sun, 5 % of the scene's
+    /// diagonal for a point light (computed once: the bounds visit every
+    /// vertex).
+    pub light_size_top: f64,
 }
 
 /// The state a shadow frame depends on.
@@ -107,6 +111,13 @@ impl ViewState {
             divider: 0.5,
             view: ViewKind::Shaded,
             overlay: true,
+            light_size_top: match scene.light {
+                Light::Directional { .. } => 5.0,
+                Light::Point { .. } => {
+                    let (lo, hi) = scene.bounds();
+                    (hi - lo).length() * 0.05
+                }
+            },
         }
     }
 

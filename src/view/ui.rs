@@ -156,13 +156,11 @@ fn controls(ui: &mut egui::Ui, state: &mut ViewState, base: &Scene, requests: &m
             .suffix("° up")
             .speed(0.5),
     );
-    let (unit, top) = match base.light {
-        Light::Directional { .. } => ("° radius", 5.0),
-        Light::Point { .. } => (
-            " radius",
-            (base.bounds().1 - base.bounds().0).length() * 0.05,
-        ),
+    let unit = match base.light {
+        Light::Directional { .. } => "° radius",
+        Light::Point { .. } => " radius",
     };
+    let top = state.light_size_top;
     ui.add(
         egui::Slider::new(&mut state.light_size, 0.0..=top)
             .text(unit)
