@@ -15,7 +15,8 @@
 //! - `contract.glsl`: [`izb_contract::glsl_header`], every constant and
 //!   struct the shaders share with Rust, included by `shaders/common.glsl`.
 //!
-//! It also compiles every GLSL compute shader in `shaders/` to SPIR-V with
+//! It also compiles every GLSL shader in `shaders/` (compute, and the
+//! shadow map's one vertex shader) to SPIR-V with
 //! the `glslang` crate (built from source, so a fresh machine needs nothing
 //! but cargo; README, Precision), one `<name>.spv` per [`SHADERS`] entry. A compile
 //! error fails the build with the shader's file and glslang's line numbers.
@@ -135,7 +136,7 @@ const SHADERS: &[(&str, &str, Defines)] = &[
         &[("STEP_HEAVY", "1"), ("MASK_HALF_HIGH", "1")],
     ),
     ("resolve", "resolve.comp", &[]),
-    ("shadow_map", "shadow_map.comp", &[]),
+    ("shadow_map", "shadow_map.vert", &[]),
     ("shadow_lookup", "shadow_lookup.comp", &[]),
     ("shadow_rays", "shadow_rays.comp", &[]),
 ];
@@ -199,7 +200,11 @@ fn compile_shaders(out_dir: &std::path::Path) {
         };
         let input = glslang::ShaderInput::new(
             &source,
-            glslang::ShaderStage::Compute,
+            if file.ends_with(".vert") {
+                glslang::ShaderStage::Vertex
+            } else {
+                glslang::ShaderStage::Compute
+            },
             &options,
             Some(&defines[..]),
             Some(&mut includes),

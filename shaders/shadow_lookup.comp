@@ -2,7 +2,7 @@
 // Baseline pass `shadow_lookup` — GPU twin of
 // `baseline::shadow_map::shadow_lookup`: each shadow-tested pixel's lit
 // fraction from its cascade's map (the cascade light_setup stored in the
-// pixel's `masks` word), one tap with slope-scaled bias ([Shadow mapping mechanics]) or k×k
+// pixel's `masks` word), one tap (the map carries its slope-scaled bias, [Shadow mapping mechanics]) or k×k
 // bilinear PCF with receiver-plane depth bias ([Shadow acne notes]), or PCSS
 // (Fernando 2005; pcss.glsl). The lit
 // fraction's float bits replace the word: a shadow-map frame has no
@@ -18,17 +18,21 @@ layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
-layout(scalar, binding = B_SHADOW_MAP) readonly buffer MapBuf { uint shadow_map[]; };
+// The depth attachments, copied cascade after cascade (shadow_raster).
+layout(scalar, binding = B_SHADOW_MAP) readonly buffer MapBuf { float shadow_map[]; };
 
 #include "light_view.glsl"
 #include "shadow_map.glsl"
+
+// The map's depth mapping, set once in main.
+vec2 depth_range;
 
 // Stored distance of texel t of cascade k; +inf (lit) outside the map.
 float stored(uint k, ivec2 t) {
     int s = int(frame.map_side);
     if (t.x < 0 || t.y < 0 || t.x >= s || t.y >= s) return 1.0 / 0.0;
-    uint o = shadow_map[k * frame.map_side * frame.map_side + uint(t.y) * frame.map_side + uint(t.x)];
-    return o == MAP_EMPTY ? 1.0 / 0.0 : from_ordered_bits(o);
+    float depth = shadow_map[k * frame.map_side * frame.map_side + uint(t.y) * frame.map_side + uint(t.x)];
+    return map_distance(depth_range, depth);
 }
 
 // Integer texel of a floored coordinate, out of the map when not finite
@@ -43,17 +47,10 @@ float texel_world(vec2 texel, vec3 p) {
     return light.projection == 0u ? s : s * p.z;
 }
 
-float tan_to_light(vec3 p, vec3 n) {
-    vec3 to_light = light.projection == 0u ? vec3(0.0, 0.0, 1.0) : -(p * (1.0 / sqrt(dot3(p, p))));
-    float c = clamp(dot3(n, to_light), 1e-6, 1.0);
-    precise float t = sqrt(1.0 - c * c) / c;
-    return t;
-}
-
-float one_tap(uint k, vec2 origin, vec2 texel, vec3 p, vec3 n, vec2 ndc) {
+// One texel; the map carries the slope-scaled bias (raster::RasterBias).
+float one_tap(uint k, vec2 origin, vec2 texel, vec3 p, vec2 ndc) {
     float s = stored(k, texel_of(floor(texel_coords(origin, texel, ndc))));
-    float slope = min(tan_to_light(p, n), MAX_BIAS_SLOPE);
-    precise float bias = texel_world(texel, p) * (SLOPE_BIAS_TEXELS * slope + CONSTANT_BIAS_TEXELS);
+    precise float bias = texel_world(texel, p) * CONSTANT_BIAS_TEXELS;
     precise float limit = s + bias;
     return light_distance(p) <= limit ? 1.0 : 0.0;
 }
@@ -105,12 +102,13 @@ void main() {
     vec3 p = to_light_view(position);
     vec3 n = rotate(receiver_normal(triangle_normals[gbuffer_triangle(word)], word));
     float lit = 1.0;
+    depth_range = map_depth_range();
     if (light.projection == 0u || p.z > 0.0) {
         vec2 ndc = ndc_of(p);
         vec2 origin, texel;
         map_frame(k, origin, texel);
         if (frame.map_filter == 0u) {
-            lit = one_tap(k, origin, texel, p, n, ndc);
+            lit = one_tap(k, origin, texel, p, ndc);
         } else if (frame.map_filter == PCSS_FILTER) {
             lit = pcss(k, origin, texel, position, p, n, ndc);
         } else {

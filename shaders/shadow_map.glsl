@@ -1,15 +1,43 @@
 // shadow_map.glsl — the shadow-map baseline's arithmetic shared by
-// shadow_map.comp and shadow_lookup.comp: the GPU twin of
+// shadow_map.vert and shadow_lookup.comp: the GPU twin of
 // `baseline::shadow_map::{CascadeMap, light_distance, plane_distance,
-// texel_world, tan_to_light}`, same operation order, every product and sum
-// `precise` (no fused multiply-adds the CPU does not do). Include after
-// light_view.glsl.
+// texel_world}` and `baseline::raster::MapDepth`, same operation order,
+// every product and sum `precise` (no fused multiply-adds the CPU does not
+// do). Include after light_view.glsl.
 
-// baseline::shadow_map::{SLOPE_BIAS_TEXELS, MAX_BIAS_SLOPE, CONSTANT_BIAS_TEXELS}.
-#define SLOPE_BIAS_TEXELS 1.0
-#define MAX_BIAS_SLOPE 10.0
+// baseline::shadow_map::CONSTANT_BIAS_TEXELS.
 #define CONSTANT_BIAS_TEXELS 0.1
-#define MAP_EMPTY 0xFFFFFFFFu
+
+// raster::MapDepth::new: (near, range) of the map's depth. Orthographic:
+// the receivers' distances grown by MAP_DEPTH_MARGIN of (their span + the
+// first cascade's width) on each side; perspective: (near plane, unused).
+vec2 map_depth_range() {
+    float zmin = light.receiver_z[0], zmax = light.receiver_z[1];
+    if (light.projection != 0u) {
+        precise float n = zmin * 1e-3;
+        return vec2(n, 0.0);
+    }
+    precise float span = zmax - zmin;
+    precise vec2 e = light.cascade[0].ndc_max - light.cascade[0].ndc_min;
+    float extent = light.cascade_count > 0u ? max(e.x, e.y) : 0.0;
+    precise float margin = MAP_DEPTH_MARGIN * (span + extent);
+    if (!(margin > 0.0) || isinf(margin)) margin = 1.0;
+    precise float near = -zmax - margin;
+    precise float range = span + margin + margin;
+    return vec2(near, range);
+}
+
+// raster::MapDepth::distance: the light distance a stored depth stands
+// for, +inf for the cleared far end.
+float map_distance(vec2 range, float depth) {
+    if (light.projection == 0u) {
+        if (depth >= 1.0) return 1.0 / 0.0;
+        precise float d = range.x + depth * range.y;
+        return d;
+    }
+    if (depth <= 0.0) return 1.0 / 0.0;
+    return range.x / depth;
+}
 
 // glam's left-to-right dot and cross.
 float dot3(vec3 a, vec3 b) {

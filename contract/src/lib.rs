@@ -246,6 +246,10 @@ shared_constants! {
         /// Closest a receiver may come to the point light's image plane,
         /// relative to its distance range, before the grid is given up.
         MIN_PERSPECTIVE_DEPTH_RATIO = 1e-3;
+        /// Share of the receivers' depth range (plus the first cascade's
+        /// width) a directional light's shadow map grows its depth range
+        /// by on each side (`crate::baseline::raster::MapDepth`).
+        MAP_DEPTH_MARGIN = 1.0 / 16.0;
         /// Receivers per level-0 cell the default grid aims at.
         RECEIVERS_PER_CELL = 6.0;
         /// Triangles per level-0 cell the default grid aims at when the

@@ -17,6 +17,7 @@
 //! Vulkan twins are `crate::gpu::shadow_map` (see `paper-notes/baselines.md`).
 
 pub mod pcss;
+pub mod raster;
 pub mod shadow_map;
 
 use crate::cascades::CascadeCount;

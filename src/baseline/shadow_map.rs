@@ -1,18 +1,21 @@
 //! The two passes of a shadow map (Williams 1978, Reeves et al. 1987; [Shadow acne notes], [Shadow mapping mechanics], Agenjo 2020: paper-notes/references.md): `shadow_map`
-//! rasterises every triangle's distance to the light into one map per
-//! cascade, `shadow_lookup` compares each shadow-tested pixel against it.
+//! rasterises every triangle's depth into one map per cascade as the
+//! hardware rasteriser does ([`super::raster`]; on the GPU a depth-only
+//! render pass, `crate::gpu::shadow_raster`), `shadow_lookup` compares
+//! each shadow-tested pixel against it.
 //!
 //! The maps live in the IZB's own light view ([`LightSetup`]): the same
 //! rotation, the same receiver-fitted light-NDC bounds per cascade (a
 //! sample-distribution fit), so the baselines lose nothing to a looser fit
 //! than the IZB gets. A map texel is a square of light NDC; its stored value
-//! is the distance to the light (`-z` for a directional light, whose view
-//! `+z` points at it; `z` along a point light's axis) of the nearest surface
-//! through the texel centre: smaller is nearer the light.
+//! is the depth ([`MapDepth`]) of the nearest surface through the texel
+//! centre, which [`CascadeMap::at`] turns back into the distance to the
+//! light (`-z` for a directional light, whose view `+z` points at it; `z`
+//! along a point light's axis): smaller is nearer the light.
 
-use crate::gbuffer::{flags, GBuffer};
-// The GLSL twin's order-preserving float bits (for `fetch_min`).
+use super::raster::{raster_triangle, MapDepth, RasterBias, RasterTriangle};
 use crate::cpu::light_setup::{CascadeGrid, LightSetup, Projection};
+use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -42,30 +45,21 @@ impl Filter {
     }
 }
 
-/// Slope-scaled bias of the one-tap lookup, in texel widths: the
-/// receiver's depth changes by `texel · tanθ` per texel (θ between normal
-/// and light), and a lookup lands up to half a texel diagonal (0.71) from
-/// the centre the texel's depth was taken at. [Shadow mapping mechanics] scales with
-/// `1 − N·L`, which stays bounded where the real error grows without bound;
-/// `tanθ` is the slope factor of Vulkan's `depthBiasSlopeFactor`.
-pub const SLOPE_BIAS_TEXELS: f32 = 1.0;
-/// Largest `tanθ` the slope bias follows (84°): beyond it the bias would
-/// detach every shadow from its caster (peter-panning), so grazing
-/// receivers keep some acne, as in every engine.
-pub const MAX_BIAS_SLOPE: f32 = 10.0;
-/// Constant bias, in texel widths, on top of either bias: the
-/// quantisation of the stored depth to the texel centre's plane and the
-/// curvature of a receiver across one texel.
+/// Constant bias at lookup, in texel widths, on top of the map's own
+/// (the rasteriser's slope-scaled bias for one tap, the receiver plane for
+/// the filters): the curvature of a receiver across one texel and the
+/// interpolated depth's rounding.
 pub const CONSTANT_BIAS_TEXELS: f32 = 0.1;
 
-/// One cascade's map: `side`² distances, row-major, `+∞` where nothing was
-/// drawn.
+/// One cascade's map: `side`² depths, row-major, as the D32_SFLOAT
+/// attachment holds them ([`MapDepth`]).
 pub struct CascadeMap {
     pub side: u32,
     /// Light-NDC corner of texel (0, 0) and the NDC size of one texel.
     pub ndc_origin: Vec2,
     pub texel_ndc: Vec2,
-    pub distance: Vec<f32>,
+    pub map_depth: MapDepth,
+    pub depth: Vec<f32>,
 }
 
 impl CascadeMap {
@@ -100,7 +94,7 @@ impl CascadeMap {
         if x < 0 || y < 0 || x >= s || y >= s {
             f32::INFINITY
         } else {
-            self.distance[(y * s + x) as usize]
+            self.map_depth.distance(self.depth[(y * s + x) as usize])
         }
     }
 }
@@ -117,7 +111,7 @@ pub struct ShadowMaps {
 impl ShadowMaps {
     /// Bytes of map storage (4 per texel).
     pub fn bytes(&self) -> u64 {
-        self.maps.iter().map(|m| m.distance.len() as u64 * 4).sum()
+        self.maps.iter().map(|m| m.depth.len() as u64 * 4).sum()
     }
 }
 
@@ -160,7 +154,7 @@ pub(super) fn plane_distance(
 /// The square map of `grid` at `side`² texels, grown by `reach` texels on
 /// every side so a filtered lookup at the fitted bounds still reads drawn
 /// texels.
-fn cascade_frame(grid: &CascadeGrid, side: u32, reach: u32) -> CascadeMap {
+fn cascade_frame(grid: &CascadeGrid, side: u32, reach: u32, map_depth: MapDepth) -> CascadeMap {
     let extent = grid.ndc_max - grid.ndc_min;
     let inner = (side as f32 - 2.0 * reach as f32).max(1.0);
     let texel_ndc = extent / inner;
@@ -168,12 +162,14 @@ fn cascade_frame(grid: &CascadeGrid, side: u32, reach: u32) -> CascadeMap {
         side,
         ndc_origin: grid.ndc_min - texel_ndc * reach as f32,
         texel_ndc,
-        distance: Vec::new(),
+        map_depth,
+        depth: Vec::new(),
     }
 }
 
 /// Clips a light-view triangle to `z >= near` (point lights: only what is
-/// in front of the light projects); up to four vertices.
+/// in front of the light projects, as the rasteriser clips at its near
+/// plane); up to four vertices.
 fn clip_to_near(tri: [Vec3; 3], near: f32) -> Vec<Vec3> {
     let mut out = Vec::with_capacity(4);
     for i in 0..3 {
@@ -189,10 +185,28 @@ fn clip_to_near(tri: [Vec3; 3], near: f32) -> Vec<Vec3> {
     out
 }
 
+/// Where the rasteriser puts light-view point `q` in `map`, in texel
+/// coordinates: `shadow_map.vert`'s clip position, the division by `w`
+/// and the viewport transform, each rounded as the GPU rounds it (the
+/// texel coordinates computed directly differ in the last bits, which
+/// the sub-texel snap turns into whole steps now and then).
+fn framebuffer_position(projection: Projection, map: &CascadeMap, q: Vec3) -> Vec2 {
+    let half = map.side as f32 * 0.5;
+    let to_clip = 2.0 / map.side as f32;
+    let ndc = match projection {
+        Projection::Orthographic => map.texel_coords(Vec2::new(q.x, q.y)) * to_clip - 1.0,
+        Projection::Perspective => {
+            let tz = (Vec2::new(q.x, q.y) - map.ndc_origin * q.z) / map.texel_ndc;
+            (tz * to_clip - q.z) / q.z
+        }
+    };
+    ndc * half + half
+}
+
 /// Pass `shadow_map`: every triangle (eye-relative `f32`) drawn into every
-/// cascade's `side`² map (texel centres inside the projected triangle take
-/// the triangle plane's distance there, clamped to its vertices' range:
-/// nearest wins).
+/// cascade's `side`² map by the rules of the hardware rasteriser
+/// ([`super::raster`]): the nearest depth of each texel centre, biased as
+/// `filter`'s map is on the GPU.
 pub fn shadow_map(
     setup: &LightSetup,
     triangles: &[[Vec3; 3]],
@@ -200,64 +214,70 @@ pub fn shadow_map(
     filter: Filter,
 ) -> ShadowMaps {
     let texels = side as usize * side as usize;
+    let map_depth = MapDepth::new(setup);
     let mut maps: Vec<CascadeMap> = setup
         .cascades
         .iter()
-        .map(|g| cascade_frame(g, side, filter.reach()))
+        .map(|g| cascade_frame(g, side, filter.reach(), map_depth))
         .collect();
+    let projection = setup.projection;
+    let bias = RasterBias::for_map(projection, filter);
+    // Depths are non-negative, so their bits order as they do: the depth
+    // test is an atomic minimum (orthographic, LESS) or maximum (reversed
+    // perspective, GREATER) on the bits.
+    let clear = map_depth.clear().to_bits();
     let atomic: Vec<Vec<AtomicU32>> = maps
         .iter()
         .map(|_| {
             (0..texels)
                 .into_par_iter()
-                .map(|_| AtomicU32::new(u32::MAX))
+                .map(|_| AtomicU32::new(clear))
                 .collect()
         })
         .collect();
-    let projection = setup.projection;
-    // Point lights: geometry nearer than a thousandth of the nearest
-    // receiver's depth cannot project into a finite map.
-    let near = setup.receiver_z[0] * 1e-3;
     let counts = triangles
         .par_iter()
         .map(|tri| {
             let view = tri.map(|v| setup.to_light_view(v));
             let polygon = match projection {
                 Projection::Orthographic => view.to_vec(),
-                Projection::Perspective => clip_to_near(view, near),
+                Projection::Perspective => clip_to_near(view, map_depth.near),
             };
             if polygon.len() < 3 {
                 return (0usize, 0u64);
             }
-            let normal = (view[1] - view[0]).cross(view[2] - view[0]);
-            let (dmin, dmax) = view
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |a, &p| {
-                    let d = light_distance(projection, p);
-                    (a.0.min(d), a.1.max(d))
-                });
+            let depth: Vec<f32> = polygon.iter().map(|&p| map_depth.depth(p)).collect();
             let mut written = 0u64;
-            for (map, depth) in maps.iter().zip(&atomic) {
+            for (map, texels) in maps.iter().zip(&atomic) {
+                let texel: Vec<Vec2> = polygon
+                    .iter()
+                    .map(|&q| framebuffer_position(projection, map, q))
+                    .collect();
                 for k in 1..polygon.len() - 1 {
-                    let fan = [polygon[0], polygon[k], polygon[k + 1]];
-                    written +=
-                        draw_triangle(map, depth, projection, fan, view[0], normal, (dmin, dmax));
+                    let fan = RasterTriangle {
+                        texel: [texel[0], texel[k], texel[k + 1]],
+                        depth: [depth[0], depth[k], depth[k + 1]],
+                    };
+                    written += raster_triangle(&fan, side, projection, bias, |x, y, d| {
+                        let cell = &texels[(y * side + x) as usize];
+                        match projection {
+                            Projection::Orthographic => {
+                                cell.fetch_min(d.to_bits(), Ordering::Relaxed)
+                            }
+                            Projection::Perspective => {
+                                cell.fetch_max(d.to_bits(), Ordering::Relaxed)
+                            }
+                        };
+                    });
                 }
             }
             (1, written)
         })
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     for (map, depth) in maps.iter_mut().zip(atomic) {
-        map.distance = depth
+        map.depth = depth
             .into_par_iter()
-            .map(|a| {
-                let o = a.into_inner();
-                if o == u32::MAX {
-                    f32::INFINITY
-                } else {
-                    from_ordered_bits(o)
-                }
-            })
+            .map(|a| f32::from_bits(a.into_inner()))
             .collect();
     }
     ShadowMaps {
@@ -265,61 +285,6 @@ pub fn shadow_map(
         triangles_drawn: counts.0,
         texels_written: counts.1,
     }
-}
-
-/// Draws one (clipped) light-view triangle into `map`; returns texels
-/// written.
-fn draw_triangle(
-    map: &CascadeMap,
-    depth: &[AtomicU32],
-    projection: Projection,
-    fan: [Vec3; 3],
-    plane_point: Vec3,
-    plane_normal: Vec3,
-    (dmin, dmax): (f32, f32),
-) -> u64 {
-    let ndc = |p: Vec3| match projection {
-        Projection::Orthographic => Vec2::new(p.x, p.y),
-        Projection::Perspective => Vec2::new(p.x / p.z, p.y / p.z),
-    };
-    let t = fan.map(|p| map.texel_coords(ndc(p)));
-    let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
-    if !area.is_finite() || area == 0.0 {
-        return 0; // edge-on to the light: covers no texel centre
-    }
-    let lo = t[0].min(t[1]).min(t[2]);
-    let hi = t[0].max(t[1]).max(t[2]);
-    let side = map.side as f32;
-    if hi.x < 0.0 || hi.y < 0.0 || lo.x > side || lo.y > side {
-        return 0;
-    }
-    // Texel centres (x + 0.5) inside [lo, hi].
-    let x0 = (lo.x - 0.5).ceil().max(0.0) as i32;
-    let y0 = (lo.y - 0.5).ceil().max(0.0) as i32;
-    let x1 = (hi.x - 0.5).floor().min(side - 1.0) as i32;
-    let y1 = (hi.y - 0.5).floor().min(side - 1.0) as i32;
-    let sign = area.signum();
-    let mut written = 0;
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            let inside = (0..3).all(|e| {
-                let (a, b) = (t[e], t[(e + 1) % 3]);
-                sign * (b - a).perp_dot(c - a) >= 0.0
-            });
-            if !inside {
-                continue;
-            }
-            let n = map.texel_centre(x, y);
-            let d = plane_distance(projection, n, plane_point, plane_normal)
-                .unwrap_or(dmin)
-                .clamp(dmin, dmax);
-            depth[(y as u32 * map.side + x as u32) as usize]
-                .fetch_min(ordered_bits(d), Ordering::Relaxed);
-            written += 1;
-        }
-    }
-    written
 }
 
 /// World size of one texel of `map` at light-view point `p` (the larger
@@ -356,7 +321,7 @@ pub fn shadow_lookup(
                 return 1.0;
             };
             match filter {
-                Filter::OneTap => one_tap(setup.projection, map, p, n, ndc),
+                Filter::OneTap => one_tap(setup.projection, map, p, ndc),
                 Filter::Pcf(k) => pcf(setup.projection, map, p, n, ndc, k),
                 Filter::Pcss => super::pcss::pcss(setup, light, map, g.position[i], p, n, ndc),
             }
@@ -364,23 +329,12 @@ pub fn shadow_lookup(
         .collect()
 }
 
-/// tanθ between the receiver normal `n` and the direction to the light.
-#[inline]
-fn tan_to_light(projection: Projection, p: Vec3, n: Vec3) -> f32 {
-    let to_light = match projection {
-        Projection::Orthographic => Vec3::Z,
-        Projection::Perspective => -p.normalize(),
-    };
-    let cos = n.dot(to_light).clamp(1e-6, 1.0);
-    (1.0 - cos * cos).sqrt() / cos
-}
-
-/// One texel, slope-scaled bias ([Shadow mapping mechanics]).
-fn one_tap(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2) -> f32 {
+/// One texel; the map carries the slope-scaled bias
+/// ([`RasterBias::for_map`], [Shadow mapping mechanics]).
+fn one_tap(projection: Projection, map: &CascadeMap, p: Vec3, ndc: Vec2) -> f32 {
     let (x, y) = map.texel_of(map.texel_coords(ndc).floor());
     let stored = map.at(x, y);
-    let slope = tan_to_light(projection, p, n).min(MAX_BIAS_SLOPE);
-    let bias = texel_world(map, projection, p) * (SLOPE_BIAS_TEXELS * slope + CONSTANT_BIAS_TEXELS);
+    let bias = texel_world(map, projection, p) * CONSTANT_BIAS_TEXELS;
     let lit = light_distance(projection, p) <= stored + bias;
     lit as u32 as f32
 }

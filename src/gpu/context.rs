@@ -60,6 +60,10 @@ pub struct DeviceShared {
     messages: Box<Mutex<Vec<String>>>,
     pub info: DeviceInfo,
     pub limits: vk::PhysicalDeviceLimits,
+    /// Why the shadow-map baselines cannot draw on this device's
+    /// rasteriser (no graphics queue beside compute, no depth clamp), or
+    /// `None` when they can (`crate::gpu::shadow_raster`).
+    pub raster_missing: Option<String>,
     /// Nanoseconds per timestamp tick; `None` when the queue has no
     /// timestamps.
     pub timestamp_period_ns: Option<f64>,
@@ -236,6 +240,8 @@ const REQUIRED_SUBGROUP_OPERATIONS: vk::SubgroupFeatureFlags = vk::SubgroupFeatu
 struct Candidate {
     physical: vk::PhysicalDevice,
     queue_family: u32,
+    raster_missing: Option<String>,
+    depth_clamp: bool,
     rank: u32,
     info: DeviceInfo,
     limits: vk::PhysicalDeviceLimits,
@@ -257,6 +263,7 @@ fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
         let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12);
         // SAFETY: as above; the feature chain outlives the call.
         unsafe { instance.get_physical_device_features2(physical, &mut f2) };
+        let depth_clamp = f2.features.depth_clamp == vk::TRUE;
         if f12.scalar_block_layout == vk::FALSE {
             continue;
         }
@@ -277,12 +284,28 @@ fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
         }
         // SAFETY: as above.
         let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+        // A family with graphics beside compute when there is one: the
+        // shadow-map baselines draw their maps on the rasteriser.
+        let graphics = vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS;
         let Some((family, family_props)) = families
             .iter()
             .enumerate()
-            .find(|(_, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+            .find(|(_, f)| f.queue_flags.contains(graphics))
+            .or_else(|| {
+                families
+                    .iter()
+                    .enumerate()
+                    .find(|(_, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+            })
         else {
             continue;
+        };
+        let raster_missing = if !family_props.queue_flags.contains(graphics) {
+            Some("no queue family of this device has graphics beside compute".to_string())
+        } else if !depth_clamp {
+            Some("this device has no depthClamp (a directional light's map clamps casters in front of its depth range)".to_string())
+        } else {
+            None
         };
         let (rank, kind) = device_kind(props.device_type);
         let name = props
@@ -292,6 +315,8 @@ fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
         out.push(Candidate {
             physical,
             queue_family: family as u32,
+            raster_missing,
+            depth_clamp,
             rank,
             info: DeviceInfo {
                 index: 0,
@@ -421,8 +446,10 @@ impl GpuContext {
             .queue_family_index(chosen.queue_family)
             .queue_priorities(&priorities)];
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default().scalar_block_layout(true);
+        let features = vk::PhysicalDeviceFeatures::default().depth_clamp(chosen.depth_clamp);
         let device_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
+            .enabled_features(&features)
             .push_next(&mut f12);
         // SAFETY: `chosen.physical` comes from `instance`; `device_info` and
         // the feature chain it points to outlive the call.
@@ -482,6 +509,7 @@ impl GpuContext {
                 .then_some(chosen.limits.timestamp_period as f64),
             info: chosen.info,
             limits: chosen.limits,
+            raster_missing: chosen.raster_missing,
         });
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(shared.queue_family)

@@ -12,6 +12,7 @@ use super::frame_inputs::{
 };
 pub use super::frame_memory::{frame_buffer_descs, planned_memory, FrameSizes};
 use super::frame_memory::{initial_cell_capacity, memory_by_pass};
+use super::frame_report::{FrameOutput, FramePasses};
 pub use super::frame_report::{
     GpuCascadeSummary, GpuCounters, GpuLightSummary, GpuPassMillis, GpuRender, GpuRenderReport,
     GpuShadowMapRender, PassMemory,
@@ -21,7 +22,6 @@ use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{self, binding, counter, LightState};
 use super::timestamps::{StepMarks, TimestampPool};
 use super::{GpuError, Kernels, Recorder};
-use crate::baseline::ShadowMapSettings;
 use crate::gbuffer::GBuffer;
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
@@ -45,12 +45,17 @@ pub enum GBufferSource<'a> {
 pub struct GpuRenderer {
     // Field order is drop order: pipelines before the device.
     pub kernels: Kernels,
+    /// The shadow maps' depth-only pass, or why this device has none.
+    pub(super) raster: Result<super::shadow_raster::ShadowRaster, String>,
     pub layout: BindingLayout,
     pub context: GpuContext,
     /// Repetitions of the passes per frame ([`GpuRenderer::timed`]).
     timed_repeats: u32,
     /// `FrameParams::heavy_entries` of every frame.
     heavy_entries: u32,
+    /// Whether shadow-map frames read their maps back
+    /// ([`GpuShadowMapRender::maps`]).
+    read_back_maps: bool,
 }
 
 /// The frame's device buffers, one per binding, in binding order.
@@ -74,13 +79,17 @@ impl GpuRenderer {
         let context = GpuContext::new(options)?;
         let layout = BindingLayout::new(&context.shared)?;
         let kernels = Kernels::new(&context.shared, &layout)?;
+        let raster = super::shadow_raster::ShadowRaster::new(&context.shared, &layout)
+            .map_err(|e| e.to_string());
         let heavy_entries = heavy_entries(context.info(), options.heavy_entries);
         Ok(GpuRenderer {
             kernels,
+            raster,
             layout,
             context,
             timed_repeats: 1,
             heavy_entries,
+            read_back_maps: false,
         })
     }
 
@@ -94,6 +103,11 @@ impl GpuRenderer {
     pub fn timed(mut self, repeats: u32) -> Self {
         self.timed_repeats = repeats.max(1);
         self
+    }
+
+    /// For the twin tests: shadow-map frames read their depth maps back.
+    pub fn read_back_shadow_maps(&mut self, on: bool) {
+        self.read_back_maps = on;
     }
 
     pub(super) fn shared(&self) -> &Arc<DeviceShared> {
@@ -262,6 +276,10 @@ impl GpuRenderer {
         let refs: [&GpuBuffer; super::shared::BINDING_COUNT as usize] =
             std::array::from_fn(|b| fb.get(b as u32));
         let set = DescriptorSet::new(shared, &self.layout, &refs)?;
+        let depth_target = match passes {
+            FramePasses::ShadowMap(map) => Some(self.depth_target(map)?),
+            _ => None,
+        };
 
         // Uploads through staging buffers, kept alive until the fence.
         let mut params = frame_params(
@@ -310,19 +328,22 @@ impl GpuRenderer {
             stage(binding::G_ID_FLAGS, as_bytes(&words))?;
         }
 
+        let maps_back = self.read_back_maps && matches!(passes, FramePasses::ShadowMap(_));
         let readback_of = [
-            binding::COUNTERS,
-            binding::LIGHT,
-            binding::MASKS,
-            binding::MASKS_HIGH,
-            binding::SHADED,
-            binding::G_POSITION,
-            binding::G_AXIS_X,
-            binding::G_AXIS_Y,
-            binding::G_ID_FLAGS,
+            maps_back.then_some(binding::SHADOW_MAP),
+            Some(binding::COUNTERS),
+            Some(binding::LIGHT),
+            Some(binding::MASKS),
+            Some(binding::MASKS_HIGH),
+            Some(binding::SHADED),
+            Some(binding::G_POSITION),
+            Some(binding::G_AXIS_X),
+            Some(binding::G_AXIS_Y),
+            Some(binding::G_ID_FLAGS),
         ];
         let readbacks: Vec<(GpuBuffer, u32)> = readback_of
             .iter()
+            .flatten()
             .map(|&b| {
                 GpuBuffer::new(
                     shared,
@@ -410,8 +431,11 @@ impl GpuRenderer {
                         mark(4);
                         super::resolve::resolve(&rec, &self.kernels, [w, h]);
                     }
-                    FramePasses::ShadowMap(_) => {
-                        super::shadow_map::shadow_map(&rec, &self.kernels, triangles.len() as u32);
+                    FramePasses::ShadowMap(map) => {
+                        let (raster, target) = depth_target.as_ref().expect("made above");
+                        let map_buffer = fb.get(binding::SHADOW_MAP).buffer;
+                        let drawn = (triangles.len() as u32, params.light_is_point != 0);
+                        super::shadow_map::shadow_map(&rec, raster, target, map_buffer, drawn, map);
                         mark(3);
                         super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
                         mark(4);
@@ -471,7 +495,14 @@ impl GpuRenderer {
             bytemuck::pod_collect_to_vec(&read(binding::COUNTERS)?[..counter::WORDS * 4]);
         let light: LightState =
             bytemuck::pod_read_unaligned(&read(binding::LIGHT)?[..size_of::<LightState>()]);
-        let memory = memory_by_pass(&frame_buffers.buffers);
+        let mut memory = memory_by_pass(&frame_buffers.buffers);
+        if let Some((_, target)) = &depth_target {
+            memory.push(super::frame_report::PassMemory {
+                pass: "shadow_map",
+                bytes: target.bytes,
+                buffers: vec![("shadow_map depth layers (image)", target.bytes)],
+            });
+        }
         Ok(FrameOutput {
             counters,
             light,
@@ -486,6 +517,10 @@ impl GpuRenderer {
             axis_x: vec3s(binding::G_AXIS_X)?,
             axis_y: vec3s(binding::G_AXIS_Y)?,
             id_flags: words(binding::G_ID_FLAGS)?,
+            shadow_maps: match maps_back {
+                true => bytemuck::pod_collect_to_vec(read(binding::SHADOW_MAP)?),
+                false => Vec::new(),
+            },
             millis,
             step_millis,
             wall_seconds,
@@ -494,70 +529,14 @@ impl GpuRenderer {
     }
 }
 
-/// Which passes follow the G-buffer and light setup in a frame.
-#[derive(Clone, Copy, Debug)]
-pub(super) enum FramePasses {
-    /// bin, evaluate, resolve.
-    Izb,
-    /// The shadow-map baseline: raster, lookup.
-    ShadowMap(ShadowMapSettings),
-    /// The `rt32-rays` peer: shadow rays in the evaluate slot, resolve.
-    ShadowRays,
-}
-
-impl FramePasses {
-    pub(super) fn shadow_map_texels(&self) -> u64 {
-        match self {
-            FramePasses::Izb | FramePasses::ShadowRays => 0,
-            FramePasses::ShadowMap(s) => u64::from(s.cascades) * u64::from(s.side).pow(2),
-        }
-    }
-}
-
-/// What one frame read back.
-pub(super) struct FrameOutput {
-    pub(super) counters: Vec<u32>,
-    pub(super) light: LightState,
-    pub(super) masks: Vec<u32>,
-    /// Bits 32–63 of `MODE_PAIRED64` masks, empty otherwise.
-    pub(super) masks_high: Vec<u32>,
-    pub(super) shaded: Vec<u32>,
-    pub(super) position: Vec<Vec3>,
-    pub(super) axis_x: Vec<Vec3>,
-    pub(super) axis_y: Vec<Vec3>,
-    pub(super) id_flags: Vec<u32>,
-    pub(super) millis: Option<GpuPassMillis>,
-    /// Per dispatch of the timed repetition: kernel and milliseconds.
-    pub(super) step_millis: Vec<(String, f64)>,
-    pub(super) wall_seconds: f64,
-    pub(super) memory: Vec<PassMemory>,
-}
-
-impl FrameOutput {
-    /// `value(words[i])` for every shadow-tested pixel i, NaN elsewhere.
-    pub(super) fn per_tested_pixel(&self, words: &[u32], value: impl Fn(u32) -> f32) -> Vec<f32> {
-        words
-            .iter()
-            .zip(&self.id_flags)
-            .map(|(&w, &id_flags)| {
-                let (_, f) = shared::unpack_id_flags(id_flags);
-                if f & crate::gbuffer::flags::SHADOW_TESTED != 0 {
-                    value(w)
-                } else {
-                    f32::NAN
-                }
-            })
-            .collect()
-    }
-}
-
 /// Timestamps of one repetition of a frame's passes: before the G-buffer,
 /// then after each pass.
 const TIMESTAMPS_PER_FRAME: u32 = 6;
 
 /// What the passes accumulate into, back to its starting state: counters
-/// 0, empty cell counts, no cover triangle, no receiver, empty shadow-map
-/// texels. (The light state is copied again from its upload.)
+/// 0, empty cell counts, no cover triangle, no receiver. (The light state
+/// is copied again from its upload; the shadow maps are cleared by their
+/// render pass.)
 fn reset_pass_state(device: &ash::Device, cmd: vk::CommandBuffer, fb: &FrameBuffers) {
     let fills = [
         (binding::COUNTERS, 0),
@@ -566,8 +545,6 @@ fn reset_pass_state(device: &ash::Device, cmd: vk::CommandBuffer, fb: &FrameBuff
         (binding::CELL_COVER, 0),
         // z = ~0, reach 0 stored as !0.
         (binding::CELL_RECEIVERS, u32::MAX),
-        // The largest ordered distance.
-        (binding::SHADOW_MAP, u32::MAX),
     ];
     for (b, word) in fills {
         // SAFETY: `cmd` is recording; the buffer belongs to the frame and

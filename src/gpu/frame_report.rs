@@ -2,13 +2,16 @@
 //! setup as the GPU fitted it, memory per pass; and the step that turns a
 //! frame's read-backs into that report.
 
-use super::frame::{FrameOutput, GBufferSource, GpuRenderer};
+use super::frame::{GBufferSource, GpuRenderer};
 use super::frame_inputs::SceneUpload;
+use super::shared::LightState;
 use super::shared::{self, counter};
+use crate::baseline::ShadowMapSettings;
 use crate::cascades::CascadeChoice;
 use crate::gbuffer::{flags, GBuffer, GBufferStats};
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
+use glam::Vec3;
 
 /// Per-pass GPU milliseconds from timestamp queries.
 pub type GpuPassMillis = crate::settings::PassTimes;
@@ -177,6 +180,10 @@ pub struct GpuShadowMapRender {
     pub wall_seconds: f64,
     pub map_bytes: u64,
     pub memory_total_bytes: u64,
+    /// The depth maps, cascade after cascade, `side`² each, row-major, as
+    /// the depth attachments held them; empty unless
+    /// [`GpuRenderer::read_back_shadow_maps`] asked for them.
+    pub maps: Vec<f32>,
 }
 
 impl GpuRenderer {
@@ -358,5 +365,64 @@ pub(super) fn read_back_gbuffer(
                 },
             }
         }
+    }
+}
+
+/// Which passes follow the G-buffer and light setup in a frame.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum FramePasses {
+    /// bin, evaluate, resolve.
+    Izb,
+    /// The shadow-map baseline: raster, lookup.
+    ShadowMap(ShadowMapSettings),
+    /// The `rt32-rays` peer: shadow rays in the evaluate slot, resolve.
+    ShadowRays,
+}
+
+impl FramePasses {
+    pub(super) fn shadow_map_texels(&self) -> u64 {
+        match self {
+            FramePasses::Izb | FramePasses::ShadowRays => 0,
+            FramePasses::ShadowMap(s) => u64::from(s.cascades) * u64::from(s.side).pow(2),
+        }
+    }
+}
+
+/// What one frame read back.
+pub(super) struct FrameOutput {
+    pub(super) counters: Vec<u32>,
+    pub(super) light: LightState,
+    pub(super) masks: Vec<u32>,
+    /// Bits 32–63 of `MODE_PAIRED64` masks, empty otherwise.
+    pub(super) masks_high: Vec<u32>,
+    pub(super) shaded: Vec<u32>,
+    pub(super) position: Vec<Vec3>,
+    pub(super) axis_x: Vec<Vec3>,
+    pub(super) axis_y: Vec<Vec3>,
+    pub(super) id_flags: Vec<u32>,
+    /// The shadow maps' depths when asked for, else empty.
+    pub(super) shadow_maps: Vec<f32>,
+    pub(super) millis: Option<GpuPassMillis>,
+    /// Per dispatch of the timed repetition: kernel and milliseconds.
+    pub(super) step_millis: Vec<(String, f64)>,
+    pub(super) wall_seconds: f64,
+    pub(super) memory: Vec<PassMemory>,
+}
+
+impl FrameOutput {
+    /// `value(words[i])` for every shadow-tested pixel i, NaN elsewhere.
+    pub(super) fn per_tested_pixel(&self, words: &[u32], value: impl Fn(u32) -> f32) -> Vec<f32> {
+        words
+            .iter()
+            .zip(&self.id_flags)
+            .map(|(&w, &id_flags)| {
+                let (_, f) = shared::unpack_id_flags(id_flags);
+                if f & crate::gbuffer::flags::SHADOW_TESTED != 0 {
+                    value(w)
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect()
     }
 }

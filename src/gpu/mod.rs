@@ -9,6 +9,10 @@
 //! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |
 //! | 4 | [`resolve`] | `resolve.comp` | [`crate::cpu::resolve`], [`crate::output::shade_pixel`] |
 //!
+//! The baselines' passes sit beside them: [`shadow_map`] (the one
+//! graphics pipeline, a depth-only pass on the hardware rasteriser,
+//! [`shadow_raster`]; its lookup is compute) and [`shadow_rays`].
+//!
 //! A frame is one command buffer: uploads, the five passes with timestamps
 //! between them, and the read-backs; nothing is read back inside it (the
 //! light view and grid are fitted on the GPU). [`frame::GpuRenderer`] runs
@@ -29,6 +33,7 @@ pub mod pipeline;
 pub mod resolve;
 pub mod resources;
 pub mod shadow_map;
+pub mod shadow_raster;
 pub mod shadow_rays;
 pub mod shared;
 mod timestamps;
@@ -145,7 +150,6 @@ pub struct Kernels {
     pub evaluate_high: ComputeKernel,
     pub evaluate_heavy_high: ComputeKernel,
     pub resolve: ComputeKernel,
-    pub shadow_map: ComputeKernel,
     pub shadow_lookup: ComputeKernel,
     pub shadow_rays: ComputeKernel,
 }
@@ -174,7 +178,6 @@ impl Kernels {
             evaluate_high: k("evaluate_high", spirv!("evaluate_high"))?,
             evaluate_heavy_high: k("evaluate_heavy_high", spirv!("evaluate_heavy_high"))?,
             resolve: k("resolve", spirv!("resolve"))?,
-            shadow_map: k("shadow_map", spirv!("shadow_map"))?,
             shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,
             shadow_rays: k("shadow_rays", spirv!("shadow_rays"))?,
         })

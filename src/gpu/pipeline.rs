@@ -25,7 +25,9 @@ impl BindingLayout {
                     .binding(b)
                     .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
                     .descriptor_count(1)
-                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+                    // The shadow map's depth-only pass reads the frame,
+                    // the triangles and the light state in its vertex shader.
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE | vk::ShaderStageFlags::VERTEX)
             })
             .collect();
         let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);

@@ -1,23 +1,24 @@
-//! The shadow-map baseline on the GPU (`shaders/shadow_map.comp`,
+//! The shadow-map baseline on the GPU (`shaders/shadow_map.vert` on the
+//! hardware rasteriser, [`super::shadow_raster`];
 //! `shaders/shadow_lookup.comp`): the twins of
 //! [`crate::baseline::shadow_map::shadow_map`] and
 //! [`crate::baseline::shadow_map::shadow_lookup`], run after the IZB's own
 //! G-buffer and light-setup passes in a frame of their own
 //! ([`GpuRenderer::render_shadow_map`], below).
 
-use super::frame::{FramePasses, GBufferSource, GpuRenderer, GpuShadowMapRender};
+use super::frame::{GBufferSource, GpuRenderer, GpuShadowMapRender};
+use super::frame_report::FramePasses;
 use super::frame_report::ShadowMapMillis;
+use super::shadow_raster::{ShadowDepthTarget, ShadowRaster};
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::pcss::PcssLight;
+use crate::baseline::raster::RasterBias;
 use crate::baseline::{Filter, ShadowMapSettings};
+use crate::cpu::light_setup::Projection;
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
 use glam::Vec3;
 use izb_contract::{FrameParams, GpuTriangle};
-
-/// Most workgroups along x (the Vulkan minimum of
-/// `maxComputeWorkGroupCount[0]`); more triangles go on in y.
-const MAX_GROUPS_X: u32 = 65_535;
 
 /// The shadow-map fields of `params` for `map`: side, filter code, margin
 /// and, for PCSS, the light ([`PcssLight`], computed from the uploaded
@@ -46,13 +47,23 @@ pub(super) fn map_params(
     }
 }
 
-/// Records the raster pass: one 64-invocation workgroup per triangle.
-pub fn shadow_map(rec: &Recorder, kernels: &Kernels, triangles: u32) {
-    rec.begin_label("shadow_map");
-    let x = triangles.clamp(1, MAX_GROUPS_X);
-    rec.dispatch(&kernels.shadow_map, [x, triangles.div_ceil(x).max(1), 1]);
-    rec.barrier();
-    rec.end_label();
+/// Records the raster pass of `map`: `drawn` is the triangle count and
+/// whether the light is a point light (perspective map).
+pub fn shadow_map(
+    rec: &Recorder,
+    raster: &ShadowRaster,
+    target: &ShadowDepthTarget,
+    map_buffer: ash::vk::Buffer,
+    (triangles, point_light): (u32, bool),
+    map: ShadowMapSettings,
+) {
+    let projection = if point_light {
+        Projection::Perspective
+    } else {
+        Projection::Orthographic
+    };
+    let bias = RasterBias::for_map(projection, map.filter);
+    super::shadow_raster::shadow_map(rec, raster, target, map_buffer, triangles, projection, bias);
 }
 
 /// Records the lookup pass: one invocation per pixel.
@@ -64,6 +75,18 @@ pub fn shadow_lookup(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
 }
 
 impl GpuRenderer {
+    /// The raster pass and a depth target for `map`, or why not.
+    pub(super) fn depth_target(
+        &self,
+        map: ShadowMapSettings,
+    ) -> Result<(&ShadowRaster, ShadowDepthTarget), GpuError> {
+        let raster = self.raster.as_ref().map_err(|why| {
+            GpuError::Unsupported(format!("{map} draws on the rasteriser, and {why}"))
+        })?;
+        let target = ShadowDepthTarget::new(self.shared(), raster, map.side, map.cascades)?;
+        Ok((raster, target))
+    }
+
     /// Renders the shadow-map baseline `map` on the GPU: the IZB's
     /// G-buffer and light setup (with `map.cascades` cascades), then the
     /// raster and lookup passes; the twin of
@@ -114,6 +137,7 @@ impl GpuRenderer {
             wall_seconds: out.wall_seconds,
             map_bytes,
             memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
+            maps: std::mem::take(&mut out.shadow_maps),
         })
     }
 }

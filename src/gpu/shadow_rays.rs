@@ -6,7 +6,8 @@
 //! slot, followed by resolve
 //! ([`GpuRenderer::render_shadow_rays`]).
 
-use super::frame::{FramePasses, GBufferSource, GpuRenderer};
+use super::frame::{GBufferSource, GpuRenderer};
+use super::frame_report::FramePasses;
 use super::frame_report::GpuPassMillis;
 use super::shared;
 use super::{GpuError, Kernels, Recorder};
