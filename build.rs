@@ -137,6 +137,8 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ),
     ("resolve", "resolve.comp", &[]),
     ("shadow_map", "shadow_map.vert", &[]),
+    ("shadow_blur_x", "shadow_blur.comp", &[("STEP_X", "1")]),
+    ("shadow_blur_y", "shadow_blur.comp", &[("STEP_Y", "1")]),
     ("shadow_lookup", "shadow_lookup.comp", &[]),
     ("shadow_rays", "shadow_rays.comp", &[]),
 ];

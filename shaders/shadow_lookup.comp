@@ -4,7 +4,7 @@
 // fraction from its cascade's map (the cascade light_setup stored in the
 // pixel's `masks` word), one tap (the map carries its slope-scaled bias, [Shadow mapping mechanics]) or k×k
 // bilinear PCF with receiver-plane depth bias ([Shadow acne notes]), or PCSS
-// (Fernando 2005; pcss.glsl). The lit
+// (Fernando 2005; pcss.glsl), or a filtered map's moments (moments.glsl). The lit
 // fraction's float bits replace the word: a shadow-map frame has no
 // occlusion masks.
 #extension GL_GOOGLE_include_directive : require
@@ -87,6 +87,7 @@ float pcf(uint k, vec2 origin, vec2 texel, vec3 p, vec3 n, vec2 ndc, uint size) 
 }
 
 #include "pcss.glsl"
+#include "moments.glsl"
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
@@ -109,6 +110,8 @@ void main() {
         map_frame(k, origin, texel);
         if (frame.map_filter == 0u) {
             lit = one_tap(k, origin, texel, p, ndc);
+        } else if (frame.map_filter == MAP_FILTER_VSM || frame.map_filter == MAP_FILTER_MSM) {
+            lit = moments_lookup(k, origin, texel, p, ndc);
         } else if (frame.map_filter == PCSS_FILTER) {
             lit = pcss(k, origin, texel, position, p, n, ndc);
         } else {

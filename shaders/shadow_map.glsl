@@ -92,3 +92,41 @@ float plane_distance(vec2 n, vec3 point, vec3 normal) {
 bool finite(float x) {
     return !isnan(x) && !isinf(x);
 }
+
+// moments::MomentDepth: (lo, range) of the moment depth u. A directional
+// light's is the map's own depth range; a point light's is the receivers'
+// distances grown by MAP_DEPTH_MARGIN of (their span + the nearest).
+vec2 moment_depth_range() {
+    if (light.projection == 0u) return map_depth_range();
+    float zmin = light.receiver_z[0], zmax = light.receiver_z[1];
+    precise float span = zmax - zmin;
+    precise float margin = MAP_DEPTH_MARGIN * (span + zmin);
+    if (!(margin > 0.0) || isinf(margin)) margin = 1.0;
+    precise float lo = zmin - margin;
+    precise float range = span + margin + margin;
+    return vec2(lo, range);
+}
+
+// MomentDepth::of_distance.
+float moment_of_distance(vec2 moment_range, float d) {
+    precise float u = (d - moment_range.x) / moment_range.y;
+    return isnan(u) ? 1.0 : clamp(u, 0.0, 1.0);
+}
+
+// MomentDepth::of_stored.
+float moment_of_stored(vec2 depth_range, vec2 moment_range, float depth) {
+    if (light.projection == 0u) return min(depth, 1.0);
+    return moment_of_distance(moment_range, map_distance(depth_range, depth));
+}
+
+// Moments a filtered map keeps per texel (Filter::moments).
+uint moment_count() {
+    return frame.map_filter == MAP_FILTER_MSM ? 4u : 2u;
+}
+
+// The SHADOW_MAP buffer of a filtered map: the depths (one word per
+// texel of every cascade), then the blur's rows, then its result (moment
+// count words per texel each).
+uint map_texels() {
+    return light.cascade_count * frame.map_side * frame.map_side;
+}

@@ -10,12 +10,16 @@
 //!   distribution), 3×3 PCF;
 //! - `pcss-R`: percentage-closer soft shadows (Fernando 2005) for area
 //!   lights: a blocker search sized by the light, a penumbra estimate, a
-//!   PCF disk of that size ([`pcss`]).
+//!   PCF disk of that size ([`pcss`]);
+//! - `vsm-R`, `msm-R`: variance (Donnelly & Lauritzen 2006) and moment
+//!   (Peters & Klein 2015) shadow maps, blurred by a 9² Gaussian
+//!   ([`moments`]).
 //!
 //! `R` is the side of each map in texels. The passes are
 //! [`shadow_map::shadow_map`] and [`shadow_map::shadow_lookup`]; their
 //! Vulkan twins are `crate::gpu::shadow_map` (see `paper-notes/baselines.md`).
 
+pub mod moments;
 pub mod pcss;
 pub mod raster;
 pub mod shadow_map;
@@ -48,10 +52,11 @@ pub struct ShadowMapSettings {
 
 impl ShadowMapSettings {
     /// Parses a method name: `sm-R`, `pcf3-R`, `pcf5-R`, `csmN-pcfK-R`,
-    /// `pcss-R` (one map, R ≥ [`PCSS_MIN_SIDE`]).
+    /// `pcss-R` (one map, R ≥ [`PCSS_MIN_SIDE`]), `vsm-R`, `msm-R` (and
+    /// their cascaded `csmN-…`).
     pub fn parse(name: &str) -> Result<ShadowMapSettings, String> {
         let bad = || {
-            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R, pcss-R; R a side 16..={MAX_MAP_SIDE})")
+            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R, pcss-R, vsm-R, msm-R, csmN-vsm-R, csmN-msm-R; R a side 16..={MAX_MAP_SIDE})")
         };
         let mut parts: Vec<&str> = name.split('-').collect();
         let side: u32 = parts.pop().and_then(|s| s.parse().ok()).ok_or_else(bad)?;
@@ -68,6 +73,8 @@ impl ShadowMapSettings {
         }
         let filter = match parts.as_slice() {
             ["sm"] => Filter::OneTap,
+            ["vsm"] => Filter::Vsm,
+            ["msm"] => Filter::Msm,
             ["pcss"] => {
                 if cascades > 1 {
                     return Err(format!(
@@ -106,6 +113,8 @@ impl fmt::Display for ShadowMapSettings {
             Filter::OneTap => write!(f, "sm-{}", self.side),
             Filter::Pcf(k) => write!(f, "pcf{k}-{}", self.side),
             Filter::Pcss => write!(f, "pcss-{}", self.side),
+            Filter::Vsm => write!(f, "vsm-{}", self.side),
+            Filter::Msm => write!(f, "msm-{}", self.side),
         }
     }
 }
@@ -166,7 +175,10 @@ pub fn render_shadow_map(
     let t = Instant::now();
     let triangles = eye_relative_f32(scene);
     let pcss_light = pcss::PcssLight::new(scene, triangles.iter().flatten().copied());
-    let maps = shadow_map::shadow_map(&setup, &triangles, settings.side, settings.filter);
+    let mut maps = shadow_map::shadow_map(&setup, &triangles, settings.side, settings.filter);
+    if let Some(kind) = settings.filter.moments() {
+        maps.moments = moments::shadow_blur(&setup, &maps, kind);
+    }
     let shadow_map_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let visibility = if g.flags.iter().any(|f| f & flags::SHADOW_TESTED != 0) {

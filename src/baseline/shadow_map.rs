@@ -13,6 +13,7 @@
 //! light (`-z` for a directional light, whose view `+z` points at it; `z`
 //! along a point light's axis): smaller is nearer the light.
 
+use super::moments::{moments_lookup, MomentDepth, MomentKind};
 use super::raster::{raster_triangle, MapDepth, RasterBias, RasterTriangle};
 use crate::cpu::light_setup::{CascadeGrid, LightSetup, Projection};
 use crate::gbuffer::{flags, GBuffer};
@@ -32,6 +33,12 @@ pub enum Filter {
     /// penumbra estimate, Poisson-disk PCF of that width
     /// ([`super::pcss`]).
     Pcss,
+    /// Variance shadow map, blurred, light-bleeding reduction
+    /// ([`super::moments`]).
+    Vsm,
+    /// Moment shadow map, four moments, blurred, Hamburger
+    /// reconstruction ([`super::moments`]).
+    Msm,
 }
 
 impl Filter {
@@ -41,6 +48,17 @@ impl Filter {
             Filter::OneTap => 0,
             Filter::Pcf(k) => k / 2 + 1,
             Filter::Pcss => izb_contract::pcss::MAX_RADIUS_TEXELS,
+            // The blur's taps and the bilinear lookup's second texel.
+            Filter::Vsm | Filter::Msm => izb_contract::filtered::BLUR_RADIUS + 1,
+        }
+    }
+
+    /// The moments a filtered map keeps, `None` for the others.
+    pub fn moments(self) -> Option<MomentKind> {
+        match self {
+            Filter::Vsm => Some(MomentKind::Variance),
+            Filter::Msm => Some(MomentKind::FourMoments),
+            _ => None,
         }
     }
 }
@@ -106,18 +124,22 @@ pub struct ShadowMaps {
     /// texels written.
     pub triangles_drawn: usize,
     pub texels_written: u64,
+    /// A filtered map's blurred moments per cascade (pass
+    /// [`super::moments::shadow_blur`]); empty for the others.
+    pub moments: Vec<Vec<f32>>,
 }
 
 impl ShadowMaps {
-    /// Bytes of map storage (4 per texel).
+    /// Bytes of map storage (4 per texel, and 4 per moment).
     pub fn bytes(&self) -> u64 {
-        self.maps.iter().map(|m| m.depth.len() as u64 * 4).sum()
+        let depths: u64 = self.maps.iter().map(|m| m.depth.len() as u64 * 4).sum();
+        depths + self.moments.iter().map(|m| m.len() as u64 * 4).sum::<u64>()
     }
 }
 
 /// Distance to the light of a light-view point: smaller is nearer.
 #[inline]
-pub(super) fn light_distance(projection: Projection, p: Vec3) -> f32 {
+pub(crate) fn light_distance(projection: Projection, p: Vec3) -> f32 {
     match projection {
         Projection::Orthographic => -p.z,
         Projection::Perspective => p.z,
@@ -284,13 +306,14 @@ pub fn shadow_map(
         maps,
         triangles_drawn: counts.0,
         texels_written: counts.1,
+        moments: Vec::new(),
     }
 }
 
 /// World size of one texel of `map` at light-view point `p` (the larger
 /// axis: texels follow the fitted bounds' aspect).
 #[inline]
-pub(super) fn texel_world(map: &CascadeMap, projection: Projection, p: Vec3) -> f32 {
+pub(crate) fn texel_world(map: &CascadeMap, projection: Projection, p: Vec3) -> f32 {
     let s = map.texel_ndc.max_element();
     match projection {
         Projection::Orthographic => s,
@@ -308,6 +331,7 @@ pub fn shadow_lookup(
     filter: Filter,
     light: &super::pcss::PcssLight,
 ) -> Vec<f32> {
+    let moment_depth = MomentDepth::new(setup);
     (0..g.flags.len())
         .into_par_iter()
         .map(|i| {
@@ -324,6 +348,11 @@ pub fn shadow_lookup(
                 Filter::OneTap => one_tap(setup.projection, map, p, ndc),
                 Filter::Pcf(k) => pcf(setup.projection, map, p, n, ndc, k),
                 Filter::Pcss => super::pcss::pcss(setup, light, map, g.position[i], p, n, ndc),
+                Filter::Vsm | Filter::Msm => {
+                    let k = setup.cascade_of(g.position[i]);
+                    let kind = filter.moments().expect("a filtered map");
+                    moments_lookup(&moment_depth, kind, map, &maps.moments[k], p, ndc)
+                }
             }
         })
         .collect()

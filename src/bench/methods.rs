@@ -51,8 +51,8 @@ pub struct Method {
 /// The default shadow-map sides `shadow-maps` expands over.
 pub const DEFAULT_MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
 
-/// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5` and
-/// `csm4-pcf3` at every side of `map_sides` (not `pcss`: under a hard light
+/// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5`,
+/// `csm4-pcf3`, `vsm` and `msm` at every side of `map_sides` (not `pcss`: under a hard light
 /// it is only a narrow PCF; name `pcss-R` to time it); `reference` (the
 /// ground truth's own timing) is always measured and skipped here.
 pub fn parse_methods(
@@ -85,7 +85,7 @@ pub fn parse_methods(
             }
             "shadow-maps" => {
                 for &side in map_sides {
-                    for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3"] {
+                    for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3", "vsm", "msm"] {
                         let n = format!("{prefix}-{side}");
                         out.push((
                             n.clone(),

@@ -15,7 +15,7 @@
 //!   instead; its shadow seconds are the tracing, its BVH build is in
 //!   `details`;
 //! - shadow maps, [`crate::baseline`] (`sm-R`, `pcf3-R`, `pcf5-R`,
-//!   `csmN-pcfK-R`).
+//!   `csmN-pcfK-R`, `pcss-R`, `vsm-R`, `msm-R`).
 //!
 //! Times: the *shadow seconds* of a method are everything after the
 //! G-buffer the methods share (light setup and the method's own passes);

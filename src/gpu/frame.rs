@@ -263,7 +263,7 @@ impl GpuRenderer {
             max_cells,
             cell_capacity,
             lut_entries: lut.masks.len() as u64,
-            shadow_map_texels: passes.shadow_map_texels(),
+            shadow_map_words: passes.shadow_map_words(),
             mask_halves: halves as u64,
         });
         let frame_buffers = FrameBuffers {
@@ -436,6 +436,7 @@ impl GpuRenderer {
                         let map_buffer = fb.get(binding::SHADOW_MAP).buffer;
                         let drawn = (triangles.len() as u32, params.light_is_point != 0);
                         super::shadow_map::shadow_map(&rec, raster, target, map_buffer, drawn, map);
+                        super::shadow_map::shadow_blur(&rec, &self.kernels, map);
                         mark(3);
                         super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
                         mark(4);

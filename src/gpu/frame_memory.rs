@@ -18,8 +18,9 @@ pub struct FrameSizes {
     pub max_cells: u64,
     pub cell_capacity: u64,
     pub lut_entries: u64,
-    /// Texels of every cascade's shadow map (0 in an IZB frame).
-    pub shadow_map_texels: u64,
+    /// Words of the shadow-map buffer: a depth per texel of every
+    /// cascade, and a filtered map's moments twice (0 in an IZB frame).
+    pub shadow_map_words: u64,
     /// 32-bit mask halves per pixel ([`IzbSettings::mask_halves`]).
     pub mask_halves: u64,
 }
@@ -95,7 +96,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         ),
         (
             binding::SHADOW_MAP,
-            d("shadow_map", "shadow_maps", z.shadow_map_texels.max(1) * 4),
+            d("shadow_map", "shadow_maps", z.shadow_map_words.max(1) * 4),
         ),
         (
             binding::HEAVY_PIXELS,
@@ -132,7 +133,7 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
         max_cells: crate::cascades::max_total_cells(side),
         cell_capacity: initial_cell_capacity(triangles.len()),
         lut_entries: crate::lut::edge_lut().masks.len() as u64,
-        shadow_map_texels: 0,
+        shadow_map_words: 0,
         mask_halves: settings.mask_halves(scene) as u64,
     });
     Ok(group_by_pass(descs.iter().map(|d| {

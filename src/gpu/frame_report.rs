@@ -380,10 +380,17 @@ pub(super) enum FramePasses {
 }
 
 impl FramePasses {
-    pub(super) fn shadow_map_texels(&self) -> u64 {
+    /// Words of the `SHADOW_MAP` buffer: the depths (one per texel of
+    /// every cascade), then for a filtered map the blur's rows and its
+    /// result (the moment count per texel each).
+    pub(super) fn shadow_map_words(&self) -> u64 {
         match self {
             FramePasses::Izb | FramePasses::ShadowRays => 0,
-            FramePasses::ShadowMap(s) => u64::from(s.cascades) * u64::from(s.side).pow(2),
+            FramePasses::ShadowMap(s) => {
+                let texels = u64::from(s.cascades) * u64::from(s.side).pow(2);
+                let moments = s.filter.moments().map_or(0, |k| k.count() as u64);
+                texels * (1 + 2 * moments)
+            }
         }
     }
 }

@@ -107,7 +107,7 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 20] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 22] = [
     ("gbuffer", spirv!("gbuffer")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
@@ -126,6 +126,8 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 20] = [
     ("evaluate_heavy_high", spirv!("evaluate_heavy_high")),
     ("resolve", spirv!("resolve")),
     ("shadow_map", spirv!("shadow_map")),
+    ("shadow_blur_x", spirv!("shadow_blur_x")),
+    ("shadow_blur_y", spirv!("shadow_blur_y")),
     ("shadow_lookup", spirv!("shadow_lookup")),
     ("shadow_rays", spirv!("shadow_rays")),
 ];
@@ -150,6 +152,8 @@ pub struct Kernels {
     pub evaluate_high: ComputeKernel,
     pub evaluate_heavy_high: ComputeKernel,
     pub resolve: ComputeKernel,
+    pub shadow_blur_x: ComputeKernel,
+    pub shadow_blur_y: ComputeKernel,
     pub shadow_lookup: ComputeKernel,
     pub shadow_rays: ComputeKernel,
 }
@@ -178,6 +182,8 @@ impl Kernels {
             evaluate_high: k("evaluate_high", spirv!("evaluate_high"))?,
             evaluate_heavy_high: k("evaluate_heavy_high", spirv!("evaluate_heavy_high"))?,
             resolve: k("resolve", spirv!("resolve"))?,
+            shadow_blur_x: k("shadow_blur_x", spirv!("shadow_blur_x"))?,
+            shadow_blur_y: k("shadow_blur_y", spirv!("shadow_blur_y"))?,
             shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,
             shadow_rays: k("shadow_rays", spirv!("shadow_rays"))?,
         })

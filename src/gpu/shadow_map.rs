@@ -34,6 +34,8 @@ pub(super) fn map_params(
         Filter::OneTap => 0,
         Filter::Pcf(k) => k,
         Filter::Pcss => izb_contract::pcss::FILTER,
+        Filter::Vsm => izb_contract::filtered::VSM,
+        Filter::Msm => izb_contract::filtered::MSM,
     };
     params.map_reach = map.filter.reach();
     if map.filter == Filter::Pcss {
@@ -64,6 +66,21 @@ pub fn shadow_map(
     };
     let bias = RasterBias::for_map(projection, map.filter);
     super::shadow_raster::shadow_map(rec, raster, target, map_buffer, triangles, projection, bias);
+}
+
+/// Records a filtered map's blur (nothing for the others): rows, then
+/// columns, one invocation per texel of every cascade.
+pub fn shadow_blur(rec: &Recorder, kernels: &Kernels, map: ShadowMapSettings) {
+    if map.filter.moments().is_none() {
+        return;
+    }
+    rec.begin_label("shadow_blur");
+    let size = [map.side, map.side * map.cascades];
+    rec.dispatch_pixels(&kernels.shadow_blur_x, size);
+    rec.barrier();
+    rec.dispatch_pixels(&kernels.shadow_blur_y, size);
+    rec.barrier();
+    rec.end_label();
 }
 
 /// Records the lookup pass: one invocation per pixel.
@@ -99,7 +116,7 @@ impl GpuRenderer {
     ) -> Result<GpuShadowMapRender, GpuError> {
         let limits = &self.shared().limits;
         let passes = FramePasses::ShadowMap(map);
-        let map_bytes = passes.shadow_map_texels() * 4;
+        let map_bytes = passes.shadow_map_words() * 4;
         let range = u64::from(limits.max_storage_buffer_range);
         if map_bytes > range {
             return Err(GpuError::Unsupported(format!(

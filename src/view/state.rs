@@ -18,7 +18,7 @@ pub const IZB_METHODS: [&str; 5] = [
     "izb64-paired",
 ];
 /// Shadow-map families, named `FAMILY-SIDE` (`paper-notes/baselines.md`).
-pub const MAP_FAMILIES: [&str; 5] = ["sm", "pcf3", "pcf5", "csm4-pcf3", "pcss"];
+pub const MAP_FAMILIES: [&str; 7] = ["sm", "pcf3", "pcf5", "csm4-pcf3", "pcss", "vsm", "msm"];
 /// Map sides the control steps through.
 pub const MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
 
@@ -252,7 +252,7 @@ mod tests {
                 checked += 1;
             }
         }
-        assert_eq!(checked, 30);
+        assert_eq!(checked, 40);
         assert!(method_kind("rt32").is_err());
         assert!(method_kind("izb7").is_err());
     }
