@@ -140,6 +140,17 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ("shadow_blur_x", "shadow_blur.comp", &[("STEP_X", "1")]),
     ("shadow_blur_y", "shadow_blur.comp", &[("STEP_Y", "1")]),
     ("shadow_lookup", "shadow_lookup.comp", &[]),
+    ("shadow_volume", "shadow_volume.vert", &[]),
+    (
+        "volume_depth",
+        "shadow_volumes.comp",
+        &[("STEP_DEPTH", "1")],
+    ),
+    (
+        "volume_lookup",
+        "shadow_volumes.comp",
+        &[("STEP_LOOKUP", "1")],
+    ),
     ("shadow_rays", "shadow_rays.comp", &[]),
 ];
 

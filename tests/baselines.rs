@@ -364,3 +364,91 @@ fn gpu_rasteriser_draws_the_cpu_twins_texels() {
     assert_eq!(cases, 2 * scenes.len());
     assert!(covered_both > texels / 4, "most maps should be drawn on");
 }
+
+/// Shadow volumes and `izb1` answer the same question exactly — is the
+/// pixel centre's receiver point in any triangle's shadow volume — so
+/// their masks agree but for ties: points within the receiver nudge of a
+/// volume face (contact lines, creases). Both twins, every procedural
+/// scene and two shared ones.
+#[test]
+fn shadow_volumes_agree_with_izb1() {
+    let mut scenes: Vec<Scene> = scene::procedural::NAMES
+        .iter()
+        .filter(|&&n| n != "hairball")
+        .map(|n| small(n))
+        .collect();
+    let mut point = small("default");
+    point.light = izb::scene::Light::Point {
+        position: glam::DVec3::new(1.0, 25.0, 0.0),
+    };
+    point.name = "default-point-light".into();
+    scenes.push(point);
+    let gpu = renderer();
+    let (mut compared, mut gpu_compared) = (0, 0);
+    for scene in &scenes {
+        let bvh = SceneBvh::build(scene);
+        let g = gbuffer(scene, &bvh);
+        let izb1 = render_cpu(
+            scene,
+            &bvh,
+            IzbSettings {
+                mode: SampleMode::One,
+                ..Default::default()
+            },
+        );
+        let volumes = izb::baseline::volumes::shadow_volumes(scene, &g);
+        let (mut tested, mut differ) = (0usize, 0usize);
+        for (i, v) in volumes.visibility.iter().enumerate() {
+            if v.is_nan() {
+                continue;
+            }
+            tested += 1;
+            let lit = izb1.visibility[i];
+            differ += ((lit >= 0.5) != (*v >= 0.5)) as usize;
+        }
+        let rate = differ as f64 / tested.max(1) as f64;
+        println!(
+            "{}: {tested} pixels, {differ} differ from izb1 ({:.3}%); {:.1} volume fragments per pixel",
+            scene.name,
+            100.0 * rate,
+            volumes.report.fragments_per_pixel
+        );
+        // Measured: at most 0.2 % (grazing, where the side faces of the
+        // ground's own neighbours run within a pixel's footprint of
+        // the receivers); the nudge and izb1's depth tolerance decide
+        // those ties differently.
+        assert!(rate <= 3e-3, "{}: {differ} of {tested} differ", scene.name);
+        compared += 1;
+        if let Some(r) = gpu.as_ref() {
+            let r = lock(r);
+            let out = r
+                .render_shadow_volumes(scene, izb::gpu::GBufferSource::Upload(&g))
+                .unwrap();
+            assert_no_validation_messages(&r, "volumes");
+            let mut twin_differ = 0;
+            for (a, b) in volumes.visibility.iter().zip(&out.visibility) {
+                assert_eq!(
+                    a.is_nan(),
+                    b.is_nan(),
+                    "{}: tested pixels differ",
+                    scene.name
+                );
+                twin_differ += (!a.is_nan() && a != b) as usize;
+            }
+            println!(
+                "{}: GPU volumes differ from the CPU twin at {twin_differ} pixels",
+                scene.name
+            );
+            assert!(
+                twin_differ as f64 <= MAX_GPU_PIXEL_MISMATCH * tested as f64,
+                "{}: GPU volumes differ at {twin_differ} of {tested}",
+                scene.name
+            );
+            gpu_compared += 1;
+        }
+    }
+    assert_eq!(compared, scenes.len());
+    if gpu.is_some() {
+        assert_eq!(gpu_compared, scenes.len());
+    }
+}

@@ -250,6 +250,10 @@ shared_constants! {
         /// width) a directional light's shadow map grows its depth range
         /// by on each side (`crate::baseline::raster::MapDepth`).
         MAP_DEPTH_MARGIN = 1.0 / 16.0;
+        /// Shadow volumes: how far a receiver moves toward the camera
+        /// before its depth test, in widths of its pixel's footprint
+        /// (`crate::baseline::volumes`).
+        VOLUME_NUDGE_PIXELS = 1.0 / 256.0;
         /// Receivers per level-0 cell the default grid aims at.
         RECEIVERS_PER_CELL = 6.0;
         /// Triangles per level-0 cell the default grid aims at when the
@@ -301,6 +305,17 @@ shared_constants! {
     }
 }
 
+/// A caster's shadow volume as 8 triangles (24 vertices, no index
+/// buffer): corners 0–2 are the triangle turned to face the light (the
+/// light cap), 3–5 the same vertices extruded away from the light (the
+/// dark cap, reversed), then the three side quads, each edge walked
+/// opposite to its neighbour face so the volume is closed and
+/// consistently oriented (`izb::baseline::volumes`,
+/// `shaders/shadow_volume.vert`).
+pub const VOLUME_CORNERS: [u32; 24] = [
+    0, 1, 2, 3, 5, 4, 1, 0, 3, 1, 3, 4, 2, 1, 4, 2, 4, 5, 0, 2, 5, 0, 5, 3,
+];
+
 /// `contract.glsl`: every constant as a `#define` and every shared struct,
 /// in the order the shaders need them.
 pub fn glsl_header() -> String {
@@ -332,6 +347,12 @@ pub fn glsl_header() -> String {
     out += &format!("#define COUNTER_WORDS {}\n", counter::WORDS);
     out += &format!("#define BINDING_COUNT {BINDING_COUNT}\n\n");
     out += &pcss_taps::glsl_disks();
+    let corners: Vec<String> = VOLUME_CORNERS.iter().map(|c| format!("{c}u")).collect();
+    out += &format!(
+        "const uint VOLUME_CORNERS[{n}] = uint[{n}]({});\n",
+        corners.join(", "),
+        n = VOLUME_CORNERS.len()
+    );
     out += "\n";
     out += &glsl_struct::<FrameParams>();
     out += &glsl_struct::<CascadeGrid>();
@@ -392,7 +413,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 82, "members of the five shared structs");
+        assert_eq!(checked, 83, "members of the five shared structs");
     }
 
     #[test]

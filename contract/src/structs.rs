@@ -90,6 +90,10 @@ shared_struct! {
         /// direction toward the light (eye-relative), the near end of the
         /// map's depth range; 0 otherwise.
         pub map_near: f32 => "float map_near",
+        /// Shadow volumes: how far each caster vertex moves away from the
+        /// light for the dark cap (twice the scene's diagonal, past every
+        /// receiver); 0 otherwise.
+        pub volume_extrusion: f32 => "float volume_extrusion",
         /// Evaluate: a pixel whose cells list more entries than this hands
         /// them to the heavy step (a workgroup per pixel); 0: never.
         pub heavy_entries: u32 => "uint heavy_entries",

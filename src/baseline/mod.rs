@@ -23,6 +23,7 @@ pub mod moments;
 pub mod pcss;
 pub mod raster;
 pub mod shadow_map;
+pub mod volumes;
 
 use crate::cascades::CascadeCount;
 use crate::cpu::{eye_relative_f32, light_setup, GridRequest};

@@ -161,19 +161,30 @@ pub struct RasterTriangle {
     pub depth: [f32; 3],
 }
 
+/// `t` snapped to the sub-texel lattice.
+fn snap(t: &[Vec2; 3]) -> [DVec2; 3] {
+    let scale = (1u32 << SUBPIXEL_BITS) as f64;
+    t.map(|t| DVec2::new((t.x as f64 * scale).round(), (t.y as f64 * scale).round()) / scale)
+}
+
+/// Twice the signed area of the snapped triangle, `(s1 − s0) × (s2 − s0)`
+/// in framebuffer coordinates (y down): Vulkan's facing is its sign
+/// (negative is front-facing for `COUNTER_CLOCKWISE`).
+pub fn snapped_area(texel: &[Vec2; 3]) -> f64 {
+    let s = snap(texel);
+    (s[1] - s[0]).perp_dot(s[2] - s[0])
+}
+
 /// Where a triangle lands: its covered texel centres with the biased,
 /// clamped depth of each.
 pub fn raster_triangle(
     tri: &RasterTriangle,
-    side: u32,
+    [width, height]: [u32; 2],
     projection: Projection,
     bias: RasterBias,
     mut write: impl FnMut(u32, u32, f32),
 ) -> u64 {
-    let scale = (1u32 << SUBPIXEL_BITS) as f64;
-    let s = tri
-        .texel
-        .map(|t| DVec2::new((t.x as f64 * scale).round(), (t.y as f64 * scale).round()) / scale);
+    let s = snap(&tri.texel);
     if s.iter().any(|p| !p.is_finite()) {
         return 0;
     }
@@ -183,14 +194,14 @@ pub fn raster_triangle(
     }
     let lo = s[0].min(s[1]).min(s[2]);
     let hi = s[0].max(s[1]).max(s[2]);
-    let side_f = side as f64;
-    if hi.x < 0.0 || hi.y < 0.0 || lo.x > side_f || lo.y > side_f {
+    let (w, h) = (width as f64, height as f64);
+    if hi.x < 0.0 || hi.y < 0.0 || lo.x > w || lo.y > h {
         return 0;
     }
     let x0 = (lo.x - 0.5).ceil().max(0.0) as u32;
     let y0 = (lo.y - 0.5).ceil().max(0.0) as u32;
-    let x1 = (hi.x - 0.5).floor().min(side_f - 1.0);
-    let y1 = (hi.y - 0.5).floor().min(side_f - 1.0);
+    let x1 = (hi.x - 0.5).floor().min(w - 1.0);
+    let y1 = (hi.y - 0.5).floor().min(h - 1.0);
     if x1 < x0 as f64 || y1 < y0 as f64 {
         return 0;
     }
@@ -269,9 +280,13 @@ mod tests {
             slope_factor: 0.0,
         };
         let mut out = Vec::new();
-        raster_triangle(&tri, 8, Projection::Orthographic, no_bias, |x, y, _| {
-            out.push((x, y))
-        });
+        raster_triangle(
+            &tri,
+            [8, 8],
+            Projection::Orthographic,
+            no_bias,
+            |x, y, _| out.push((x, y)),
+        );
         out.sort();
         out
     }

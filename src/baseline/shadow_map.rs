@@ -280,7 +280,7 @@ pub fn shadow_map(
                         texel: [texel[0], texel[k], texel[k + 1]],
                         depth: [depth[0], depth[k], depth[k + 1]],
                     };
-                    written += raster_triangle(&fan, side, projection, bias, |x, y, d| {
+                    written += raster_triangle(&fan, [side, side], projection, bias, |x, y, d| {
                         let cell = &texels[(y * side + x) as usize];
                         match projection {
                             Projection::Orthographic => {

@@ -47,6 +47,8 @@ pub struct GpuRenderer {
     pub kernels: Kernels,
     /// The shadow maps' depth-only pass, or why this device has none.
     pub(super) raster: Result<super::shadow_raster::ShadowRaster, String>,
+    /// The volumes' stencil pass, or why this device has none.
+    pub(super) volume_raster: Result<super::shadow_volumes::VolumeRaster, String>,
     pub layout: BindingLayout,
     pub context: GpuContext,
     /// Repetitions of the passes per frame ([`GpuRenderer::timed`]).
@@ -81,10 +83,13 @@ impl GpuRenderer {
         let kernels = Kernels::new(&context.shared, &layout)?;
         let raster = super::shadow_raster::ShadowRaster::new(&context.shared, &layout)
             .map_err(|e| e.to_string());
+        let volume_raster = super::shadow_volumes::VolumeRaster::new(&context.shared, &layout)
+            .map_err(|e| e.to_string());
         let heavy_entries = heavy_entries(context.info(), options.heavy_entries);
         Ok(GpuRenderer {
             kernels,
             raster,
+            volume_raster,
             layout,
             context,
             timed_repeats: 1,
@@ -263,7 +268,7 @@ impl GpuRenderer {
             max_cells,
             cell_capacity,
             lut_entries: lut.masks.len() as u64,
-            shadow_map_words: passes.shadow_map_words(),
+            shadow_map_words: passes.shadow_map_words(pixels),
             mask_halves: halves as u64,
         });
         let frame_buffers = FrameBuffers {
@@ -280,6 +285,10 @@ impl GpuRenderer {
             FramePasses::ShadowMap(map) => Some(self.depth_target(map)?),
             _ => None,
         };
+        let volume_target = match passes {
+            FramePasses::ShadowVolumes => Some(self.volume_target(scene)?),
+            _ => None,
+        };
 
         // Uploads through staging buffers, kept alive until the fence.
         let mut params = frame_params(
@@ -292,8 +301,15 @@ impl GpuRenderer {
             self.heavy_entries,
         );
         params.mask_halves = halves as u32;
-        if let FramePasses::ShadowMap(map) = passes {
-            super::shadow_map::map_params(&mut params, scene, triangles, map);
+        match passes {
+            FramePasses::ShadowMap(map) => {
+                super::shadow_map::map_params(&mut params, scene, triangles, map)
+            }
+            FramePasses::ShadowVolumes => {
+                params.volume_extrusion =
+                    crate::baseline::volumes::VolumeFrame::new(scene).extrusion
+            }
+            _ => {}
         }
         let mut uploads: Vec<(GpuBuffer, u32)> = Vec::new();
         let mut stage = |b: u32, bytes: &[u8]| -> Result<(), GpuError> {
@@ -441,6 +457,22 @@ impl GpuRenderer {
                         super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
                         mark(4);
                     }
+                    FramePasses::ShadowVolumes => {
+                        let (raster, target) = volume_target.as_ref().expect("made above");
+                        let buffer = fb.get(binding::SHADOW_MAP).buffer;
+                        let n = triangles.len() as u32;
+                        super::shadow_volumes::shadow_volumes(
+                            &rec,
+                            &self.kernels,
+                            raster,
+                            target,
+                            buffer,
+                            n,
+                        );
+                        mark(3);
+                        super::shadow_volumes::volume_lookup(&rec, &self.kernels, [w, h]);
+                        mark(4);
+                    }
                     FramePasses::ShadowRays => {
                         mark(3);
                         super::shadow_rays::shadow_rays(&rec, &self.kernels, [w, h]);
@@ -497,12 +529,17 @@ impl GpuRenderer {
         let light: LightState =
             bytemuck::pod_read_unaligned(&read(binding::LIGHT)?[..size_of::<LightState>()]);
         let mut memory = memory_by_pass(&frame_buffers.buffers);
-        if let Some((_, target)) = &depth_target {
-            memory.push(super::frame_report::PassMemory {
-                pass: "shadow_map",
-                bytes: target.bytes,
-                buffers: vec![("shadow_map depth layers (image)", target.bytes)],
-            });
+        for (pass, target) in [
+            ("shadow_map", depth_target.as_ref().map(|t| &t.1)),
+            ("shadow_volumes", volume_target.as_ref().map(|t| &t.1)),
+        ] {
+            if let Some(target) = target {
+                memory.push(super::frame_report::PassMemory {
+                    pass,
+                    bytes: target.bytes,
+                    buffers: vec![("depth attachment (image)", target.bytes)],
+                });
+            }
         }
         Ok(FrameOutput {
             counters,

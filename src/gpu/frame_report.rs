@@ -377,15 +377,19 @@ pub(super) enum FramePasses {
     ShadowMap(ShadowMapSettings),
     /// The `rt32-rays` peer: shadow rays in the evaluate slot, resolve.
     ShadowRays,
+    /// The `volumes` baseline: receiver depths, stencil pass, lookup.
+    ShadowVolumes,
 }
 
 impl FramePasses {
     /// Words of the `SHADOW_MAP` buffer: the depths (one per texel of
     /// every cascade), then for a filtered map the blur's rows and its
-    /// result (the moment count per texel each).
-    pub(super) fn shadow_map_words(&self) -> u64 {
+    /// result (the moment count per texel each). The volumes keep a
+    /// depth per pixel and the stencil bytes behind them.
+    pub(super) fn shadow_map_words(&self, pixels: u64) -> u64 {
         match self {
             FramePasses::Izb | FramePasses::ShadowRays => 0,
+            FramePasses::ShadowVolumes => pixels + pixels.div_ceil(4),
             FramePasses::ShadowMap(s) => {
                 let texels = u64::from(s.cascades) * u64::from(s.side).pow(2);
                 let moments = s.filter.moments().map_or(0, |k| k.count() as u64);

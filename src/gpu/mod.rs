@@ -35,6 +35,7 @@ pub mod resources;
 pub mod shadow_map;
 pub mod shadow_raster;
 pub mod shadow_rays;
+pub mod shadow_volumes;
 pub mod shared;
 mod timestamps;
 
@@ -107,7 +108,7 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 22] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 25] = [
     ("gbuffer", spirv!("gbuffer")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
@@ -129,6 +130,9 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 22] = [
     ("shadow_blur_x", spirv!("shadow_blur_x")),
     ("shadow_blur_y", spirv!("shadow_blur_y")),
     ("shadow_lookup", spirv!("shadow_lookup")),
+    ("shadow_volume", spirv!("shadow_volume")),
+    ("volume_depth", spirv!("volume_depth")),
+    ("volume_lookup", spirv!("volume_lookup")),
     ("shadow_rays", spirv!("shadow_rays")),
 ];
 
@@ -155,6 +159,8 @@ pub struct Kernels {
     pub shadow_blur_x: ComputeKernel,
     pub shadow_blur_y: ComputeKernel,
     pub shadow_lookup: ComputeKernel,
+    pub volume_depth: ComputeKernel,
+    pub volume_lookup: ComputeKernel,
     pub shadow_rays: ComputeKernel,
 }
 
@@ -185,6 +191,8 @@ impl Kernels {
             shadow_blur_x: k("shadow_blur_x", spirv!("shadow_blur_x"))?,
             shadow_blur_y: k("shadow_blur_y", spirv!("shadow_blur_y"))?,
             shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,
+            volume_depth: k("volume_depth", spirv!("volume_depth"))?,
+            volume_lookup: k("volume_lookup", spirv!("volume_lookup"))?,
             shadow_rays: k("shadow_rays", spirv!("shadow_rays"))?,
         })
     }

@@ -116,7 +116,7 @@ impl GpuRenderer {
     ) -> Result<GpuShadowMapRender, GpuError> {
         let limits = &self.shared().limits;
         let passes = FramePasses::ShadowMap(map);
-        let map_bytes = passes.shadow_map_words() * 4;
+        let map_bytes = passes.shadow_map_words(scene.pixel_count() as u64) * 4;
         let range = u64::from(limits.max_storage_buffer_range);
         if map_bytes > range {
             return Err(GpuError::Unsupported(format!(

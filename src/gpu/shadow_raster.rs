@@ -117,78 +117,111 @@ impl ShadowRaster {
         spirv: &[u8],
         projection: Projection,
     ) -> Result<vk::Pipeline, GpuError> {
-        let device = &self.shared.device;
-        let words: Vec<u32> = spirv
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
-        let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
-        // SAFETY: `words` is the SPIR-V build.rs compiled.
-        let module =
-            unsafe { device.create_shader_module(&module_info, None) }.map_err(GpuError::vk)?;
-        let stages = [vk::PipelineShaderStageCreateInfo::default()
-            .stage(vk::ShaderStageFlags::VERTEX)
-            .module(module)
-            .name(c"main")];
-        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
-        let assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
-            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-        let viewport = vk::PipelineViewportStateCreateInfo::default()
-            .viewport_count(1)
-            .scissor_count(1);
         let orthographic = projection == Projection::Orthographic;
-        let rasterization = vk::PipelineRasterizationStateCreateInfo::default()
-            .depth_clamp_enable(orthographic)
-            .polygon_mode(vk::PolygonMode::FILL)
-            .cull_mode(vk::CullModeFlags::NONE)
-            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
-            .depth_bias_enable(true)
-            .line_width(1.0);
-        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
-            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-            .depth_test_enable(true)
-            .depth_write_enable(true)
-            .depth_compare_op(if orthographic {
-                vk::CompareOp::LESS
-            } else {
-                vk::CompareOp::GREATER
-            });
-        let dynamic = [
-            vk::DynamicState::VIEWPORT,
-            vk::DynamicState::SCISSOR,
-            vk::DynamicState::DEPTH_BIAS,
-        ];
-        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
-        let info = [vk::GraphicsPipelineCreateInfo::default()
-            .stages(&stages)
-            .vertex_input_state(&vertex_input)
-            .input_assembly_state(&assembly)
-            .viewport_state(&viewport)
-            .rasterization_state(&rasterization)
-            .multisample_state(&multisample)
-            .depth_stencil_state(&depth)
-            .dynamic_state(&dynamic)
-            .layout(layout.pipeline_layout)
-            .render_pass(self.render_pass)
-            .subpass(0)];
-        // SAFETY: every state struct, `module`, the layout and the render
-        // pass are alive for the call.
-        let pipeline =
-            unsafe { device.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
-        // SAFETY: a pipeline keeps no reference to its module once created.
-        unsafe { device.destroy_shader_module(module, None) };
-        let pipeline = pipeline.map_err(|(_, e)| GpuError::vk(e))?[0];
-        self.shared.set_name(
-            pipeline,
-            if orthographic {
+        let desc = DepthPipelineDesc {
+            name: if orthographic {
                 "shadow_map (orthographic)"
             } else {
                 "shadow_map (perspective)"
             },
-        );
-        Ok(pipeline)
+            depth_clamp: orthographic,
+            depth_bias: true,
+            depth_write: true,
+            compare: if orthographic {
+                vk::CompareOp::LESS
+            } else {
+                vk::CompareOp::GREATER
+            },
+            stencil: None,
+        };
+        depth_pipeline(&self.shared, layout, self.render_pass, spirv, &desc)
     }
+}
+
+/// What differs between the depth-only pipelines (the maps', the
+/// volumes').
+pub(super) struct DepthPipelineDesc {
+    pub name: &'static str,
+    pub depth_clamp: bool,
+    pub depth_bias: bool,
+    pub depth_write: bool,
+    pub compare: vk::CompareOp,
+    /// Front and back stencil operations, when the pass counts.
+    pub stencil: Option<(vk::StencilOpState, vk::StencilOpState)>,
+}
+
+/// A graphics pipeline with one vertex shader (`spirv`), no vertex
+/// buffers, no fragment shader, triangles unculled, viewport, scissor and
+/// depth bias dynamic.
+pub(super) fn depth_pipeline(
+    shared: &DeviceShared,
+    layout: &BindingLayout,
+    render_pass: vk::RenderPass,
+    spirv: &[u8],
+    desc: &DepthPipelineDesc,
+) -> Result<vk::Pipeline, GpuError> {
+    let device = &shared.device;
+    let words: Vec<u32> = spirv
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
+    // SAFETY: `words` is the SPIR-V build.rs compiled.
+    let module =
+        unsafe { device.create_shader_module(&module_info, None) }.map_err(GpuError::vk)?;
+    let stages = [vk::PipelineShaderStageCreateInfo::default()
+        .stage(vk::ShaderStageFlags::VERTEX)
+        .module(module)
+        .name(c"main")];
+    let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+    let assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+        .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+    let viewport = vk::PipelineViewportStateCreateInfo::default()
+        .viewport_count(1)
+        .scissor_count(1);
+    let rasterization = vk::PipelineRasterizationStateCreateInfo::default()
+        .depth_clamp_enable(desc.depth_clamp)
+        .polygon_mode(vk::PolygonMode::FILL)
+        .cull_mode(vk::CullModeFlags::NONE)
+        .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+        .depth_bias_enable(desc.depth_bias)
+        .line_width(1.0);
+    let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+        .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+    let mut depth = vk::PipelineDepthStencilStateCreateInfo::default()
+        .depth_test_enable(true)
+        .depth_write_enable(desc.depth_write)
+        .depth_compare_op(desc.compare);
+    if let Some((front, back)) = desc.stencil {
+        depth = depth.stencil_test_enable(true).front(front).back(back);
+    }
+    let dynamic = [
+        vk::DynamicState::VIEWPORT,
+        vk::DynamicState::SCISSOR,
+        vk::DynamicState::DEPTH_BIAS,
+    ];
+    let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
+    let info = [vk::GraphicsPipelineCreateInfo::default()
+        .stages(&stages)
+        .vertex_input_state(&vertex_input)
+        .input_assembly_state(&assembly)
+        .viewport_state(&viewport)
+        .rasterization_state(&rasterization)
+        .multisample_state(&multisample)
+        .depth_stencil_state(&depth)
+        .dynamic_state(&dynamic)
+        .layout(layout.pipeline_layout)
+        .render_pass(render_pass)
+        .subpass(0)];
+    // SAFETY: every state struct, `module`, the layout and the render
+    // pass are alive for the call.
+    let pipeline =
+        unsafe { device.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+    // SAFETY: a pipeline keeps no reference to its module once created.
+    unsafe { device.destroy_shader_module(module, None) };
+    let pipeline = pipeline.map_err(|(_, e)| GpuError::vk(e))?[0];
+    shared.set_name(pipeline, desc.name);
+    Ok(pipeline)
 }
 
 impl Drop for ShadowRaster {
@@ -207,24 +240,52 @@ impl Drop for ShadowRaster {
     }
 }
 
-/// One frame's depth attachment: a `side`² D32_SFLOAT image with one layer
-/// per cascade, a view and a framebuffer per layer.
-pub struct ShadowDepthTarget {
+/// One frame's depth attachment for `render_pass`: an image with one
+/// layer per map (the cascades) or one (the volumes' depth and stencil),
+/// a view and a framebuffer per layer.
+pub struct DepthAttachment {
     shared: Arc<DeviceShared>,
-    image: vk::Image,
+    pub image: vk::Image,
     allocation: Option<Allocation>,
     views: Vec<vk::ImageView>,
-    framebuffers: Vec<vk::Framebuffer>,
-    pub side: u32,
+    pub framebuffers: Vec<vk::Framebuffer>,
+    pub extent: [u32; 2],
     pub bytes: u64,
 }
 
-impl ShadowDepthTarget {
+/// The shadow maps' depth layers.
+pub type ShadowDepthTarget = DepthAttachment;
+
+impl DepthAttachment {
+    /// `side`² D32_SFLOAT layers for the maps' pass.
     pub fn new(
         shared: &Arc<DeviceShared>,
         raster: &ShadowRaster,
         side: u32,
         layers: u32,
+    ) -> Result<Self, GpuError> {
+        let usage =
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC;
+        let desc = (DEPTH_FORMAT, vk::ImageAspectFlags::DEPTH, usage);
+        Self::with_format(
+            shared,
+            raster.render_pass,
+            desc,
+            [side, side],
+            layers,
+            "shadow_map depth layers",
+        )
+    }
+
+    /// An attachment of `format` (whose `aspect` the views see) and
+    /// `usage`, `extent` texels, `layers` layers, named `name`.
+    pub(super) fn with_format(
+        shared: &Arc<DeviceShared>,
+        render_pass: vk::RenderPass,
+        (format, aspect, usage): (vk::Format, vk::ImageAspectFlags, vk::ImageUsageFlags),
+        extent: [u32; 2],
+        layers: u32,
+        name: &'static str,
     ) -> Result<Self, GpuError> {
         let l = &shared.limits;
         let largest = l
@@ -233,39 +294,38 @@ impl ShadowDepthTarget {
             .min(l.max_image_dimension2_d)
             .min(l.max_viewport_dimensions[0])
             .min(l.max_viewport_dimensions[1]);
-        if side > largest {
+        if extent[0].max(extent[1]) > largest {
             return Err(GpuError::Unsupported(format!(
-                "a {side}² shadow map is larger than this device's largest depth attachment ({largest}²)"
+                "a {}×{} {name} is larger than this device's largest depth attachment ({largest}²)",
+                extent[0], extent[1]
             )));
         }
         let device = &shared.device;
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
-            .format(DEPTH_FORMAT)
+            .format(format)
             .extent(vk::Extent3D {
-                width: side,
-                height: side,
+                width: extent[0],
+                height: extent[1],
                 depth: 1,
             })
             .mip_levels(1)
             .array_layers(layers)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(
-                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
-            )
+            .usage(usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE)
             .initial_layout(vk::ImageLayout::UNDEFINED);
         // SAFETY: `info` outlives the call.
         let image = unsafe { device.create_image(&info, None) }.map_err(GpuError::vk)?;
-        shared.set_name(image, "shadow_map depth layers");
-        let mut target = ShadowDepthTarget {
+        shared.set_name(image, name);
+        let mut target = DepthAttachment {
             shared: shared.clone(),
             image,
             allocation: None,
             views: Vec::new(),
             framebuffers: Vec::new(),
-            side,
+            extent,
             bytes: 0,
         };
         // SAFETY: `image` was just created on this device.
@@ -275,17 +335,14 @@ impl ShadowDepthTarget {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .allocate(&AllocationCreateDesc {
-                name: "shadow_map depth layers",
+                name,
                 requirements,
                 location: MemoryLocation::GpuOnly,
                 linear: false,
                 allocation_scheme: AllocationScheme::GpuAllocatorManaged,
             })
             .map_err(|e| {
-                GpuError::Allocation(format!(
-                    "shadow_map depth layers ({} bytes): {e}",
-                    requirements.size
-                ))
+                GpuError::Allocation(format!("{name} ({} bytes): {e}", requirements.size))
             })?;
         target.bytes = requirements.size;
         // SAFETY: the allocation was made for this image's requirements and
@@ -296,7 +353,7 @@ impl ShadowDepthTarget {
         bound.map_err(GpuError::vk)?;
         for layer in 0..layers {
             let range = vk::ImageSubresourceRange::default()
-                .aspect_mask(vk::ImageAspectFlags::DEPTH)
+                .aspect_mask(aspect)
                 .base_mip_level(0)
                 .level_count(1)
                 .base_array_layer(layer)
@@ -304,17 +361,17 @@ impl ShadowDepthTarget {
             let info = vk::ImageViewCreateInfo::default()
                 .image(image)
                 .view_type(vk::ImageViewType::TYPE_2D)
-                .format(DEPTH_FORMAT)
+                .format(format)
                 .subresource_range(range);
             // SAFETY: `image` is bound to memory; `info` outlives the call.
             let view = unsafe { device.create_image_view(&info, None) }.map_err(GpuError::vk)?;
             target.views.push(view);
             let attachments = [view];
             let info = vk::FramebufferCreateInfo::default()
-                .render_pass(raster.render_pass)
+                .render_pass(render_pass)
                 .attachments(&attachments)
-                .width(side)
-                .height(side)
+                .width(extent[0])
+                .height(extent[1])
                 .layers(1);
             // SAFETY: the view and the render pass are alive; `info`
             // outlives the call.
@@ -326,7 +383,7 @@ impl ShadowDepthTarget {
     }
 }
 
-impl Drop for ShadowDepthTarget {
+impl Drop for DepthAttachment {
     fn drop(&mut self) {
         if self.shared.is_poisoned() {
             return;
@@ -371,7 +428,7 @@ pub fn shadow_map(
     rec.begin_label("shadow_map");
     let d = &rec.shared.device;
     let cmd = rec.cmd;
-    let side = target.side;
+    let side = target.extent[0];
     let (pipeline, clear) = match projection {
         Projection::Orthographic => (raster.orthographic, 1.0),
         Projection::Perspective => (raster.perspective, 0.0),
