@@ -161,6 +161,9 @@ pub fn flicker(
                     *d = None;
                     continue;
                 }
+                MethodKind::ShadowVolumes => {
+                    crate::baseline::volumes::shadow_volumes(&frame, &g).visibility
+                }
                 MethodKind::ShadowMap(s) => match render_shadow_map(&frame, &g, *s) {
                     Ok(r) => r.visibility,
                     Err(_) => {

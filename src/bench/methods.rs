@@ -15,6 +15,9 @@ pub enum MethodKind {
     /// CPU twin).
     ShadowRays32,
     ShadowMap(ShadowMapSettings),
+    /// Per-triangle shadow volumes, depth-fail stencil counting
+    /// ([`crate::baseline::volumes`]).
+    ShadowVolumes,
 }
 
 impl MethodKind {
@@ -26,6 +29,7 @@ impl MethodKind {
                 "ray-traced"
             }
             MethodKind::ShadowMap(_) => "shadow-map",
+            MethodKind::ShadowVolumes => "shadow-volume",
         }
     }
 
@@ -36,7 +40,7 @@ impl MethodKind {
             // Paired masks are over other rays than rt32 / rt-soft traces.
             MethodKind::Izb(s) => matches!(s.mode, SampleMode::Lut32 | SampleMode::Exact32),
             MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
-            MethodKind::ShadowMap(_) => false,
+            MethodKind::ShadowMap(_) | MethodKind::ShadowVolumes => false,
         }
     }
 }
@@ -75,6 +79,7 @@ pub fn parse_methods(
             // 32 light samples (`rt-soft`); the two names are one method.
             "rt32" | "rt-soft" => out.push((name.to_string(), MethodKind::RayTraced32)),
             "rt32-rays" => out.push((name.to_string(), MethodKind::ShadowRays32)),
+            "volumes" => out.push((name.to_string(), MethodKind::ShadowVolumes)),
             "rt32-embree" if cfg!(feature = "embree") => {
                 out.push((name.to_string(), MethodKind::Embree32))
             }
@@ -99,7 +104,7 @@ pub fn parse_methods(
                 MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
                     format!(
                         "{e}; or one of reference, izb1, izb32, izb32-exact, izb32-paired, izb64-paired, rt32, rt-soft, rt32-rays, \
-                         rt32-embree, shadow-maps"
+                         rt32-embree, volumes, shadow-maps"
                     )
                 })?),
             )),

@@ -15,28 +15,31 @@
 //!   instead; its shadow seconds are the tracing, its BVH build is in
 //!   `details`;
 //! - shadow maps, [`crate::baseline`] (`sm-R`, `pcf3-R`, `pcf5-R`,
-//!   `csmN-pcfK-R`, `pcss-R`, `vsm-R`, `msm-R`).
+//!   `csmN-pcfK-R`, `pcss-R`, `vsm-R`, `msm-R`);
+//! - `volumes`: per-triangle shadow volumes counted depth-fail in the
+//!   stencil ([`crate::baseline::volumes`]), exact at one sample like
+//!   `izb1`; its details carry the fill (volume fragments per pixel).
 //!
 //! Times: the *shadow seconds* of a method are everything after the
 //! G-buffer the methods share (light setup and the method's own passes);
 //! `rt32` traces its own primary rays, so its shadow seconds are its whole
 //! run. `total_seconds` adds the G-buffer.
 
+mod cpu_run;
 pub mod document;
 pub mod flicker;
 mod methods;
 
 pub use methods::{parse_methods, Method, MethodKind, DEFAULT_MAP_SIDES};
 
-use crate::baseline::render_shadow_map;
 use crate::bvh::SceneBvh;
-use crate::cpu::{render_cpu, resolve, PassTimes};
+use crate::cpu::{resolve, PassTimes};
 use crate::gbuffer::{gbuffer, GBuffer};
 use crate::metrics::{metrics, sample_mismatches, Metrics};
 use crate::output::write_exr;
-use crate::reference::same_samples::same_sample_masks;
 use crate::reference::{reference, ReferenceImage, ReferenceSettings};
 use crate::scene::Scene;
+use cpu_run::{run_once, same_sample_masks_of};
 use serde_json::{json, Value};
 use std::path::Path;
 use std::time::Instant;
@@ -119,113 +122,6 @@ impl SceneTruth {
             bvh_seconds,
         }
     }
-}
-
-/// The same-sample reference of `scene`: `rt32` (the µQuad's samples), or
-/// under an area light `rt-soft` (the light's samples at P).
-fn same_sample_masks_of(scene: &Scene, bvh: &crate::bvh::SceneBvh) -> Vec<u32> {
-    if scene.has_area_light() {
-        crate::reference::soft_samples::soft_same_sample_masks(
-            scene,
-            bvh,
-            crate::lut::light_pattern(),
-            None,
-        )
-    } else {
-        same_sample_masks(scene, bvh, crate::lut::sample_pattern())
-    }
-}
-
-/// Runs one method once on the CPU: (visibility, masks, per-pass seconds,
-/// shadow seconds, total seconds, details).
-fn run_once(scene: &Scene, shared: &SceneTruth, kind: &MethodKind) -> Result<Runs, String> {
-    let mut r = run_placeholder();
-    match kind {
-        MethodKind::Izb(settings) => {
-            let out = render_cpu(scene, &shared.bvh, *settings);
-            let s = &out.report.seconds;
-            r.shadow.push(s.shadow());
-            r.total.push(s.total);
-            r.seconds.push(json!(s));
-            r.details = json!({
-                "bin": out.report.bin,
-                "evaluate": out.report.evaluate,
-                "work_per_pixel": out.report.work_per_pixel,
-                "evaluate_ns_per_test_per_thread": out.report.evaluate_ns_per_test_per_thread,
-                "cascades": out.report.light.cascade_choice,
-                "grids": out.report.light.cascades,
-            });
-            r.visibility = out.visibility;
-            r.masks = Some(out.masks);
-        }
-        MethodKind::RayTraced32 => {
-            let t = Instant::now();
-            let masks = same_sample_masks_of(scene, &shared.bvh);
-            // rt32 casts its own primary rays: its whole run is its time.
-            r.record_trace(masks, t.elapsed().as_secs_f64(), 0.0, shared);
-        }
-        MethodKind::Embree32 | MethodKind::ShadowRays32 if scene.has_area_light() => {
-            return Err(
-                "traces the µQuad's 32 samples toward the light's centre: under an \
-                        area light the peer is rt-soft"
-                    .into(),
-            )
-        }
-        MethodKind::Embree32 => embree_once(scene, shared, &mut r)?,
-        MethodKind::ShadowRays32 => {
-            let t = Instant::now();
-            let masks = crate::peer::shadow_rays::shadow_rays(
-                scene,
-                &shared.bvh,
-                &shared.gbuffer,
-                crate::lut::sample_pattern(),
-            );
-            r.record_trace(
-                masks,
-                t.elapsed().as_secs_f64(),
-                shared.gbuffer_seconds,
-                shared,
-            );
-        }
-        MethodKind::ShadowMap(settings) => {
-            let out = render_shadow_map(scene, &shared.gbuffer, *settings)?;
-            r.shadow.push(out.report.seconds.shadow);
-            r.total
-                .push(out.report.seconds.shadow + shared.gbuffer_seconds);
-            r.seconds.push(json!(out.report.seconds));
-            r.details = json!(out.report);
-            r.visibility = out.visibility;
-        }
-    }
-    Ok(r)
-}
-
-/// `rt32-embree` once: Embree's BVH over the eye-relative triangles, then
-/// the shared G-buffer's sample rays (shadow seconds: the tracing alone).
-#[cfg(feature = "embree")]
-fn embree_once(scene: &Scene, shared: &SceneTruth, r: &mut Runs) -> Result<(), String> {
-    use crate::peer::embree::{rt32_embree_masks, EmbreeScene};
-    let embree = EmbreeScene::new(&crate::cpu::eye_relative_f32(scene))?;
-    let t = Instant::now();
-    let masks = rt32_embree_masks(
-        scene,
-        &embree,
-        &shared.gbuffer,
-        crate::lut::sample_pattern(),
-    );
-    r.record_trace(
-        masks,
-        t.elapsed().as_secs_f64(),
-        shared.gbuffer_seconds,
-        shared,
-    );
-    r.details = json!({ "bvh_build_seconds": embree.build_seconds, "threads": rayon::current_num_threads() });
-    Ok(())
-}
-
-#[cfg(not(feature = "embree"))]
-fn embree_once(_: &Scene, _: &SceneTruth, _: &mut Runs) -> Result<(), String> {
-    Err("rt32-embree needs izb built with `--features embree`".into())
 }
 
 /// Everything measured of one method on one scene.
@@ -510,6 +406,18 @@ pub fn bench_scene_vulkan(
                             "map_bytes": out.map_bytes,
                             "memory_total_bytes": out.memory_total_bytes,
                             "passes": "bin = shadow_map (raster), evaluate = shadow_lookup",
+                        });
+                        let ms = out.gpu_milliseconds.map(|m| m.as_pass_times());
+                        (ms, out.visibility, details)
+                    }),
+                MethodKind::ShadowVolumes => gpu
+                    .render_shadow_volumes(scene, GBufferSource::Gpu)
+                    .map(|out| {
+                        let details = json!({
+                            "device": device,
+                            "buffer_bytes": out.map_bytes,
+                            "memory_total_bytes": out.memory_total_bytes,
+                            "passes": "bin = volume_depth + stencil pass + copies, evaluate = volume_lookup",
                         });
                         let ms = out.gpu_milliseconds.map(|m| m.as_pass_times());
                         (ms, out.visibility, details)
