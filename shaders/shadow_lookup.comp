@@ -16,6 +16,7 @@ layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; 
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
+layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 // The depth attachments, copied cascade after cascade (shadow_raster).
@@ -88,6 +89,50 @@ float pcf(uint k, vec2 origin, vec2 texel, vec3 p, vec3 n, vec2 ndc, uint size) 
 
 #include "pcss.glsl"
 #include "moments.glsl"
+#include "camera.glsl"
+
+// baseline::contact::eye_ray_hit: λ with the eye ray through q meeting
+// triangle t at λ·q, or a negative λ for a miss (q is in front of the
+// near plane, so a hit has λ > 0).
+float eye_ray_hit(Triangle t, vec3 q) {
+    vec3 n = cross3(t.b - t.a, t.c - t.a);
+    float denom = dot3(n, q);
+    if (denom == 0.0) return -1.0;
+    precise float lambda = dot3(n, t.a) / denom;
+    precise vec3 h = q * lambda;
+    bool inside = dot3(cross3(t.b - t.a, h - t.a), n) >= 0.0
+        && dot3(cross3(t.c - t.b, h - t.b), n) >= 0.0
+        && dot3(cross3(t.a - t.c, h - t.c), n) >= 0.0;
+    return inside ? lambda : -1.0;
+}
+
+// baseline::contact::contact_shadowed: the march from eye-relative
+// receiver p over `len` toward the light through the G-buffer's depths.
+bool contact_shadowed(vec3 p, float len) {
+    vec3 to_light = frame.light_vec;
+    if (frame.light_is_point != 0u) {
+        precise vec3 d = frame.light_vec - p;
+        precise vec3 n = d * (1.0 / sqrt(dot3(d, d)));
+        to_light = n;
+    }
+    precise vec3 step = to_light * (len / float(MAP_FILTER_CONTACT_STEPS));
+    precise float tolerance = CONTACT_TOLERANCE_PIXELS * sqrt(dot3(frame.cam_dx, frame.cam_dx));
+    precise float thickness = CONTACT_THICKNESS_STEPS * (len / float(MAP_FILTER_CONTACT_STEPS));
+    for (uint k = 1u; k <= MAP_FILTER_CONTACT_STEPS; ++k) {
+        precise vec3 q = p + step * float(k);
+        float s = view_depth(q);
+        if (s < frame.near) return false;
+        vec2 f = camera_framebuffer(q);
+        if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(frame.width) && f.y < float(frame.height))) return false;
+        uint j = uint(f.y) * frame.width + uint(f.x);
+        if ((gbuffer_flags(g_id_flags[j]) & FLAG_HIT) == 0u) continue;
+        float lambda = eye_ray_hit(triangles[gbuffer_triangle(g_id_flags[j])], q);
+        if (lambda <= 0.0) continue;
+        precise float behind = s - s * lambda;
+        if (behind > s * tolerance && behind < thickness) return true;
+    }
+    return false;
+}
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
@@ -116,6 +161,10 @@ void main() {
             lit = pcss(k, origin, texel, position, p, n, ndc);
         } else {
             lit = pcf(k, origin, texel, p, n, ndc, frame.map_filter);
+        }
+        if (frame.map_contact != 0u && lit != 0.0) {
+            precise float len = CONTACT_LENGTH_TEXELS * texel_world(texel, p);
+            if (contact_shadowed(position, len)) lit = 0.0;
         }
     }
     masks[i] = floatBitsToUint(lit);

@@ -16,6 +16,7 @@ layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; }
 
 #include "light_view.glsl"
 #include "shadow_map.glsl"
+#include "camera.glsl"
 
 void main() {
     Triangle t = triangles[uint(gl_VertexIndex) / 24u];
@@ -47,9 +48,5 @@ void main() {
             v = moved;
         }
     }
-    precise float s = dot3(v, frame.cam_forward);
-    precise vec3 r = v - frame.cam_corner * s;
-    precise float cx = dot3(r, frame.cam_dx) / dot3(frame.cam_dx, frame.cam_dx) * (2.0 / float(frame.width)) - s;
-    precise float cy = dot3(r, frame.cam_dy) / dot3(frame.cam_dy, frame.cam_dy) * (2.0 / float(frame.height)) - s;
-    gl_Position = vec4(cx, cy, frame.near, s);
+    gl_Position = camera_clip(v);
 }

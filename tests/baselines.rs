@@ -192,6 +192,8 @@ fn gpu_shadow_maps_match_the_cpu_twin() {
         "vsm-256",
         "msm-256",
         "csm2-msm-128",
+        "pcf3-256+contact",
+        "csm2-pcf3-128+contact",
     ];
     let (cases, mut compared) = (scenes.len() * methods.len(), 0);
     for scene in &scenes {
@@ -451,4 +453,76 @@ fn shadow_volumes_agree_with_izb1() {
     if gpu.is_some() {
         assert_eq!(gpu_compared, scenes.len());
     }
+}
+
+/// Contact shadows only darken, and the march does hit on the
+/// procedural scenes. How often it is right is a measurement, not a
+/// promise (printed here, discussed in `paper-notes/baselines.md`): the
+/// plane of a silhouette pixel extended past its edge hides what lies
+/// beyond it, the method's own false positives.
+#[test]
+fn contact_shadows_darken_where_occluders_are() {
+    let (mut checked, mut total_darkened) = (0, 0);
+    for name in ["default", "city", "grazing"] {
+        let scene = scene::load(name)
+            .unwrap()
+            .with_resolution([480, 270])
+            .unwrap();
+        let bvh = SceneBvh::build(&scene);
+        let g = gbuffer(&scene, &bvh);
+        let plain = render_shadow_map(&scene, &g, ShadowMapSettings::parse("sm-1024").unwrap())
+            .unwrap()
+            .visibility;
+        let contact = render_shadow_map(
+            &scene,
+            &g,
+            ShadowMapSettings::parse("sm-1024+contact").unwrap(),
+        )
+        .unwrap()
+        .visibility;
+        let izb1 = render_cpu(
+            &scene,
+            &bvh,
+            IzbSettings {
+                mode: SampleMode::One,
+                ..Default::default()
+            },
+        )
+        .visibility;
+        let (mut darkened, mut agree) = (0usize, 0usize);
+        for i in 0..plain.len() {
+            if plain[i].is_nan() {
+                continue;
+            }
+            assert!(
+                contact[i] <= plain[i],
+                "{name}: contact shadows lightened pixel {i}"
+            );
+            if contact[i] < plain[i] {
+                darkened += 1;
+                agree += (izb1[i] < 0.5) as usize;
+            }
+        }
+        println!("{name}: contact shadows darkened {darkened} pixels, {agree} in izb1's shadow");
+        total_darkened += darkened;
+        // The Vulkan twin marches the same steps.
+        if let Some(r) = renderer() {
+            let r = lock(r);
+            let settings = ShadowMapSettings::parse("sm-1024+contact").unwrap();
+            let gpu = r
+                .render_shadow_map(&scene, settings, izb::gpu::GBufferSource::Upload(&g))
+                .unwrap();
+            assert_no_validation_messages(&r, "contact");
+            let differ = contact
+                .iter()
+                .zip(&gpu.visibility)
+                .filter(|(a, b)| !a.is_nan() && a != b)
+                .count();
+            println!("{name}: the GPU's contact shadows differ at {differ} pixels");
+            assert!(differ as f64 <= MAX_GPU_PIXEL_MISMATCH * plain.len() as f64);
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 3);
+    assert!(total_darkened > 0, "the march never hit");
 }

@@ -254,6 +254,16 @@ shared_constants! {
         /// before its depth test, in widths of its pixel's footprint
         /// (`crate::baseline::volumes`).
         VOLUME_NUDGE_PIXELS = 1.0 / 256.0;
+        /// Contact shadows: the march's length in texel widths of the
+        /// shadow map at the receiver (`crate::baseline::contact`).
+        CONTACT_LENGTH_TEXELS = 16.0;
+        /// Contact shadows: the depth a sample must lie behind the visible
+        /// surface to count as occluded, in pixel footprints at that
+        /// surface (the depth buffer's own quantisation).
+        CONTACT_TOLERANCE_PIXELS = 0.25;
+        /// Contact shadows: the thickness assumed of every surface in the
+        /// depth buffer, in march steps (a step further behind it passes).
+        CONTACT_THICKNESS_STEPS = 2.0;
         /// Receivers per level-0 cell the default grid aims at.
         RECEIVERS_PER_CELL = 6.0;
         /// Triangles per level-0 cell the default grid aims at when the
@@ -286,6 +296,8 @@ shared_constants! {
         /// Gaussian (binomial weights C(8, i)/256), the filter of
         /// Peters 2017's compute blur.
         BLUR_RADIUS = 4;
+        /// Steps of a contact shadow's march toward the light.
+        CONTACT_STEPS = 16;
     }
 }
 
@@ -413,7 +425,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 83, "members of the five shared structs");
+        assert_eq!(checked, 84, "members of the five shared structs");
     }
 
     #[test]

@@ -94,6 +94,8 @@ shared_struct! {
         /// light for the dark cap (twice the scene's diagonal, past every
         /// receiver); 0 otherwise.
         pub volume_extrusion: f32 => "float volume_extrusion",
+        /// 1: the shadow-map lookup adds contact shadows (`…+contact`).
+        pub map_contact: u32 => "uint map_contact",
         /// Evaluate: a pixel whose cells list more entries than this hands
         /// them to the heavy step (a workgroup per pixel); 0: never.
         pub heavy_entries: u32 => "uint heavy_entries",

@@ -11,6 +11,8 @@
 //! - `pcss-R`: percentage-closer soft shadows (Fernando 2005) for area
 //!   lights: a blocker search sized by the light, a penumbra estimate, a
 //!   PCF disk of that size ([`pcss`]);
+//! - `…+contact`: any of them with screen-space contact shadows
+//!   ([`contact`]);
 //! - `vsm-R`, `msm-R`: variance (Donnelly & Lauritzen 2006) and moment
 //!   (Peters & Klein 2015) shadow maps, blurred by a 9² Gaussian
 //!   ([`moments`]).
@@ -19,6 +21,7 @@
 //! [`shadow_map::shadow_map`] and [`shadow_map::shadow_lookup`]; their
 //! Vulkan twins are `crate::gpu::shadow_map` (see `paper-notes/baselines.md`).
 
+pub mod contact;
 pub mod moments;
 pub mod pcss;
 pub mod raster;
@@ -49,15 +52,21 @@ pub struct ShadowMapSettings {
     pub side: u32,
     /// 1 for a single map.
     pub cascades: u32,
+    /// `+contact`: screen-space contact shadows on top ([`contact`]).
+    pub contact: bool,
 }
 
 impl ShadowMapSettings {
     /// Parses a method name: `sm-R`, `pcf3-R`, `pcf5-R`, `csmN-pcfK-R`,
     /// `pcss-R` (one map, R ≥ [`PCSS_MIN_SIDE`]), `vsm-R`, `msm-R` (and
     /// their cascaded `csmN-…`).
-    pub fn parse(name: &str) -> Result<ShadowMapSettings, String> {
+    pub fn parse(full_name: &str) -> Result<ShadowMapSettings, String> {
+        let (name, contact) = match full_name.strip_suffix("+contact") {
+            Some(base) => (base, true),
+            None => (full_name, false),
+        };
         let bad = || {
-            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R, pcss-R, vsm-R, msm-R, csmN-vsm-R, csmN-msm-R; R a side 16..={MAX_MAP_SIDE})")
+            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R, pcss-R, vsm-R, msm-R, csmN-vsm-R, csmN-msm-R, any of them +contact; R a side 16..={MAX_MAP_SIDE})")
         };
         let mut parts: Vec<&str> = name.split('-').collect();
         let side: u32 = parts.pop().and_then(|s| s.parse().ok()).ok_or_else(bad)?;
@@ -101,6 +110,7 @@ impl ShadowMapSettings {
             filter,
             side,
             cascades,
+            contact,
         })
     }
 }
@@ -116,7 +126,11 @@ impl fmt::Display for ShadowMapSettings {
             Filter::Pcss => write!(f, "pcss-{}", self.side),
             Filter::Vsm => write!(f, "vsm-{}", self.side),
             Filter::Msm => write!(f, "msm-{}", self.side),
+        }?;
+        if self.contact {
+            write!(f, "+contact")?;
         }
+        Ok(())
     }
 }
 
@@ -183,7 +197,11 @@ pub fn render_shadow_map(
     let shadow_map_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let visibility = if g.flags.iter().any(|f| f & flags::SHADOW_TESTED != 0) {
-        shadow_map::shadow_lookup(&setup, &maps, g, settings.filter, &pcss_light)
+        let mut lit = shadow_map::shadow_lookup(&setup, &maps, g, settings.filter, &pcss_light);
+        if settings.contact {
+            contact::contact_shadows(scene, &setup, &maps, g, &mut lit);
+        }
+        lit
     } else {
         vec![f32::NAN; g.flags.len()]
     };

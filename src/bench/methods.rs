@@ -56,7 +56,8 @@ pub struct Method {
 pub const DEFAULT_MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
 
 /// Parses a method list. `shadow-maps` expands to `sm`, `pcf3`, `pcf5`,
-/// `csm4-pcf3`, `vsm` and `msm` at every side of `map_sides` (not `pcss`: under a hard light
+/// `csm4-pcf3`, `vsm`, `msm` and `pcf3-…+contact` at every side of
+/// `map_sides` (not `pcss`: under a hard light
 /// it is only a narrow PCF; name `pcss-R` to time it); `reference` (the
 /// ground truth's own timing) is always measured and skipped here.
 pub fn parse_methods(
@@ -90,8 +91,11 @@ pub fn parse_methods(
             }
             "shadow-maps" => {
                 for &side in map_sides {
-                    for prefix in ["sm", "pcf3", "pcf5", "csm4-pcf3", "vsm", "msm"] {
-                        let n = format!("{prefix}-{side}");
+                    let names = ["sm", "pcf3", "pcf5", "csm4-pcf3", "vsm", "msm", "pcf3"]
+                        .iter()
+                        .zip(["", "", "", "", "", "", "+contact"]);
+                    for (prefix, suffix) in names {
+                        let n = format!("{prefix}-{side}{suffix}");
                         out.push((
                             n.clone(),
                             MethodKind::ShadowMap(ShadowMapSettings::parse(&n)?),

@@ -199,6 +199,7 @@ pub(super) fn frame_params(
         map_light_size: 0.0,
         map_near: 0.0,
         volume_extrusion: 0.0,
+        map_contact: 0,
         heavy_entries,
         heavy_capacity: super::frame_memory::heavy_capacity(scene.pixel_count() as u64)
             .min(u64::from(u32::MAX)) as u32,

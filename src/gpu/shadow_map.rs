@@ -38,6 +38,7 @@ pub(super) fn map_params(
         Filter::Msm => izb_contract::filtered::MSM,
     };
     params.map_reach = map.filter.reach();
+    params.map_contact = map.contact as u32;
     if map.filter == Filter::Pcss {
         let vertices = triangles
             .iter()
