@@ -9,13 +9,13 @@
 #   .gl/*.deb      the Vulkan loader (the device image has none);
 #   .dev/izb       a stripped release binary;
 #   .dev/tests/*   stripped test executables (gpu_backend, gpu_heavy_step,
-#                  gpu_soft_shadows);
+#                  gpu_soft_shadows, baselines);
 #   .dev/scenes    a copy of ../shared/scenes.
 # Writes logs and bench JSON under $OUT. Each step has its own time limit
 # so a slow step cannot cost the ones after it.
 # Knobs: IZB_MEASURE_RES (hard bench resolutions), IZB_MEASURE_REPEAT,
-# IZB_MEASURE_STEPS (which steps of hard, heavy, tests, soft; default
-# "hard tests soft").
+# IZB_MEASURE_STEPS (which steps of hard, heavy, tests, soft, baselines;
+# default "hard tests soft").
 set -u
 OUT=${OUT:-/tmp/izb-gpu-out}
 mkdir -p "$OUT"
@@ -79,6 +79,15 @@ for s in $STEPS; do
         for t in .dev/tests/*; do
             IZB_REQUIRE_GPU=1 IZB_REQUIRE_SCENES=1 step 60 "$(basename "$t")" "$t"
         done
+        ;;
+    baselines)
+        # Issue 17: the IZB against the hardware-rasterised maps, the
+        # filtered maps, contact shadows and shadow volumes, 1080p, every
+        # scene; the truth at 4 spp (the metrics rank, the times compare).
+        step 240 baselines .dev/izb bench $PROCEDURAL $SHARED --backend vulkan \
+            --methods izb1,izb32,volumes,sm-2048,pcf3-2048,pcf5-4096,csm4-pcf3-2048,vsm-2048,msm-2048,pcf3-2048+contact,sm-8192,msm-4096 \
+            --resolution 1920x1080 --repeat 3 --spp 4 --out /tmp/izb-bench/baselines.json
+        cp /tmp/izb-bench/baselines.json "$OUT/" 2>/dev/null
         ;;
     soft)
         # Area lights: the paired and LUT soft masks and PCSS, 1080p.

@@ -16,7 +16,7 @@ fi
 rm -rf .dev && mkdir -p .dev/tests
 cargo build --release
 cp target/release/izb .dev/izb && strip .dev/izb
-for t in gpu_backend gpu_heavy_step gpu_soft_shadows; do
+for t in gpu_backend gpu_heavy_step gpu_soft_shadows baselines; do
     exe=$(cargo test --release --no-run --test "$t" --message-format=json 2>/dev/null |
         python3 -c 'import json, sys
 for line in sys.stdin:

@@ -10,7 +10,7 @@
 //!   ("pancaking"), one beyond it clamps to 1, which reads as empty. A
 //!   point light's map is perspective with reversed depth `near / z`
 //!   (infinite far plane, compare GREATER), the float format's best
-//!   precision (Reed 2015; Lapidous & Jiao 1999); it clips at `near`.
+//!   precision (Lapidous & Jiao 1999); it clips at `near`.
 //! - **Coverage**: vertices snap to [`SUBPIXEL_BITS`] of sub-texel
 //!   precision, a texel is covered when its centre is inside the snapped
 //!   triangle, and a centre exactly on an edge belongs to the triangle
