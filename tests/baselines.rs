@@ -22,6 +22,16 @@ fn small(name: &str) -> Scene {
         .unwrap()
 }
 
+/// `default` at 160×90 under a point light above its objects.
+fn point_lit_default() -> Scene {
+    let mut point = small("default");
+    point.light = izb::scene::Light::Point {
+        position: glam::DVec3::new(1.0, 25.0, 0.0),
+    };
+    point.name = "default-point-light".into();
+    point
+}
+
 /// Nearest light distance through a texel centre by brute force: every
 /// triangle, the ray through the centre, Möller–Trumbore in light view.
 fn brute_force_distance(
@@ -277,12 +287,7 @@ fn gpu_rasteriser_draws_the_cpu_twins_texels() {
         .iter()
         .map(|n| small(n))
         .collect();
-    let mut point = small("default");
-    point.light = izb::scene::Light::Point {
-        position: glam::DVec3::new(1.0, 25.0, 0.0),
-    };
-    point.name = "default-point-light".into();
-    scenes.push(point);
+    scenes.push(point_lit_default());
     let (mut cases, mut texels, mut covered_both) = (0, 0u64, 0u64);
     for scene in &scenes {
         let bvh = SceneBvh::build(scene);
@@ -379,12 +384,7 @@ fn shadow_volumes_agree_with_izb1() {
         .filter(|&&n| n != "hairball")
         .map(|n| small(n))
         .collect();
-    let mut point = small("default");
-    point.light = izb::scene::Light::Point {
-        position: glam::DVec3::new(1.0, 25.0, 0.0),
-    };
-    point.name = "default-point-light".into();
-    scenes.push(point);
+    scenes.push(point_lit_default());
     let gpu = renderer();
     let (mut compared, mut gpu_compared) = (0, 0);
     for scene in &scenes {

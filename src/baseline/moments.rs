@@ -20,7 +20,7 @@
 //! reconstructs.
 
 use super::raster::MapDepth;
-use super::shadow_map::{texel_world, CascadeMap, ShadowMaps, CONSTANT_BIAS_TEXELS};
+use super::shadow_map::{bilinear_taps, texel_world, CascadeMap, ShadowMaps, CONSTANT_BIAS_TEXELS};
 use crate::cpu::light_setup::{LightSetup, Projection};
 use glam::{Vec2, Vec3};
 use izb_contract::filtered::BLUR_RADIUS;
@@ -200,12 +200,7 @@ pub fn moments_lookup(
     let f = t - base;
     let (bx, by) = map.texel_of(base);
     let mut b = [0.0f32; 4];
-    for (dx, dy, wt) in [
-        (0, 0, (1.0 - f.x) * (1.0 - f.y)),
-        (1, 0, f.x * (1.0 - f.y)),
-        (0, 1, (1.0 - f.x) * f.y),
-        (1, 1, f.x * f.y),
-    ] {
+    for (dx, dy, wt) in bilinear_taps(f) {
         let (x, y) = (bx + dx, by + dy);
         let inside = x >= 0 && y >= 0 && x < side && y < side;
         for (c, bc) in b.iter_mut().enumerate().take(n) {

@@ -387,12 +387,7 @@ fn pcf(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2, k:
             let base = s.floor();
             let f = s - base;
             let (bx, by) = map.texel_of(base);
-            for (dx, dy, w) in [
-                (0, 0, (1.0 - f.x) * (1.0 - f.y)),
-                (1, 0, f.x * (1.0 - f.y)),
-                (0, 1, (1.0 - f.x) * f.y),
-                (1, 1, f.x * f.y),
-            ] {
+            for (dx, dy, w) in bilinear_taps(f) {
                 let (x, y) = (bx + dx, by + dy);
                 let stored = map.at(x, y);
                 if stored == f32::INFINITY {
@@ -406,6 +401,17 @@ fn pcf(projection: Projection, map: &CascadeMap, p: Vec3, n: Vec3, ndc: Vec2, k:
         }
     }
     lit / (k * k) as f32
+}
+
+/// The 2×2 texels of a bilinear lookup at fraction `f` past texel
+/// (0, 0): their offsets and weights, in the order the shaders sum them.
+pub(crate) fn bilinear_taps(f: Vec2) -> [(i32, i32, f32); 4] {
+    [
+        (0, 0, (1.0 - f.x) * (1.0 - f.y)),
+        (1, 0, f.x * (1.0 - f.y)),
+        (0, 1, (1.0 - f.x) * f.y),
+        (1, 1, f.x * f.y),
+    ]
 }
 
 /// The float ↔ ordered-uint map both shadow-map twins store depths with

@@ -81,21 +81,15 @@ pub(super) fn run_once(
         }
         MethodKind::ShadowVolumes => {
             let out = crate::baseline::volumes::shadow_volumes(scene, &shared.gbuffer);
-            r.shadow.push(out.report.seconds);
-            r.total.push(out.report.seconds + shared.gbuffer_seconds);
-            r.seconds
-                .push(json!({ "shadow_volumes": out.report.seconds }));
-            r.details = json!(out.report);
-            r.visibility = out.visibility;
+            let s = out.report.seconds;
+            let seconds = json!({ "shadow_volumes": s });
+            r.record_baseline(s, seconds, json!(out.report), out.visibility, shared);
         }
         MethodKind::ShadowMap(settings) => {
             let out = render_shadow_map(scene, &shared.gbuffer, *settings)?;
-            r.shadow.push(out.report.seconds.shadow);
-            r.total
-                .push(out.report.seconds.shadow + shared.gbuffer_seconds);
-            r.seconds.push(json!(out.report.seconds));
-            r.details = json!(out.report);
-            r.visibility = out.visibility;
+            let s = out.report.seconds.shadow;
+            let seconds = json!(out.report.seconds);
+            r.record_baseline(s, seconds, json!(out.report), out.visibility, shared);
         }
     }
     Ok(r)

@@ -278,6 +278,23 @@ impl Runs {
         self.visibility = resolve(&masks, &shared.gbuffer);
         self.masks = Some(masks);
     }
+
+    /// One run of a baseline on the shared G-buffer: `shadow` seconds,
+    /// the per-pass `seconds`, its report as `details`, its lit fractions.
+    fn record_baseline(
+        &mut self,
+        shadow: f64,
+        seconds: Value,
+        details: Value,
+        visibility: Vec<f32>,
+        shared: &SceneTruth,
+    ) {
+        self.shadow.push(shadow);
+        self.total.push(shadow + shared.gbuffer_seconds);
+        self.seconds.push(seconds);
+        self.details = details;
+        self.visibility = visibility;
+    }
 }
 
 fn run_placeholder() -> Runs {

@@ -6,6 +6,7 @@
 //! to it, so nothing can outlive the device and no caller keeps a destroy
 //! list.
 
+use super::device_candidates::{candidates, CPU_KIND};
 use super::GpuError;
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
@@ -29,9 +30,6 @@ pub struct DeviceInfo {
     pub max_storage_buffer_range: u32,
     pub max_compute_work_group_count: [u32; 3],
 }
-
-/// [`DeviceInfo::kind`] of a CPU implementation (Mesa's lavapipe).
-const CPU_KIND: &str = "CPU";
 
 impl DeviceInfo {
     /// Whether the device is a CPU implementation: its subgroups run as
@@ -181,16 +179,6 @@ unsafe extern "system" fn debug_callback(
     vk::FALSE
 }
 
-fn device_kind(t: vk::PhysicalDeviceType) -> (u32, &'static str) {
-    match t {
-        vk::PhysicalDeviceType::DISCRETE_GPU => (0, "discrete GPU"),
-        vk::PhysicalDeviceType::INTEGRATED_GPU => (1, "integrated GPU"),
-        vk::PhysicalDeviceType::VIRTUAL_GPU => (2, "virtual GPU"),
-        vk::PhysicalDeviceType::CPU => (3, CPU_KIND),
-        _ => (4, "other"),
-    }
-}
-
 /// The Vulkan context: a shared device plus the command pool of its queue.
 pub struct GpuContext {
     pub shared: Arc<DeviceShared>,
@@ -223,124 +211,6 @@ impl Drop for GpuContext {
             self.shared.device.destroy_command_pool(pool, None);
         }
     }
-}
-
-/// Subgroup operations the shaders use in compute: `subgroupElect`
-/// (basic), `subgroupAllEqual`/`Any` (vote), `subgroupAdd`/`Min`/`Max`/`Or`
-/// (arithmetic), `subgroupBallot`/`Broadcast` (ballot).
-const REQUIRED_SUBGROUP_OPERATIONS: vk::SubgroupFeatureFlags = vk::SubgroupFeatureFlags::from_raw(
-    vk::SubgroupFeatureFlags::BASIC.as_raw()
-        | vk::SubgroupFeatureFlags::VOTE.as_raw()
-        | vk::SubgroupFeatureFlags::ARITHMETIC.as_raw()
-        | vk::SubgroupFeatureFlags::BALLOT.as_raw(),
-);
-
-/// A suitable physical device: Vulkan ≥ 1.2, a compute queue, the scalar
-/// block layout, the subgroup operations of [`REQUIRED_SUBGROUP_OPERATIONS`].
-struct Candidate {
-    physical: vk::PhysicalDevice,
-    queue_family: u32,
-    raster_missing: Option<String>,
-    depth_clamp: bool,
-    rank: u32,
-    info: DeviceInfo,
-    limits: vk::PhysicalDeviceLimits,
-    timestamps: bool,
-}
-
-fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
-    // SAFETY: `instance` is a live instance (here and in the calls below,
-    // each `physical` comes from it); the out-structures outlive the calls.
-    let physicals = unsafe { instance.enumerate_physical_devices() }.map_err(GpuError::vk)?;
-    let mut out = Vec::new();
-    for physical in physicals {
-        // SAFETY: `physical` was enumerated from this live instance.
-        let props = unsafe { instance.get_physical_device_properties(physical) };
-        if props.api_version < vk::API_VERSION_1_2 {
-            continue;
-        }
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12);
-        // SAFETY: as above; the feature chain outlives the call.
-        unsafe { instance.get_physical_device_features2(physical, &mut f2) };
-        let depth_clamp = f2.features.depth_clamp == vk::TRUE;
-        if f12.scalar_block_layout == vk::FALSE {
-            continue;
-        }
-        // The passes reduce their counters and atomics per subgroup
-        // (votes, arithmetic) before touching memory.
-        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
-        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut subgroup);
-        // SAFETY: as above; the property chain outlives the call.
-        unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
-        if !subgroup
-            .supported_stages
-            .contains(vk::ShaderStageFlags::COMPUTE)
-            || !subgroup
-                .supported_operations
-                .contains(REQUIRED_SUBGROUP_OPERATIONS)
-        {
-            continue;
-        }
-        // SAFETY: as above.
-        let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
-        // A family with graphics beside compute when there is one: the
-        // shadow-map baselines draw their maps on the rasteriser.
-        let graphics = vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS;
-        let Some((family, family_props)) = families
-            .iter()
-            .enumerate()
-            .find(|(_, f)| f.queue_flags.contains(graphics))
-            .or_else(|| {
-                families
-                    .iter()
-                    .enumerate()
-                    .find(|(_, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
-            })
-        else {
-            continue;
-        };
-        let raster_missing = if !family_props.queue_flags.contains(graphics) {
-            Some("no queue family of this device has graphics beside compute".to_string())
-        } else if !depth_clamp {
-            Some("this device has no depthClamp (a directional light's map clamps casters in front of its depth range)".to_string())
-        } else {
-            None
-        };
-        let (rank, kind) = device_kind(props.device_type);
-        let name = props
-            .device_name_as_c_str()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|_| "unnamed device".into());
-        out.push(Candidate {
-            physical,
-            queue_family: family as u32,
-            raster_missing,
-            depth_clamp,
-            rank,
-            info: DeviceInfo {
-                index: 0,
-                name,
-                kind: kind.into(),
-                api_version: format!(
-                    "{}.{}.{}",
-                    vk::api_version_major(props.api_version),
-                    vk::api_version_minor(props.api_version),
-                    vk::api_version_patch(props.api_version)
-                ),
-                max_storage_buffer_range: props.limits.max_storage_buffer_range,
-                max_compute_work_group_count: props.limits.max_compute_work_group_count,
-            },
-            limits: props.limits,
-            timestamps: family_props.timestamp_valid_bits > 0
-                && props.limits.timestamp_period > 0.0,
-        });
-    }
-    out.sort_by_key(|c| c.rank);
-    for (i, c) in out.iter_mut().enumerate() {
-        c.info.index = i;
-    }
-    Ok(out)
 }
 
 pub(crate) fn load_entry() -> Result<ash::Entry, GpuError> {

@@ -186,6 +186,31 @@ pub struct GpuShadowMapRender {
     pub maps: Vec<f32>,
 }
 
+impl GpuShadowMapRender {
+    /// The result of a baseline's frame (maps or volumes): the lit
+    /// fraction the lookup wrote as float bits in `masks`, the G-buffer
+    /// read back, times and memory; `buffer_bytes` of method storage.
+    pub(super) fn from_frame(
+        scene: &Scene,
+        source: GBufferSource,
+        upload: &SceneUpload,
+        mut out: FrameOutput,
+        buffer_bytes: u64,
+    ) -> Self {
+        let visibility = out.per_tested_pixel(&out.masks, f32::from_bits);
+        let gbuffer = read_back_gbuffer(scene, source, upload, &mut out);
+        GpuShadowMapRender {
+            visibility,
+            gbuffer,
+            gpu_milliseconds: out.millis.as_ref().map(ShadowMapMillis::from_frame),
+            wall_seconds: out.wall_seconds,
+            map_bytes: buffer_bytes,
+            memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
+            maps: std::mem::take(&mut out.shadow_maps),
+        }
+    }
+}
+
 impl GpuRenderer {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn finish(

@@ -21,6 +21,7 @@
 
 pub mod bin;
 pub mod context;
+mod device_candidates;
 pub mod evaluate;
 pub mod frame;
 pub mod frame_inputs;

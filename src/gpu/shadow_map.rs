@@ -8,7 +8,6 @@
 
 use super::frame::{GBufferSource, GpuRenderer, GpuShadowMapRender};
 use super::frame_report::FramePasses;
-use super::frame_report::ShadowMapMillis;
 use super::shadow_raster::{ShadowDepthTarget, ShadowRaster};
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::pcss::PcssLight;
@@ -136,8 +135,7 @@ impl GpuRenderer {
             ..Default::default()
         };
         let max_cells = crate::cascades::max_total_cells(8);
-        let mut out =
-            self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
+        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
         self.check_loop_budget(&out)?;
         if out.light.grid_disabled != 0 {
             return Err(GpuError::Unsupported(format!(
@@ -145,17 +143,8 @@ impl GpuRenderer {
                 scene.name
             )));
         }
-        // The lookup writes the lit fraction's bits in the masks buffer.
-        let visibility = out.per_tested_pixel(&out.masks, f32::from_bits);
-        let gbuffer = super::frame_report::read_back_gbuffer(scene, source, &upload, &mut out);
-        Ok(GpuShadowMapRender {
-            visibility,
-            gbuffer,
-            gpu_milliseconds: out.millis.as_ref().map(ShadowMapMillis::from_frame),
-            wall_seconds: out.wall_seconds,
-            map_bytes,
-            memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
-            maps: std::mem::take(&mut out.shadow_maps),
-        })
+        Ok(GpuShadowMapRender::from_frame(
+            scene, source, &upload, out, map_bytes,
+        ))
     }
 }

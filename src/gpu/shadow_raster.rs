@@ -36,21 +36,15 @@ impl ShadowRaster {
         if let Some(why) = &shared.raster_missing {
             return Err(GpuError::Unsupported(why.clone()));
         }
-        let device = &shared.device;
-        // SAFETY: `physical_device` belongs to this instance.
-        let format = unsafe {
-            shared
-                .instance
-                .get_physical_device_format_properties(shared.physical_device, DEPTH_FORMAT)
-        };
         let needed =
             vk::FormatFeatureFlags::DEPTH_STENCIL_ATTACHMENT | vk::FormatFeatureFlags::TRANSFER_SRC;
-        if !format.optimal_tiling_features.contains(needed) {
-            return Err(GpuError::Unsupported(
-                "this device cannot render D32_SFLOAT depth and copy it out".into(),
-            ));
-        }
-        let attachment = [vk::AttachmentDescription::default()
+        require_format(
+            shared,
+            DEPTH_FORMAT,
+            needed,
+            "render D32_SFLOAT depth and copy it out",
+        )?;
+        let attachment = vk::AttachmentDescription::default()
             .format(DEPTH_FORMAT)
             .samples(vk::SampleCountFlags::TYPE_1)
             .load_op(vk::AttachmentLoadOp::CLEAR)
@@ -58,54 +52,21 @@ impl ShadowRaster {
             .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
             .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
             .initial_layout(vk::ImageLayout::UNDEFINED)
-            .final_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)];
-        let depth_ref = vk::AttachmentReference::default()
-            .attachment(0)
-            .layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL);
-        let subpass = [vk::SubpassDescription::default()
-            .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
-            .depth_stencil_attachment(&depth_ref)];
-        let fragment_tests = vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS
-            | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
-        let dependencies = [
-            // The previous repetition's copy has read the layer.
-            vk::SubpassDependency::default()
-                .src_subpass(vk::SUBPASS_EXTERNAL)
-                .dst_subpass(0)
-                .src_stage_mask(vk::PipelineStageFlags::TRANSFER)
-                .dst_stage_mask(fragment_tests)
-                .dst_access_mask(
-                    vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
-                        | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
-                ),
-            // The copy reads what the depth test wrote.
-            vk::SubpassDependency::default()
-                .src_subpass(0)
-                .dst_subpass(vk::SUBPASS_EXTERNAL)
-                .src_stage_mask(fragment_tests)
-                .src_access_mask(vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE)
-                .dst_stage_mask(vk::PipelineStageFlags::TRANSFER)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ),
-        ];
-        let info = vk::RenderPassCreateInfo::default()
-            .attachments(&attachment)
-            .subpasses(&subpass)
-            .dependencies(&dependencies);
-        // SAFETY: `info` and the arrays it points to outlive the call.
-        let render_pass =
-            unsafe { device.create_render_pass(&info, None) }.map_err(GpuError::vk)?;
-        shared.set_name(render_pass, "shadow_map depth-only pass");
+            .final_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL);
+        // Before: the previous repetition's copy has read the layer.
+        let render_pass = depth_render_pass(
+            shared,
+            attachment,
+            vk::AccessFlags::empty(),
+            "shadow_map depth-only pass",
+        )?;
         let mut raster = ShadowRaster {
             shared: shared.clone(),
             render_pass,
             orthographic: vk::Pipeline::null(),
             perspective: vk::Pipeline::null(),
         };
-        let spirv = super::SPIRV_MODULES
-            .iter()
-            .find(|(name, _)| *name == "shadow_map")
-            .map(|(_, bytes)| *bytes)
-            .ok_or_else(|| GpuError::Unsupported("shadow_map.vert was not compiled".into()))?;
+        let spirv = vertex_spirv("shadow_map")?;
         raster.orthographic = raster.pipeline(layout, spirv, Projection::Orthographic)?;
         raster.perspective = raster.pipeline(layout, spirv, Projection::Perspective)?;
         Ok(raster)
@@ -136,6 +97,85 @@ impl ShadowRaster {
         };
         depth_pipeline(&self.shared, layout, self.render_pass, spirv, &desc)
     }
+}
+
+/// Whether this device renders and copies `format` with `features`, or
+/// what it cannot do.
+pub(super) fn require_format(
+    shared: &DeviceShared,
+    format: vk::Format,
+    features: vk::FormatFeatureFlags,
+    what: &str,
+) -> Result<(), GpuError> {
+    // SAFETY: `physical_device` belongs to this instance.
+    let props = unsafe {
+        shared
+            .instance
+            .get_physical_device_format_properties(shared.physical_device, format)
+    };
+    if props.optimal_tiling_features.contains(features) {
+        Ok(())
+    } else {
+        Err(GpuError::Unsupported(format!("this device cannot {what}")))
+    }
+}
+
+/// The one-subpass render pass of a depth(-stencil) pass over
+/// `attachment`: a transfer before it (which wrote the attachment when
+/// `transfer_access` says so, or only read it) comes first, and the copy
+/// out after it sees what the tests wrote.
+pub(super) fn depth_render_pass(
+    shared: &DeviceShared,
+    attachment: vk::AttachmentDescription,
+    transfer_access: vk::AccessFlags,
+    name: &str,
+) -> Result<vk::RenderPass, GpuError> {
+    let attachment = [attachment];
+    let depth_ref = vk::AttachmentReference::default()
+        .attachment(0)
+        .layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL);
+    let subpass = [vk::SubpassDescription::default()
+        .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+        .depth_stencil_attachment(&depth_ref)];
+    let tests =
+        vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
+    let dependencies = [
+        vk::SubpassDependency::default()
+            .src_subpass(vk::SUBPASS_EXTERNAL)
+            .dst_subpass(0)
+            .src_stage_mask(vk::PipelineStageFlags::TRANSFER)
+            .src_access_mask(transfer_access)
+            .dst_stage_mask(tests)
+            .dst_access_mask(
+                vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+                    | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            ),
+        vk::SubpassDependency::default()
+            .src_subpass(0)
+            .dst_subpass(vk::SUBPASS_EXTERNAL)
+            .src_stage_mask(tests)
+            .src_access_mask(vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE)
+            .dst_stage_mask(vk::PipelineStageFlags::TRANSFER)
+            .dst_access_mask(vk::AccessFlags::TRANSFER_READ),
+    ];
+    let info = vk::RenderPassCreateInfo::default()
+        .attachments(&attachment)
+        .subpasses(&subpass)
+        .dependencies(&dependencies);
+    // SAFETY: `info` and the arrays it points to outlive the call.
+    let render_pass =
+        unsafe { shared.device.create_render_pass(&info, None) }.map_err(GpuError::vk)?;
+    shared.set_name(render_pass, name);
+    Ok(render_pass)
+}
+
+/// The SPIR-V of vertex shader `name` (as `build.rs` compiled it).
+pub(super) fn vertex_spirv(name: &str) -> Result<&'static [u8], GpuError> {
+    super::SPIRV_MODULES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, bytes)| *bytes)
+        .ok_or_else(|| GpuError::Unsupported(format!("{name} was not compiled")))
 }
 
 /// What differs between the depth-only pipelines (the maps', the

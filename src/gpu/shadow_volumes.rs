@@ -13,9 +13,12 @@
 
 use super::context::DeviceShared;
 use super::frame::{GBufferSource, GpuRenderer, GpuShadowMapRender};
-use super::frame_report::{FramePasses, ShadowMapMillis};
+use super::frame_report::FramePasses;
 use super::pipeline::BindingLayout;
-use super::shadow_raster::{depth_pipeline, DepthAttachment, DepthPipelineDesc};
+use super::shadow_raster::{
+    depth_pipeline, depth_render_pass, require_format, vertex_spirv, DepthAttachment,
+    DepthPipelineDesc,
+};
 use super::{GpuError, Kernels, Recorder};
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
@@ -38,21 +41,12 @@ impl VolumeRaster {
         if let Some(why) = &shared.raster_missing {
             return Err(GpuError::Unsupported(why.clone()));
         }
-        // SAFETY: `physical_device` belongs to this instance.
-        let format = unsafe {
-            shared
-                .instance
-                .get_physical_device_format_properties(shared.physical_device, DEPTH_STENCIL_FORMAT)
-        };
         let needed = vk::FormatFeatureFlags::DEPTH_STENCIL_ATTACHMENT
             | vk::FormatFeatureFlags::TRANSFER_SRC
             | vk::FormatFeatureFlags::TRANSFER_DST;
-        if !format.optimal_tiling_features.contains(needed) {
-            return Err(GpuError::Unsupported(
-                "this device cannot render D32_SFLOAT_S8_UINT and copy it in and out".into(),
-            ));
-        }
-        let attachment = [vk::AttachmentDescription::default()
+        let what = "render D32_SFLOAT_S8_UINT and copy it in and out";
+        require_format(shared, DEPTH_STENCIL_FORMAT, needed, what)?;
+        let attachment = vk::AttachmentDescription::default()
             .format(DEPTH_STENCIL_FORMAT)
             .samples(vk::SampleCountFlags::TYPE_1)
             .load_op(vk::AttachmentLoadOp::LOAD)
@@ -60,44 +54,14 @@ impl VolumeRaster {
             .stencil_load_op(vk::AttachmentLoadOp::CLEAR)
             .stencil_store_op(vk::AttachmentStoreOp::STORE)
             .initial_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-            .final_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)];
-        let depth_ref = vk::AttachmentReference::default()
-            .attachment(0)
-            .layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL);
-        let subpass = [vk::SubpassDescription::default()
-            .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
-            .depth_stencil_attachment(&depth_ref)];
-        let tests = vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS
-            | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
-        let attachment_access = vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
-            | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE;
-        let dependencies = [
-            // The receivers' depths were copied in.
-            vk::SubpassDependency::default()
-                .src_subpass(vk::SUBPASS_EXTERNAL)
-                .dst_subpass(0)
-                .src_stage_mask(vk::PipelineStageFlags::TRANSFER)
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_stage_mask(tests)
-                .dst_access_mask(attachment_access),
-            // The stencil counts are copied out.
-            vk::SubpassDependency::default()
-                .src_subpass(0)
-                .dst_subpass(vk::SUBPASS_EXTERNAL)
-                .src_stage_mask(tests)
-                .src_access_mask(vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE)
-                .dst_stage_mask(vk::PipelineStageFlags::TRANSFER)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ),
-        ];
-        let info = vk::RenderPassCreateInfo::default()
-            .attachments(&attachment)
-            .subpasses(&subpass)
-            .dependencies(&dependencies);
-        let device = &shared.device;
-        // SAFETY: `info` and the arrays it points to outlive the call.
-        let render_pass =
-            unsafe { device.create_render_pass(&info, None) }.map_err(GpuError::vk)?;
-        shared.set_name(render_pass, "shadow_volumes stencil pass");
+            .final_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL);
+        // Before: the receivers' depths were copied in.
+        let render_pass = depth_render_pass(
+            shared,
+            attachment,
+            vk::AccessFlags::TRANSFER_WRITE,
+            "shadow_volumes stencil pass",
+        )?;
         let mut raster = VolumeRaster {
             shared: shared.clone(),
             render_pass,
@@ -126,11 +90,7 @@ impl VolumeRaster {
                 count(vk::StencilOp::INCREMENT_AND_WRAP),
             )),
         };
-        let spirv = super::SPIRV_MODULES
-            .iter()
-            .find(|(name, _)| *name == "shadow_volume")
-            .map(|(_, bytes)| *bytes)
-            .ok_or_else(|| GpuError::Unsupported("shadow_volume.vert was not compiled".into()))?;
+        let spirv = vertex_spirv("shadow_volume")?;
         raster.pipeline = depth_pipeline(shared, layout, render_pass, spirv, &desc)?;
         Ok(raster)
     }
@@ -345,19 +305,11 @@ impl GpuRenderer {
         };
         let max_cells = crate::cascades::max_total_cells(8);
         let passes = FramePasses::ShadowVolumes;
-        let mut out =
-            self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
+        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
         self.check_loop_budget(&out)?;
-        let visibility = out.per_tested_pixel(&out.masks, f32::from_bits);
-        let gbuffer = super::frame_report::read_back_gbuffer(scene, source, &upload, &mut out);
-        Ok(GpuShadowMapRender {
-            visibility,
-            gbuffer,
-            gpu_milliseconds: out.millis.as_ref().map(ShadowMapMillis::from_frame),
-            wall_seconds: out.wall_seconds,
-            map_bytes: passes.shadow_map_words(scene.pixel_count() as u64) * 4,
-            memory_total_bytes: out.memory.iter().map(|m| m.bytes).sum(),
-            maps: Vec::new(),
-        })
+        let bytes = passes.shadow_map_words(scene.pixel_count() as u64) * 4;
+        Ok(GpuShadowMapRender::from_frame(
+            scene, source, &upload, out, bytes,
+        ))
     }
 }
