@@ -453,6 +453,33 @@ impl Drop for DepthAttachment {
     }
 }
 
+/// The render area, viewport and clear value of a pass over a whole
+/// `size` target, depth cleared to `depth`, stencil to 0.
+pub(super) fn whole_target(
+    size: [u32; 2],
+    depth: f32,
+) -> (vk::Rect2D, [vk::Viewport; 1], [vk::ClearValue; 1]) {
+    let area = vk::Rect2D {
+        offset: vk::Offset2D { x: 0, y: 0 },
+        extent: vk::Extent2D {
+            width: size[0],
+            height: size[1],
+        },
+    };
+    let viewport = [vk::Viewport {
+        x: 0.0,
+        y: 0.0,
+        width: size[0] as f32,
+        height: size[1] as f32,
+        min_depth: 0.0,
+        max_depth: 1.0,
+    }];
+    let clear = [vk::ClearValue {
+        depth_stencil: vk::ClearDepthStencilValue { depth, stencil: 0 },
+    }];
+    (area, viewport, clear)
+}
+
 /// Records the raster pass: per cascade `k`, a depth-only render pass into
 /// layer `k` drawing `triangles` triangles (instance `k`), then the copy of
 /// every layer into `map_buffer`, cascade after cascade.
@@ -473,27 +500,7 @@ pub fn shadow_map(
         Projection::Orthographic => (raster.orthographic, 1.0),
         Projection::Perspective => (raster.perspective, 0.0),
     };
-    let area = vk::Rect2D {
-        offset: vk::Offset2D { x: 0, y: 0 },
-        extent: vk::Extent2D {
-            width: side,
-            height: side,
-        },
-    };
-    let viewport = [vk::Viewport {
-        x: 0.0,
-        y: 0.0,
-        width: side as f32,
-        height: side as f32,
-        min_depth: 0.0,
-        max_depth: 1.0,
-    }];
-    let clear = [vk::ClearValue {
-        depth_stencil: vk::ClearDepthStencilValue {
-            depth: clear,
-            stencil: 0,
-        },
-    }];
+    let (area, viewport, clear) = whole_target([side, side], clear);
     // The light setup's compute writes (light state, cascades) are read
     // by the vertex shader.
     let to_vertex = [vk::MemoryBarrier::default()

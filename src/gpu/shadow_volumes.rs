@@ -16,7 +16,7 @@ use super::frame::{GBufferSource, GpuRenderer, GpuShadowMapRender};
 use super::frame_report::FramePasses;
 use super::pipeline::BindingLayout;
 use super::shadow_raster::{
-    depth_pipeline, depth_render_pass, require_format, vertex_spirv, DepthAttachment,
+    depth_pipeline, depth_render_pass, require_format, vertex_spirv, whole_target, DepthAttachment,
     DepthPipelineDesc,
 };
 use super::{GpuError, Kernels, Recorder};
@@ -180,27 +180,8 @@ pub fn shadow_volumes(
     let to_vertex = [vk::MemoryBarrier::default()
         .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
         .dst_access_mask(vk::AccessFlags::SHADER_READ)];
-    let area = vk::Rect2D {
-        offset: vk::Offset2D { x: 0, y: 0 },
-        extent: vk::Extent2D {
-            width: size[0],
-            height: size[1],
-        },
-    };
-    let viewport = [vk::Viewport {
-        x: 0.0,
-        y: 0.0,
-        width: size[0] as f32,
-        height: size[1] as f32,
-        min_depth: 0.0,
-        max_depth: 1.0,
-    }];
-    let clear = [vk::ClearValue {
-        depth_stencil: vk::ClearDepthStencilValue {
-            depth: 0.0,
-            stencil: 0,
-        },
-    }];
+    // Depth is loaded (the receivers'), only the stencil clears.
+    let (area, viewport, clear) = whole_target(size, 0.0);
     // SAFETY: `cmd` is recording (inside the frame's submission); the
     // image, framebuffer, pipeline, layout, set and buffer outlive the
     // frame's fence wait; the copies stay inside the buffer (its first
