@@ -22,6 +22,18 @@ fn small(name: &str) -> Scene {
         .unwrap()
 }
 
+/// Every procedural scene and, when present, every shared one, at 160×90.
+fn every_scene() -> Vec<Scene> {
+    let mut scenes: Vec<Scene> = scene::procedural::NAMES.iter().map(|n| small(n)).collect();
+    if common::shared_scenes_dir().is_some() {
+        for name in common::SHARED_SCENES {
+            let s = common::shared_scene(name).unwrap();
+            scenes.push(s.with_resolution([160, 90]).unwrap());
+        }
+    }
+    scenes
+}
+
 /// `default` at 160×90 under a point light above its objects.
 fn point_lit_default() -> Scene {
     let mut point = small("default");
@@ -184,16 +196,7 @@ const MSM_ROUNDING: f32 = 1e-2;
 fn gpu_shadow_maps_match_the_cpu_twin() {
     let Some(r) = renderer() else { return };
     let r = lock(r);
-    let mut scenes: Vec<Scene> = ["default", "city", "wires", "grazing"]
-        .iter()
-        .map(|n| small(n))
-        .collect();
-    if common::shared_scenes_dir().is_some() {
-        for name in ["deckchair", "engine"] {
-            let s = common::shared_scene(name).unwrap();
-            scenes.push(s.with_resolution([160, 90]).unwrap());
-        }
-    }
+    let scenes = every_scene();
     let methods = [
         "sm-256",
         "pcf3-256",
@@ -372,18 +375,14 @@ fn gpu_rasteriser_draws_the_cpu_twins_texels() {
     assert!(covered_both > texels / 4, "most maps should be drawn on");
 }
 
-/// Shadow volumes and `izb1` answer the same question exactly — is the
-/// pixel centre's receiver point in any triangle's shadow volume — so
-/// their masks agree but for ties: points within the receiver nudge of a
-/// volume face (contact lines, creases). Both twins, every procedural
-/// scene and two shared ones.
+/// Shadow volumes and `izb1` answer the same question — is the pixel
+/// centre's receiver point in any triangle's shadow volume — so their
+/// masks agree but where a volume face passes within the receiver's
+/// nudge (the `f64` ray to the light says who is right there, printed).
+/// Both twins, every scene, a point light.
 #[test]
 fn shadow_volumes_agree_with_izb1() {
-    let mut scenes: Vec<Scene> = scene::procedural::NAMES
-        .iter()
-        .filter(|&&n| n != "hairball")
-        .map(|n| small(n))
-        .collect();
+    let mut scenes = every_scene();
     scenes.push(point_lit_default());
     let gpu = renderer();
     let (mut compared, mut gpu_compared) = (0, 0);
@@ -399,26 +398,38 @@ fn shadow_volumes_agree_with_izb1() {
             },
         );
         let volumes = izb::baseline::volumes::shadow_volumes(scene, &g);
-        let (mut tested, mut differ) = (0usize, 0usize);
+        // Where they disagree, the f64 ray from the receiver point to the
+        // light says who is right.
+        let light = scene.light.relative_to(scene.camera.eye);
+        let truth_lit = |i: usize| {
+            let p = g.position[i].as_dvec3();
+            let (dir, far) = light.toward(p);
+            let t0 = izb::bvh::self_hit_offset(p);
+            !bvh.occluded(p, dir, t0, far, g.triangle_id[i])
+        };
+        let (mut tested, mut differ, mut volumes_right) = (0usize, 0usize, 0usize);
         for (i, v) in volumes.visibility.iter().enumerate() {
             if v.is_nan() {
                 continue;
             }
             tested += 1;
             let lit = izb1.visibility[i];
-            differ += ((lit >= 0.5) != (*v >= 0.5)) as usize;
+            if (lit >= 0.5) != (*v >= 0.5) {
+                differ += 1;
+                volumes_right += ((*v >= 0.5) == truth_lit(i)) as usize;
+            }
         }
         let rate = differ as f64 / tested.max(1) as f64;
         println!(
-            "{}: {tested} pixels, {differ} differ from izb1 ({:.3}%); {:.1} volume fragments per pixel",
+            "{}: {tested} pixels, {differ} differ from izb1 ({:.3}%; the f64 ray sides with the \
+             volumes at {volumes_right}); {:.1} volume fragments per pixel",
             scene.name,
             100.0 * rate,
             volumes.report.fragments_per_pixel
         );
-        // Measured: at most 0.2 % (grazing, where the side faces of the
-        // ground's own neighbours run within a pixel's footprint of
-        // the receivers); the nudge and izb1's depth tolerance decide
-        // those ties differently.
+        // Measured: at most 0.23 % (hairball's strands, grazing's
+        // ground), where faces of neighbours' volumes pass within the
+        // nudge of the receivers (baseline::volumes::NUDGE_PIXELS).
         assert!(rate <= 3e-3, "{}: {differ} of {tested} differ", scene.name);
         compared += 1;
         if let Some(r) = gpu.as_ref() {

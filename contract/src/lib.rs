@@ -253,7 +253,7 @@ shared_constants! {
         /// Shadow volumes: how far a receiver moves toward the camera
         /// before its depth test, in widths of its pixel's footprint
         /// (`crate::baseline::volumes`).
-        VOLUME_NUDGE_PIXELS = 1.0 / 256.0;
+        VOLUME_NUDGE_PIXELS = 1.0 / 1024.0;
         /// Contact shadows: the march's length in texel widths of the
         /// shadow map at the receiver (`crate::baseline::contact`).
         CONTACT_LENGTH_TEXELS = 16.0;
