@@ -49,9 +49,10 @@ shared_constants! {
         TRIANGLE_NORMALS = 17;
         /// Per cell: lowest receiver z (ordered bits) and !reach.
         CELL_RECEIVERS = 18;
-        /// The shadow-map baseline's maps, cascade after cascade, one
-        /// order-preserving distance word per texel (empty texels
-        /// `u32::MAX`); 4 bytes in an IZB frame.
+        /// The baselines' buffer: a shadow map's D32 depths cascade after
+        /// cascade (copied from its depth attachment), then a filtered
+        /// map's blur rows and moments; the volumes' receiver depths and
+        /// stencil bytes; 4 bytes in an IZB frame.
         SHADOW_MAP = 19;
         /// Evaluate's heavy step: per queued pixel, its index and cascade
         /// (`uvec2`), `FrameParams::heavy_capacity` of them.
