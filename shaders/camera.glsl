@@ -2,7 +2,7 @@
 // march in screen space: the GPU twin of `baseline::volumes::VolumeFrame::
 // {view_depth, framebuffer}`. Clip space has reversed depth near / s
 // (infinite far); x, y put pixel centres at integer + ½ of the viewport.
-// Same operation order as the CPU. Include after shadow_map.glsl (dot3).
+// Same operation order as the CPU.
 
 float view_depth(vec3 q) {
     return dot3(q, frame.cam_forward);

@@ -62,3 +62,16 @@ float from_ordered_bits(uint u) {
 float max_of3(float a, float b, float c) {
     return max(max(a, b), c);
 }
+
+// glam's left-to-right dot and cross, every product and sum `precise` so
+// the CPU twins' `Vec3::dot` / `Vec3::cross` give the same bits.
+float dot3(vec3 a, vec3 b) {
+    precise float d = a.x * b.x + a.y * b.y;
+    precise float e = d + a.z * b.z;
+    return e;
+}
+
+vec3 cross3(vec3 a, vec3 b) {
+    precise vec3 c = vec3(a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y);
+    return c;
+}

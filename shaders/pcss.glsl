@@ -25,7 +25,7 @@ float pcss(uint k, vec2 origin, vec2 texel, vec3 position, vec3 p, vec3 n, vec2 
         precise float span = frame.map_near - dot3(light.rot_z, position);
         search = frame.map_light_size * max(span, 0.0);
     } else {
-        precise float zn = light.receiver_z[0] * 1e-3;
+        precise float zn = light.receiver_z[0] * MAP_NEAR_RATIO;
         precise float num = frame.map_light_size * (p.z - zn);
         search = num / (p.z * zn);
     }

@@ -115,10 +115,10 @@ bool contact_shadowed(vec3 p, float len) {
         precise vec3 n = d * (1.0 / sqrt(dot3(d, d)));
         to_light = n;
     }
-    precise vec3 step = to_light * (len / float(MAP_FILTER_CONTACT_STEPS));
+    precise vec3 step = to_light * (len / float(CONTACT_STEPS));
     precise float tolerance = CONTACT_TOLERANCE_PIXELS * sqrt(dot3(frame.cam_dx, frame.cam_dx));
-    precise float thickness = CONTACT_THICKNESS_STEPS * (len / float(MAP_FILTER_CONTACT_STEPS));
-    for (uint k = 1u; k <= MAP_FILTER_CONTACT_STEPS; ++k) {
+    precise float thickness = CONTACT_THICKNESS_STEPS * (len / float(CONTACT_STEPS));
+    for (uint k = 1u; k <= CONTACT_STEPS; ++k) {
         precise vec3 q = p + step * float(k);
         float s = view_depth(q);
         if (s < frame.near) return false;

@@ -1,12 +1,10 @@
 // shadow_map.glsl — the shadow-map baseline's arithmetic shared by
-// shadow_map.vert and shadow_lookup.comp: the GPU twin of
+// shadow_map.vert, shadow_volume.vert, shadow_blur.comp and
+// shadow_lookup.comp: the GPU twin of
 // `baseline::shadow_map::{CascadeMap, light_distance, plane_distance,
 // texel_world}` and `baseline::raster::MapDepth`, same operation order,
 // every product and sum `precise` (no fused multiply-adds the CPU does not
 // do). Include after light_view.glsl.
-
-// baseline::shadow_map::CONSTANT_BIAS_TEXELS.
-#define CONSTANT_BIAS_TEXELS 0.1
 
 // raster::MapDepth::new: (near, range) of the map's depth. Orthographic:
 // the receivers' distances grown by MAP_DEPTH_MARGIN of (their span + the
@@ -14,7 +12,7 @@
 vec2 map_depth_range() {
     float zmin = light.receiver_z[0], zmax = light.receiver_z[1];
     if (light.projection != 0u) {
-        precise float n = zmin * 1e-3;
+        precise float n = zmin * MAP_NEAR_RATIO;
         return vec2(n, 0.0);
     }
     precise float span = zmax - zmin;
@@ -37,23 +35,6 @@ float map_distance(vec2 range, float depth) {
     }
     if (depth <= 0.0) return 1.0 / 0.0;
     return range.x / depth;
-}
-
-// glam's left-to-right dot and cross.
-float dot3(vec3 a, vec3 b) {
-    precise float d = a.x * b.x + a.y * b.y;
-    precise float e = d + a.z * b.z;
-    return e;
-}
-
-vec3 cross3(vec3 a, vec3 b) {
-    precise vec3 c = vec3(a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y);
-    return c;
-}
-
-float perp_dot(vec2 a, vec2 b) {
-    precise float d = a.x * b.y - a.y * b.x;
-    return d;
 }
 
 // CascadeMap of cascade k: light-NDC corner of texel (0, 0), NDC size of a

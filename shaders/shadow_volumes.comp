@@ -23,12 +23,6 @@ layout(scalar, binding = B_SHADOW_MAP) readonly buffer StencilBuf { uint words[]
 layout(scalar, binding = B_MASKS) writeonly buffer MaskBuf { uint masks[]; };
 #endif
 
-float dot3(vec3 a, vec3 b) {
-    precise float d = a.x * b.x + a.y * b.y;
-    precise float e = d + a.z * b.z;
-    return e;
-}
-
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (pixel.x >= frame.width || pixel.y >= frame.height) return;

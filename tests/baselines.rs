@@ -189,7 +189,9 @@ const MAX_GPU_PIXEL_MISMATCH: f64 = 2e-3;
 /// matrix, which the moment bias keeps only about α above 0 on a flat
 /// receiver: one unit in the last place of a quotient (lavapipe's
 /// division is not always correctly rounded) moves the result by up to
-/// 4·10⁻³ (measured at α = 3·10⁻⁵; 2·10⁻² at 3·10⁻⁶).
+/// 1.2·10⁻² (measured at α = 3·10⁻⁵ over the 12 scenes: one `engine`
+/// pixel beyond this allowance, inside the mismatch share; 2.2·10⁻² at
+/// 3·10⁻⁶; `paper-notes/baselines.md`).
 const MSM_ROUNDING: f32 = 1e-2;
 
 #[test]
@@ -468,12 +470,14 @@ fn shadow_volumes_agree_with_izb1() {
 
 /// Contact shadows only darken, and the march does hit on the
 /// procedural scenes. How often it is right is a measurement, not a
-/// promise (printed here, discussed in `paper-notes/baselines.md`): the
-/// plane of a silhouette pixel extended past its edge hides what lies
-/// beyond it, the method's own false positives.
+/// promise (printed here, discussed in `paper-notes/baselines.md`): a
+/// depth buffer holds one layer, so whatever the march passes behind
+/// counts as an occluder up to the assumed thickness — the method's own
+/// false positives, fewer since a step is tested against the pixel's own
+/// triangle rather than its depth or plane.
 #[test]
 fn contact_shadows_darken_where_occluders_are() {
-    let (mut checked, mut total_darkened) = (0, 0);
+    let (mut checked, mut gpu_checked, mut total_darkened) = (0, 0, 0);
     for name in ["default", "city", "grazing"] {
         let scene = scene::load(name)
             .unwrap()
@@ -500,11 +504,12 @@ fn contact_shadows_darken_where_occluders_are() {
             },
         )
         .visibility;
-        let (mut darkened, mut agree) = (0usize, 0usize);
+        let (mut darkened, mut agree, mut tested) = (0usize, 0usize, 0usize);
         for i in 0..plain.len() {
             if plain[i].is_nan() {
                 continue;
             }
+            tested += 1;
             assert!(
                 contact[i] <= plain[i],
                 "{name}: contact shadows lightened pixel {i}"
@@ -530,10 +535,14 @@ fn contact_shadows_darken_where_occluders_are() {
                 .filter(|(a, b)| !a.is_nan() && a != b)
                 .count();
             println!("{name}: the GPU's contact shadows differ at {differ} pixels");
-            assert!(differ as f64 <= MAX_GPU_PIXEL_MISMATCH * plain.len() as f64);
+            assert!(differ as f64 <= MAX_GPU_PIXEL_MISMATCH * tested as f64);
+            gpu_checked += 1;
         }
         checked += 1;
     }
     assert_eq!(checked, 3);
+    if renderer().is_some() {
+        assert_eq!(gpu_checked, 3);
+    }
     assert!(total_darkened > 0, "the march never hit");
 }

@@ -23,7 +23,7 @@ use crate::cpu::light_setup::{LightSetup, Projection};
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::Scene;
 use glam::Vec3;
-use izb_contract::filtered::CONTACT_STEPS;
+use izb_contract::contact::STEPS as CONTACT_STEPS;
 use izb_contract::tolerance::{
     CONTACT_LENGTH_TEXELS, CONTACT_THICKNESS_STEPS, CONTACT_TOLERANCE_PIXELS,
 };

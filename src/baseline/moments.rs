@@ -105,7 +105,7 @@ impl MomentDepth {
     }
 }
 
-/// `u`'s first `n` powers: `u`, `u·u`, `u²·u`, `u²·u²`.
+/// `u`'s four powers as the moments store them: `u`, `u·u`, `u²·u`, `u²·u²`.
 #[inline]
 fn powers(u: f32) -> [f32; 4] {
     let u2 = u * u;

@@ -45,11 +45,6 @@ use glam::{Vec2, Vec3};
 use izb_contract::pcss::{FILTER_TAPS, MAX_RADIUS_TEXELS};
 pub use izb_contract::pcss_taps::{BLOCKER_DISK, FILTER_DISK};
 
-/// A point light's map near plane relative to the nearest receiver's
-/// depth: the clip of the rasteriser (`shadow_map`), so nothing nearer is
-/// in the map.
-const NEAR_CLIP: f32 = 1e-3;
-
 /// The light as PCSS needs it, computed once per frame on the host for
 /// both twins (the GPU gets it in `FrameParams::map_light_size` and
 /// `map_near`), so both use the same bits.
@@ -129,7 +124,7 @@ pub(super) fn pcss(
             light.size * span.max(0.0)
         }
         Projection::Perspective => {
-            let zn = setup.receiver_z[0] * NEAR_CLIP;
+            let zn = setup.receiver_z[0] * izb_contract::tolerance::MAP_NEAR_RATIO;
             light.size * (p.z - zn) / (p.z * zn)
         }
     };

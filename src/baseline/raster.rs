@@ -118,7 +118,7 @@ impl MapDepth {
             }
             Projection::Perspective => MapDepth {
                 projection: setup.projection,
-                near: zmin * 1e-3,
+                near: zmin * izb_contract::tolerance::MAP_NEAR_RATIO,
                 range: 0.0,
             },
         }
@@ -154,11 +154,30 @@ impl MapDepth {
     }
 }
 
-/// One triangle in texel space: snapped texel coordinates and the depth
-/// at each vertex.
+/// One triangle to rasterise: its vertices in framebuffer coordinates
+/// (a map's texels, the image's pixels), unsnapped — [`raster_triangle`]
+/// snaps them for coverage and interpolates depth over them as they are —
+/// and the depth at each vertex.
 pub struct RasterTriangle {
-    pub texel: [Vec2; 3],
+    pub position: [Vec2; 3],
     pub depth: [f32; 3],
+}
+
+/// Clips a triangle to the half-space `distance(v) ≥ 0`, as the
+/// rasteriser clips at a near plane; up to four corners, in order.
+pub fn clip_to_plane(face: [Vec3; 3], distance: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(4);
+    for i in 0..3 {
+        let (a, b) = (face[i], face[(i + 1) % 3]);
+        let (da, db) = (distance(a), distance(b));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            out.push(a + (b - a) * (da / (da - db)));
+        }
+    }
+    out
 }
 
 /// `t` snapped to the sub-texel lattice.
@@ -184,7 +203,7 @@ pub fn raster_triangle(
     bias: RasterBias,
     mut write: impl FnMut(u32, u32, f32),
 ) -> u64 {
-    let s = snap(&tri.texel);
+    let s = snap(&tri.position);
     if s.iter().any(|p| !p.is_finite()) {
         return 0;
     }
@@ -217,7 +236,7 @@ pub fn raster_triangle(
     let z = tri.depth.map(f64::from);
     // Depth interpolates over the unsnapped triangle, as lavapipe does
     // (the spec leaves it open; see the module note).
-    let u = tri.texel.map(|t| DVec2::new(t.x as f64, t.y as f64));
+    let u = tri.position.map(|t| DVec2::new(t.x as f64, t.y as f64));
     let u_area = (u[1] - u[0]).perp_dot(u[2] - u[0]);
     let offset = depth_bias(&u, z, u_area, bias);
     let clamp_unit = projection == Projection::Orthographic;
@@ -272,7 +291,7 @@ mod tests {
 
     fn draw(texel: [Vec2; 3]) -> Vec<(u32, u32)> {
         let tri = RasterTriangle {
-            texel,
+            position: texel,
             depth: [0.5; 3],
         };
         let no_bias = RasterBias {
@@ -322,7 +341,7 @@ mod tests {
 
     #[test]
     fn vertices_snap_to_the_subpixel_grid() {
-        // An edge 2⁻¹² texels left of a centre snaps onto it; as a right
+        // An edge 2⁻¹² texels right of a centre snaps onto it; as a right
         // edge it then leaves the centre out.
         let eps = 1.0 / 4096.0;
         let t = [

@@ -14,7 +14,7 @@
 //! along a point light's axis): smaller is nearer the light.
 
 use super::moments::{moments_lookup, MomentDepth, MomentKind};
-use super::raster::{raster_triangle, MapDepth, RasterBias, RasterTriangle};
+use super::raster::{clip_to_plane, raster_triangle, MapDepth, RasterBias, RasterTriangle};
 use crate::cpu::light_setup::{CascadeGrid, LightSetup, Projection};
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
@@ -63,11 +63,7 @@ impl Filter {
     }
 }
 
-/// Constant bias at lookup, in texel widths, on top of the map's own
-/// (the rasteriser's slope-scaled bias for one tap, the receiver plane for
-/// the filters): the curvature of a receiver across one texel and the
-/// interpolated depth's rounding.
-pub const CONSTANT_BIAS_TEXELS: f32 = 0.1;
+pub use izb_contract::tolerance::CONSTANT_BIAS_TEXELS;
 
 /// One cascade's map: `side`² depths, row-major, as the D32_SFLOAT
 /// attachment holds them ([`MapDepth`]).
@@ -193,18 +189,7 @@ fn cascade_frame(grid: &CascadeGrid, side: u32, reach: u32, map_depth: MapDepth)
 /// in front of the light projects, as the rasteriser clips at its near
 /// plane); up to four vertices.
 fn clip_to_near(tri: [Vec3; 3], near: f32) -> Vec<Vec3> {
-    let mut out = Vec::with_capacity(4);
-    for i in 0..3 {
-        let (a, b) = (tri[i], tri[(i + 1) % 3]);
-        let (da, db) = (a.z - near, b.z - near);
-        if da >= 0.0 {
-            out.push(a);
-        }
-        if (da >= 0.0) != (db >= 0.0) {
-            out.push(a + (b - a) * (da / (da - db)));
-        }
-    }
-    out
+    clip_to_plane(tri, |v| v.z - near)
 }
 
 /// Where the rasteriser puts light-view point `q` in `map`, in texel
@@ -277,7 +262,7 @@ pub fn shadow_map(
                     .collect();
                 for k in 1..polygon.len() - 1 {
                     let fan = RasterTriangle {
-                        texel: [texel[0], texel[k], texel[k + 1]],
+                        position: [texel[0], texel[k], texel[k + 1]],
                         depth: [depth[0], depth[k], depth[k + 1]],
                     };
                     written += raster_triangle(&fan, [side, side], projection, bias, |x, y, d| {
@@ -414,54 +399,9 @@ pub(crate) fn bilinear_taps(f: Vec2) -> [(i32, i32, f32); 4] {
     ]
 }
 
-/// The float ↔ ordered-uint map both shadow-map twins store depths with
-/// (`ordered_bits` in the shaders): unsigned order of the words is the
-/// order of the floats, so an atomic minimum keeps the nearest depth.
-pub fn ordered_bits(f: f32) -> u32 {
-    let u = f.to_bits();
-    if u & 0x8000_0000 != 0 {
-        !u
-    } else {
-        u | 0x8000_0000
-    }
-}
-
-/// Inverse of [`ordered_bits`].
-pub fn from_ordered_bits(u: u32) -> f32 {
-    f32::from_bits(if u & 0x8000_0000 != 0 {
-        u & 0x7FFF_FFFF
-    } else {
-        !u
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ordered_bits_preserve_order() {
-        let values = [
-            -1e30f32,
-            -2.5,
-            -1e-30,
-            -0.0,
-            0.0,
-            1e-30,
-            3.0,
-            1e30,
-            f32::INFINITY,
-        ];
-        for w in values.windows(2) {
-            assert!(
-                ordered_bits(w[0]) <= ordered_bits(w[1]),
-                "{} vs {}",
-                w[0],
-                w[1]
-            );
-            assert_eq!(from_ordered_bits(ordered_bits(w[1])), w[1]);
-        }
-    }
 
     #[test]
     fn near_clip_keeps_the_part_in_front() {

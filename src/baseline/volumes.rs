@@ -27,7 +27,7 @@
 //!
 //! [`FrameParams::volume_extrusion`]: izb_contract::FrameParams
 
-use super::raster::{raster_triangle, snapped_area, RasterBias, RasterTriangle};
+use super::raster::{clip_to_plane, raster_triangle, snapped_area, RasterBias, RasterTriangle};
 use crate::cpu::eye_relative_f32;
 use crate::cpu::light_setup::Projection;
 use crate::gbuffer::{flags, GBuffer};
@@ -157,19 +157,7 @@ impl VolumeFrame {
 /// Clips a face to the near plane `s ≥ near` (as the rasteriser clips at
 /// `z ≤ w`); up to four corners.
 fn clip_to_near(frame: &VolumeFrame, face: [Vec3; 3]) -> Vec<Vec3> {
-    let mut out = Vec::with_capacity(4);
-    for i in 0..3 {
-        let (a, b) = (face[i], face[(i + 1) % 3]);
-        let da = frame.view_depth(a) - frame.near;
-        let db = frame.view_depth(b) - frame.near;
-        if da >= 0.0 {
-            out.push(a);
-        }
-        if (da >= 0.0) != (db >= 0.0) {
-            out.push(a + (b - a) * (da / (da - db)));
-        }
-    }
-    out
+    clip_to_plane(face, |v| frame.view_depth(v) - frame.near)
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -227,12 +215,12 @@ pub fn shadow_volumes(scene: &Scene, g: &GBuffer) -> VolumesRender {
                     .collect();
                 for k in 1..polygon.len() - 1 {
                     let fan = RasterTriangle {
-                        texel: [at[0], at[k], at[k + 1]],
+                        position: [at[0], at[k], at[k + 1]],
                         depth: [depth[0], depth[k], depth[k + 1]],
                     };
                     // Back faces (positive snapped area) count +1 where
                     // they fail the depth test, front faces −1.
-                    let step = if snapped_area(&fan.texel) > 0.0 {
+                    let step = if snapped_area(&fan.position) > 0.0 {
                         1
                     } else {
                         -1

@@ -422,7 +422,7 @@ pub fn bench_scene_vulkan(
                             "device": device,
                             "map_bytes": out.map_bytes,
                             "memory_total_bytes": out.memory_total_bytes,
-                            "passes": "bin = shadow_map (raster), evaluate = shadow_lookup",
+                            "passes": "bin = shadow_map (raster, blur), evaluate = shadow_lookup (lookup, contact march)",
                         });
                         let ms = out.gpu_milliseconds.map(|m| m.as_pass_times());
                         (ms, out.visibility, details)

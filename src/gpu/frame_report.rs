@@ -180,9 +180,10 @@ pub struct GpuShadowMapRender {
     pub wall_seconds: f64,
     pub map_bytes: u64,
     pub memory_total_bytes: u64,
-    /// The depth maps, cascade after cascade, `side`² each, row-major, as
-    /// the depth attachments held them; empty unless
-    /// [`GpuRenderer::read_back_shadow_maps`] asked for them.
+    /// The whole map buffer: first the depth maps, cascade after cascade,
+    /// `side`² each, row-major, as the depth attachments held them; for
+    /// `vsm`/`msm` the blur's rows and the moments follow. Empty unless
+    /// [`GpuRenderer::read_back_shadow_maps`] asked for it.
     pub maps: Vec<f32>,
 }
 
@@ -398,7 +399,8 @@ pub(super) fn read_back_gbuffer(
 pub(super) enum FramePasses {
     /// bin, evaluate, resolve.
     Izb,
-    /// The shadow-map baseline: raster, lookup.
+    /// The shadow-map baseline: raster (and for `vsm`/`msm` the blur),
+    /// lookup (and the contact march).
     ShadowMap(ShadowMapSettings),
     /// The `rt32-rays` peer: shadow rays in the evaluate slot, resolve.
     ShadowRays,

@@ -9,9 +9,11 @@
 //! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |
 //! | 4 | [`resolve`] | `resolve.comp` | [`crate::cpu::resolve`], [`crate::output::shade_pixel`] |
 //!
-//! The baselines' passes sit beside them: [`shadow_map`] (the one
-//! graphics pipeline, a depth-only pass on the hardware rasteriser,
-//! [`shadow_raster`]; its lookup is compute) and [`shadow_rays`].
+//! The baselines' passes sit beside them: [`shadow_map`] (depth-only
+//! passes on the hardware rasteriser, orthographic and perspective,
+//! [`shadow_raster`]; the moment maps' blur and the lookup are compute),
+//! [`shadow_volumes`] (a depth-fail stencil pass on the rasteriser
+//! between two compute passes) and [`shadow_rays`] (compute).
 //!
 //! A frame is one command buffer: uploads, the five passes with timestamps
 //! between them, and the read-backs; nothing is read back inside it (the

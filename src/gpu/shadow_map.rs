@@ -7,7 +7,8 @@
 //! ([`GpuRenderer::render_shadow_map`], below).
 
 use super::frame::{GBufferSource, GpuRenderer, GpuShadowMapRender};
-use super::frame_report::FramePasses;
+use super::frame_inputs::SceneUpload;
+use super::frame_report::{FrameOutput, FramePasses};
 use super::shadow_raster::{ShadowDepthTarget, ShadowRaster};
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::pcss::PcssLight;
@@ -114,29 +115,10 @@ impl GpuRenderer {
         map: ShadowMapSettings,
         source: GBufferSource,
     ) -> Result<GpuShadowMapRender, GpuError> {
-        let limits = &self.shared().limits;
+        let refuse = |why: String| GpuError::Unsupported(format!("{map}: {why}"));
         let passes = FramePasses::ShadowMap(map);
-        let map_bytes = passes.shadow_map_words(scene.pixel_count() as u64) * 4;
-        let range = u64::from(limits.max_storage_buffer_range);
-        if map_bytes > range {
-            return Err(GpuError::Unsupported(format!(
-                "{map}: {} MiB of maps, above this device's {} MiB storage-buffer range",
-                map_bytes >> 20,
-                range >> 20
-            )));
-        }
-        let upload = self.prepare_frame(scene, source)?;
-        let bvh = super::gbuffer::frame_bvh(source, &upload.triangles)?;
-        // The light setup the CPU baseline asks for: `map.cascades` fixed
-        // cascades; the 8×8 grid is unused.
-        let settings = IzbSettings {
-            cells: Some(8),
-            cascades: crate::cascades::CascadeCount::Fixed(map.cascades),
-            ..Default::default()
-        };
-        let max_cells = crate::cascades::max_total_cells(8);
-        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
-        self.check_loop_budget(&out)?;
+        let (upload, out, map_bytes) =
+            self.run_baseline_frame(scene, source, map.cascades, passes, refuse)?;
         if out.light.grid_disabled != 0 {
             return Err(GpuError::Unsupported(format!(
                 "{map} on {}: the receivers surround the point light, which one shadow-map frustum cannot hold (a cube map would)",
@@ -146,5 +128,40 @@ impl GpuRenderer {
         Ok(GpuShadowMapRender::from_frame(
             scene, source, &upload, out, map_bytes,
         ))
+    }
+
+    /// The frame every rasterised baseline runs: the IZB's G-buffer and
+    /// the light setup the CPU baselines ask for (`cascades` fixed
+    /// cascades; the 8×8 grid is unused), then `passes`. Returns the
+    /// upload, the frame and the bytes of `passes`' map buffer, which must
+    /// fit the device's storage-buffer range (else `refuse` says so).
+    pub(super) fn run_baseline_frame(
+        &self,
+        scene: &Scene,
+        source: GBufferSource,
+        cascades: u32,
+        passes: FramePasses,
+        refuse: impl Fn(String) -> GpuError,
+    ) -> Result<(SceneUpload, FrameOutput, u64), GpuError> {
+        let map_bytes = passes.shadow_map_words(scene.pixel_count() as u64) * 4;
+        let range = u64::from(self.shared().limits.max_storage_buffer_range);
+        if map_bytes > range {
+            return Err(refuse(format!(
+                "{} MiB of maps, above this device's {} MiB storage-buffer range",
+                map_bytes >> 20,
+                range >> 20
+            )));
+        }
+        let upload = self.prepare_frame(scene, source)?;
+        let bvh = super::gbuffer::frame_bvh(source, &upload.triangles)?;
+        let settings = IzbSettings {
+            cells: Some(8),
+            cascades: crate::cascades::CascadeCount::Fixed(cascades),
+            ..Default::default()
+        };
+        let max_cells = crate::cascades::max_total_cells(8);
+        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
+        self.check_loop_budget(&out)?;
+        Ok((upload, out, map_bytes))
     }
 }

@@ -21,7 +21,6 @@ use super::shadow_raster::{
 };
 use super::{GpuError, Kernels, Recorder};
 use crate::scene::Scene;
-use crate::settings::IzbSettings;
 use ash::vk;
 use std::sync::Arc;
 
@@ -147,8 +146,9 @@ fn copy_region(size: [u32; 2], offset: u64, aspect: vk::ImageAspectFlags) -> vk:
         })
 }
 
-/// Records the pass: receiver depths, the copy in, the stencil pass over
-/// `triangles` volumes, the copy out, the lookup.
+/// Records the stencil pass over `triangles` volumes: the receivers'
+/// depths (`volume_depth`), their copy into the attachment, the draw,
+/// the stencil's copy out; the lookup, [`volume_lookup`], follows.
 pub fn shadow_volumes(
     rec: &Recorder,
     kernels: &Kernels,
@@ -230,6 +230,9 @@ pub fn shadow_volumes(
         );
         d.cmd_set_viewport(cmd, 0, &viewport);
         d.cmd_set_scissor(cmd, 0, &[area]);
+        // The bias is dynamic state of every depth pipeline
+        // (`shadow_raster::depth_pipeline`), so it must be set even
+        // though the volumes want none.
         d.cmd_set_depth_bias(cmd, 0.0, 0.0, 0.0);
         d.cmd_draw(cmd, 24 * triangles, 1, 0, 0);
         d.cmd_end_render_pass(cmd);
@@ -277,18 +280,9 @@ impl GpuRenderer {
         scene: &Scene,
         source: GBufferSource,
     ) -> Result<GpuShadowMapRender, GpuError> {
-        let upload = self.prepare_frame(scene, source)?;
-        let bvh = super::gbuffer::frame_bvh(source, &upload.triangles)?;
-        let settings = IzbSettings {
-            cells: Some(8),
-            cascades: crate::cascades::CascadeCount::Fixed(1),
-            ..Default::default()
-        };
-        let max_cells = crate::cascades::max_total_cells(8);
+        let refuse = |why: String| GpuError::Unsupported(format!("volumes: {why}"));
         let passes = FramePasses::ShadowVolumes;
-        let out = self.run_frame(scene, settings, source, &upload, &bvh, max_cells, 1, passes)?;
-        self.check_loop_budget(&out)?;
-        let bytes = passes.shadow_map_words(scene.pixel_count() as u64) * 4;
+        let (upload, out, bytes) = self.run_baseline_frame(scene, source, 1, passes, refuse)?;
         Ok(GpuShadowMapRender::from_frame(
             scene, source, &upload, out, bytes,
         ))

@@ -65,6 +65,54 @@ pub fn unpack_id_flags(word: u32) -> (u32, u32) {
     (id, word >> ID_BITS)
 }
 
-/// The GLSL float ↔ ordered-uint map (`ordered_bits` in the shadow-map
-/// shaders), declared with its CPU twin.
-pub use crate::baseline::shadow_map::{from_ordered_bits, ordered_bits};
+/// The float ↔ ordered-uint map of `common.glsl` (`ordered_bits`), with
+/// which the GPU's light setup and bin reduce floats by integer atomics:
+/// unsigned order of the words is the order of the floats, so an atomic
+/// minimum keeps the smallest. The CPU twins reduce the floats directly;
+/// this spelling documents and tests the map.
+pub fn ordered_bits(f: f32) -> u32 {
+    let u = f.to_bits();
+    if u & 0x8000_0000 != 0 {
+        !u
+    } else {
+        u | 0x8000_0000
+    }
+}
+
+/// Inverse of [`ordered_bits`].
+pub fn from_ordered_bits(u: u32) -> f32 {
+    f32::from_bits(if u & 0x8000_0000 != 0 {
+        u & 0x7FFF_FFFF
+    } else {
+        !u
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ordered_bits_preserve_order() {
+        let values = [
+            -1e30f32,
+            -2.5,
+            -1e-30,
+            -0.0,
+            0.0,
+            1e-30,
+            3.0,
+            1e30,
+            f32::INFINITY,
+        ];
+        for w in values.windows(2) {
+            assert!(
+                ordered_bits(w[0]) <= ordered_bits(w[1]),
+                "{} vs {}",
+                w[0],
+                w[1]
+            );
+            assert_eq!(from_ordered_bits(ordered_bits(w[1])), w[1]);
+        }
+    }
+}
