@@ -1,5 +1,5 @@
 // camera.glsl — the camera's projection for the passes that rasterise or
-// march in screen space: the GPU twin of `baseline::volumes::VolumeFrame::
+// march in screen space: the GPU twin of `baseline::screen_frame::ScreenFrame::
 // {view_depth, framebuffer}`. Clip space has reversed depth near / s
 // (infinite far); x, y put pixel centres at integer + ½ of the viewport.
 // Same operation order as the CPU.

@@ -5,7 +5,7 @@
 // from the light, three side quads), projected by the camera with
 // reversed depth near / s (infinite far). No vertex buffer, no fragment
 // shader; a triangle edge-on to the light gets no volume (every corner
-// at one point). The GPU twin of `baseline::volumes::VolumeFrame::
+// at one point). The GPU twin of `baseline::screen_frame::ScreenFrame::
 // {corners, framebuffer, depth}`, same order of every operation.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"

@@ -17,8 +17,8 @@
 //! receiver. Its GPU twin is `contact_shadowed` in
 //! `shaders/shadow_lookup.comp`, same operation order.
 
+use super::screen_frame::ScreenFrame;
 use super::shadow_map::{texel_world, ShadowMaps};
-use super::volumes::VolumeFrame;
 use crate::cpu::light_setup::{LightSetup, Projection};
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::Scene;
@@ -52,7 +52,7 @@ pub fn eye_ray_hit(t: &[Vec3; 3], q: Vec3) -> Option<f32> {
 /// the depth buffer (`triangles`: the scene's, eye-relative, by the
 /// G-buffer's ids).
 pub fn contact_shadowed(
-    frame: &VolumeFrame,
+    frame: &ScreenFrame,
     g: &GBuffer,
     triangles: &[[Vec3; 3]],
     p: Vec3,
@@ -108,7 +108,7 @@ pub fn contact_shadows(
     g: &GBuffer,
     lit: &mut [f32],
 ) {
-    let frame = VolumeFrame::new(scene);
+    let frame = ScreenFrame::new(scene);
     let triangles = crate::cpu::eye_relative_f32(scene);
     lit.par_iter_mut().enumerate().for_each(|(i, v)| {
         if v.is_nan() || *v == 0.0 {

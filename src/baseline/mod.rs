@@ -25,6 +25,7 @@ pub mod contact;
 pub mod moments;
 pub mod pcss;
 pub mod raster;
+pub mod screen_frame;
 pub mod shadow_map;
 pub mod volumes;
 

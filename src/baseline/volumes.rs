@@ -28,10 +28,11 @@
 //! [`FrameParams::volume_extrusion`]: izb_contract::FrameParams
 
 use super::raster::{clip_to_plane, raster_triangle, snapped_area, RasterBias, RasterTriangle};
+use super::screen_frame::ScreenFrame;
 use crate::cpu::eye_relative_f32;
 use crate::cpu::light_setup::Projection;
 use crate::gbuffer::{flags, GBuffer};
-use crate::scene::{Light, Scene};
+use crate::scene::Scene;
 use glam::{Vec2, Vec3};
 use izb_contract::VOLUME_CORNERS;
 use rayon::prelude::*;
@@ -49,45 +50,8 @@ use std::time::Instant;
 /// 2.4 % wrong on `default`).
 pub const NUDGE_PIXELS: f32 = izb_contract::tolerance::VOLUME_NUDGE_PIXELS;
 
-/// What the volumes need of the frame, in the renderer's `f32`
-/// eye-relative space (the GPU gets these very values).
-#[derive(Clone, Copy, Debug)]
-pub struct VolumeFrame {
-    /// Toward the light (directional, unit) or the light's position.
-    pub light_vec: Vec3,
-    pub point_light: bool,
-    pub extrusion: f32,
-    /// The camera: ray direction through pixel (0, 0)'s corner, its
-    /// derivatives per pixel, the view direction, the near plane.
-    pub corner: Vec3,
-    pub dx: Vec3,
-    pub dy: Vec3,
-    pub forward: Vec3,
-    pub near: f32,
-    pub size: [u32; 2],
-}
-
-impl VolumeFrame {
-    pub fn new(scene: &Scene) -> VolumeFrame {
-        let frame = scene.camera.frame(scene.resolution);
-        let (light_vec, point_light) = match scene.light.relative_to(scene.camera.eye) {
-            Light::Directional { direction } => ((-direction).as_vec3(), false),
-            Light::Point { position } => (position.as_vec3(), true),
-        };
-        let (lo, hi) = scene.bounds();
-        VolumeFrame {
-            light_vec,
-            point_light,
-            extrusion: (2.0 * (hi - lo).length()) as f32,
-            corner: frame.direction(0.0, 0.0).as_vec3(),
-            dx: frame.direction_dx().as_vec3(),
-            dy: frame.direction_dy().as_vec3(),
-            forward: frame.forward.as_vec3(),
-            near: scene.camera.near as f32,
-            size: scene.resolution,
-        }
-    }
-
+/// The volume-specific parts of the frame.
+impl ScreenFrame {
     /// The six corners of `tri`'s volume (light cap, then dark cap), or
     /// `None` when the triangle is edge-on to the light (no volume).
     /// `shadow_volume.vert` computes the same, same order.
@@ -117,34 +81,6 @@ impl VolumeFrame {
         Some([a, b, c, away(a), away(b), away(c)])
     }
 
-    /// View depth of an eye-relative point.
-    #[inline]
-    pub fn view_depth(&self, q: Vec3) -> f32 {
-        q.dot(self.forward)
-    }
-
-    /// Framebuffer position of an eye-relative point in front of the near
-    /// plane: the vertex shader's clip position, the division by `w` and
-    /// the viewport transform, rounded as the GPU rounds them.
-    pub fn framebuffer(&self, q: Vec3) -> Vec2 {
-        let s = self.view_depth(q);
-        let [w, h] = self.size.map(|v| v as f32);
-        let r = q - self.corner * s;
-        let clip = Vec2::new(
-            r.dot(self.dx) / self.dx.dot(self.dx) * (2.0 / w) - s,
-            r.dot(self.dy) / self.dy.dot(self.dy) * (2.0 / h) - s,
-        );
-        let ndc = clip / s;
-        Vec2::new(ndc.x * (w * 0.5) + w * 0.5, ndc.y * (h * 0.5) + h * 0.5)
-    }
-
-    /// The reversed depth `near / s` the attachment holds for view depth
-    /// `s`.
-    #[inline]
-    pub fn depth(&self, s: f32) -> f32 {
-        self.near / s
-    }
-
     /// The depth a receiver at eye-relative `p` is tested at: moved
     /// toward the camera by [`NUDGE_PIXELS`] of its footprint.
     pub fn receiver_depth(&self, p: Vec3) -> f32 {
@@ -156,7 +92,7 @@ impl VolumeFrame {
 
 /// Clips a face to the near plane `s ≥ near` (as the rasteriser clips at
 /// `z ≤ w`); up to four corners.
-fn clip_to_near(frame: &VolumeFrame, face: [Vec3; 3]) -> Vec<Vec3> {
+fn clip_to_near(frame: &ScreenFrame, face: [Vec3; 3]) -> Vec<Vec3> {
     clip_to_plane(face, |v| frame.view_depth(v) - frame.near)
 }
 
@@ -180,7 +116,7 @@ pub struct VolumesRender {
 /// Renders `volumes` on the CPU into the G-buffer `g` of `scene`.
 pub fn shadow_volumes(scene: &Scene, g: &GBuffer) -> VolumesRender {
     let start = Instant::now();
-    let frame = VolumeFrame::new(scene);
+    let frame = ScreenFrame::new(scene);
     let [w, h] = scene.resolution;
     let pixels = (w * h) as usize;
     let receiver: Vec<f32> = (0..pixels)

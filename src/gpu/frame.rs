@@ -307,7 +307,7 @@ impl GpuRenderer {
             }
             FramePasses::ShadowVolumes => {
                 params.volume_extrusion =
-                    crate::baseline::volumes::VolumeFrame::new(scene).extrusion
+                    crate::baseline::screen_frame::ScreenFrame::new(scene).extrusion
             }
             _ => {}
         }
