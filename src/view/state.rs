@@ -9,7 +9,8 @@ use crate::settings::IzbSettings;
 use glam::DVec3;
 
 /// The methods the viewer offers: every IZB mode, then each shadow-map
-/// family (the side is a separate control, `map_side`).
+/// family (the side is a separate control, `map_side`), then the methods
+/// without a size.
 pub const IZB_METHODS: [&str; 5] = [
     "izb1",
     "izb32",
@@ -19,6 +20,8 @@ pub const IZB_METHODS: [&str; 5] = [
 ];
 /// Shadow-map families, named `FAMILY-SIDE` (`paper-notes/baselines.md`).
 pub const MAP_FAMILIES: [&str; 7] = ["sm", "pcf3", "pcf5", "csm4-pcf3", "pcss", "vsm", "msm"];
+/// Methods without a size: shadow volumes (`paper-notes/baselines.md`).
+pub const OTHER_METHODS: [&str; 1] = ["volumes"];
 /// Map sides the control steps through.
 pub const MAP_SIDES: [u32; 5] = [512, 1024, 2048, 4096, 8192];
 
@@ -204,12 +207,19 @@ pub fn turn(v: DVec3, up: DVec3, yaw_deg: f64, pitch_deg: f64) -> DVec3 {
 pub fn method_kind(name: &str) -> Result<MethodKind, String> {
     let methods = parse_methods(&[name.to_string()], &[], IzbSettings::default())?;
     match methods.as_slice() {
-        [m] if matches!(m.kind, MethodKind::Izb(_) | MethodKind::ShadowMap(_)) => Ok(m.kind),
+        [m] if matches!(
+            m.kind,
+            MethodKind::Izb(_) | MethodKind::ShadowMap(_) | MethodKind::ShadowVolumes
+        ) =>
+        {
+            Ok(m.kind)
+        }
         _ => Err(format!(
-            "`{name}`: the viewer shows the IZB modes ({}) and shadow maps (FAMILY-SIDE with \
-             FAMILY one of {})",
+            "`{name}`: the viewer shows the IZB modes ({}), shadow maps (FAMILY-SIDE with \
+             FAMILY one of {}) and {}",
             IZB_METHODS.join(", "),
-            MAP_FAMILIES.join(", ")
+            MAP_FAMILIES.join(", "),
+            OTHER_METHODS.join(", ")
         )),
     }
 }
@@ -252,7 +262,12 @@ mod tests {
                 checked += 1;
             }
         }
-        assert_eq!(checked, 40);
+        assert!(matches!(
+            method_kind("volumes"),
+            Ok(MethodKind::ShadowVolumes)
+        ));
+        checked += 1;
+        assert_eq!(checked, 41);
         assert!(method_kind("rt32").is_err());
         assert!(method_kind("izb7").is_err());
     }

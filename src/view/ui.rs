@@ -4,7 +4,7 @@
 //! counters, memory and error; the magnifier's sample dots.
 
 use super::images::{frame_layout, mean_abs_error};
-use super::state::{ViewKind, ViewState, IZB_METHODS, MAP_FAMILIES, MAP_SIDES};
+use super::state::{ViewKind, ViewState, IZB_METHODS, MAP_FAMILIES, MAP_SIDES, OTHER_METHODS};
 use super::worker::FrameResult;
 use crate::scene::{Light, Scene};
 use egui::{Color32, Pos2, Rect, Sense, Stroke, Vec2};
@@ -99,7 +99,11 @@ fn method_picker(ui: &mut egui::Ui, id: &str, method: &mut String) {
     egui::ComboBox::from_id_salt(id)
         .selected_text(family.as_str())
         .show_ui(ui, |ui| {
-            for name in IZB_METHODS.iter().chain(&MAP_FAMILIES) {
+            for name in IZB_METHODS
+                .iter()
+                .chain(&MAP_FAMILIES)
+                .chain(&OTHER_METHODS)
+            {
                 ui.selectable_value(&mut family, name.to_string(), *name);
             }
         });

@@ -12,6 +12,7 @@ use crate::bench::MethodKind;
 use crate::bvh::SceneBvh;
 use crate::cpu::{candidate_counts, render_cpu, IzbSettings};
 use crate::gbuffer::{gbuffer, GBuffer};
+use crate::gpu::frame_report::GpuShadowMapRender;
 use crate::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
 use crate::output::shade_pixel;
 use crate::scene::Scene;
@@ -247,48 +248,16 @@ fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<M
             }
             Err(e) => Err(e.into()),
         },
-        MethodKind::ShadowMap(map) => match r.render_shadow_map(scene, map, GBufferSource::Gpu) {
-            Ok(out) => {
-                let pass_millis = out.gpu_milliseconds.as_ref().map_or(Vec::new(), |m| {
-                    vec![
-                        ("gbuffer", m.gbuffer),
-                        ("light setup", m.light_setup),
-                        ("raster", m.raster),
-                        ("lookup", m.lookup),
-                        ("total", m.total),
-                    ]
-                });
-                Ok(MethodFrame {
-                    name: name.into(),
-                    izb: None,
-                    tests_per_pixel: None,
-                    memory_bytes: out.memory_total_bytes,
-                    report: serde_json::json!({
-                        "method": name,
-                        "gpu_milliseconds": out.gpu_milliseconds,
-                        "wall_seconds": out.wall_seconds,
-                        "map_bytes": out.map_bytes,
-                        "memory_total_bytes": out.memory_total_bytes,
-                    }),
-                    pass_millis,
-                    backend: device,
-                    shaded: shade(&out.gbuffer, &out.visibility),
-                    visibility: out.visibility,
-                    masks: Vec::new(),
-                    masks_high: Vec::new(),
-                    gbuffer: out.gbuffer,
-                })
-            }
-            Err(e @ GpuError::LoopCap { .. }) => {
-                let bvh = SceneBvh::build(scene);
-                let g = gbuffer(scene, &bvh);
-                let out = crate::baseline::render_shadow_map(scene, &g, map)
+        MethodKind::ShadowMap(map) => baseline_frame(
+            name,
+            device,
+            r.render_shadow_map(scene, map, GBufferSource::Gpu),
+            shade,
+            |g| {
+                let out = crate::baseline::render_shadow_map(scene, g, map)
                     .map_err(anyhow::Error::msg)?;
                 let s = &out.report.seconds;
-                Ok(MethodFrame {
-                    name: name.into(),
-                    izb: None,
-                    tests_per_pixel: None,
+                Ok(CpuBaseline {
                     memory_bytes: out.report.map_bytes,
                     report: serde_json::to_value(&out.report)?,
                     pass_millis: vec![
@@ -297,17 +266,102 @@ fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<M
                         ("lookup", s.shadow_lookup * 1e3),
                         ("total", s.shadow * 1e3),
                     ],
-                    backend: format!("cpu twin ({e})"),
-                    shaded: shade(&g, &out.visibility),
                     visibility: out.visibility,
-                    masks: Vec::new(),
-                    masks_high: Vec::new(),
-                    gbuffer: g,
                 })
-            }
-            Err(e) => Err(e.into()),
-        },
+            },
+            scene,
+        ),
+        MethodKind::ShadowVolumes => baseline_frame(
+            name,
+            device,
+            r.render_shadow_volumes(scene, GBufferSource::Gpu),
+            shade,
+            |g| {
+                let out = crate::baseline::volumes::shadow_volumes(scene, g);
+                Ok(CpuBaseline {
+                    memory_bytes: 0,
+                    report: serde_json::to_value(&out.report)?,
+                    pass_millis: vec![("volumes", out.report.seconds * 1e3)],
+                    visibility: out.visibility,
+                })
+            },
+            scene,
+        ),
         _ => anyhow::bail!("`{name}` is not a viewer method"),
+    }
+}
+
+/// What a baseline's CPU twin gives the viewer.
+struct CpuBaseline {
+    visibility: Vec<f32>,
+    memory_bytes: u64,
+    report: serde_json::Value,
+    pass_millis: Vec<(&'static str, f64)>,
+}
+
+/// The frame of a rasterised baseline (maps or volumes) from its GPU
+/// render `gpu`, or from its CPU twin `cpu` (given the CPU's G-buffer)
+/// when lavapipe's loop cap refused the frame.
+fn baseline_frame(
+    name: &str,
+    device: String,
+    gpu: Result<GpuShadowMapRender, GpuError>,
+    shade: impl Fn(&GBuffer, &[f32]) -> Vec<[u8; 3]>,
+    cpu: impl FnOnce(&GBuffer) -> anyhow::Result<CpuBaseline>,
+    scene: &Scene,
+) -> anyhow::Result<MethodFrame> {
+    match gpu {
+        Ok(out) => {
+            let pass_millis = out.gpu_milliseconds.as_ref().map_or(Vec::new(), |m| {
+                vec![
+                    ("gbuffer", m.gbuffer),
+                    ("light setup", m.light_setup),
+                    ("raster", m.raster),
+                    ("lookup", m.lookup),
+                    ("total", m.total),
+                ]
+            });
+            Ok(MethodFrame {
+                name: name.into(),
+                izb: None,
+                tests_per_pixel: None,
+                memory_bytes: out.memory_total_bytes,
+                report: serde_json::json!({
+                    "method": name,
+                    "gpu_milliseconds": out.gpu_milliseconds,
+                    "wall_seconds": out.wall_seconds,
+                    "map_bytes": out.map_bytes,
+                    "memory_total_bytes": out.memory_total_bytes,
+                }),
+                pass_millis,
+                backend: device,
+                shaded: shade(&out.gbuffer, &out.visibility),
+                visibility: out.visibility,
+                masks: Vec::new(),
+                masks_high: Vec::new(),
+                gbuffer: out.gbuffer,
+            })
+        }
+        Err(e @ GpuError::LoopCap { .. }) => {
+            let bvh = SceneBvh::build(scene);
+            let g = gbuffer(scene, &bvh);
+            let out = cpu(&g)?;
+            Ok(MethodFrame {
+                name: name.into(),
+                izb: None,
+                tests_per_pixel: None,
+                memory_bytes: out.memory_bytes,
+                report: out.report,
+                pass_millis: out.pass_millis,
+                backend: format!("cpu twin ({e})"),
+                shaded: shade(&g, &out.visibility),
+                visibility: out.visibility,
+                masks: Vec::new(),
+                masks_high: Vec::new(),
+                gbuffer: g,
+            })
+        }
+        Err(e) => Err(e.into()),
     }
 }
 
