@@ -105,6 +105,13 @@ pub struct VolumesReport {
     pub fragments: u64,
     /// `fragments` per pixel of the image.
     pub fragments_per_pixel: f64,
+    /// Shadow-tested pixels inside a nonzero multiple of 256 volumes: the
+    /// 8-bit stencil wraps to 0 and reads them lit (the full count says
+    /// shadow). The method's own error, counted so it is seen.
+    pub wrapped_pixels: usize,
+    /// The largest count at a shadow-tested pixel (volumes it lies in,
+    /// counted from behind): how far the scene stays from the wrap.
+    pub deepest_count: u32,
 }
 
 pub struct VolumesRender {
@@ -179,11 +186,16 @@ pub fn shadow_volumes(scene: &Scene, g: &GBuffer) -> VolumesRender {
             (1, fragments)
         })
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let (mut wrapped_pixels, mut deepest_count) = (0, 0);
     let visibility = (0..pixels)
         .map(|i| {
+            let count = count[i].load(Ordering::Relaxed);
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
-                f32::NAN
-            } else if count[i].load(Ordering::Relaxed).rem_euclid(256) == 0 {
+                return f32::NAN;
+            }
+            deepest_count = deepest_count.max(count.unsigned_abs());
+            if count.rem_euclid(256) == 0 {
+                wrapped_pixels += (count != 0) as usize;
                 1.0
             } else {
                 0.0
@@ -197,6 +209,8 @@ pub fn shadow_volumes(scene: &Scene, g: &GBuffer) -> VolumesRender {
             volumes,
             fragments,
             fragments_per_pixel: fragments as f64 / pixels.max(1) as f64,
+            wrapped_pixels,
+            deepest_count,
         },
     }
 }
