@@ -369,13 +369,15 @@ pub fn cpu_model() -> Option<String> {
 
 /// One line per method: time, ratio to `izb32`, and the error metrics.
 pub fn print_bench_table(scene: &str, rows: &[bench::MethodRow]) {
+    // The method column fits the longest name (`csm4-pcf3-2048+contact`).
+    let w = rows.iter().map(|r| r.method.len()).fold(16, usize::max);
     println!(
-        "{scene}: {:<16} {:>7} {:>10} {:>8} {:>9} {:>9} {:>9} {:>8}",
+        "{scene}: {:<w$} {:>7} {:>10} {:>8} {:>9} {:>9} {:>9} {:>8}",
         "method", "backend", "shadow s", "/izb32", "MAE", "penumbra", "edge", "% wrong"
     );
     for r in rows {
         println!(
-            "{scene}: {:<16} {:>7} {:>10.4} {:>8} {:>9.5} {:>9.4} {:>9.4} {:>8.3}",
+            "{scene}: {:<w$} {:>7} {:>10.4} {:>8} {:>9.5} {:>9.4} {:>9.4} {:>8.3}",
             r.method,
             r.backend,
             r.shadow_seconds,
