@@ -112,12 +112,15 @@ fn scripted_window_moves_the_shadow_and_splits_the_methods() {
          screenshot {}\n\
          resize 720 480\nview error\nwait-truth 8\n\
          screenshot {}\n\
+         split volumes\n\
+         screenshot {}\n\
          quit\n",
         d("lit"),
         d("turned"),
         d("split"),
         d("candidates"),
-        d("error")
+        d("error"),
+        d("volumes")
     );
     let args = ["default", "--resolution", "240x135", "--window", "960x600"];
     let Some(stats) = run_script(&tmp, &args, &script, &[]) else {
@@ -135,7 +138,7 @@ fn scripted_window_moves_the_shadow_and_splits_the_methods() {
         "{}",
         stats["errors"]
     );
-    assert_eq!(stats["screenshots"].as_array().unwrap().len(), 5);
+    assert_eq!(stats["screenshots"].as_array().unwrap().len(), 6);
 
     // Every screenshot holds render's files and a window that is not blank.
     let shots = ["lit", "turned", "split", "candidates", "error"];
@@ -250,6 +253,15 @@ fn scripted_window_moves_the_shadow_and_splits_the_methods() {
     assert!(e["truth_spp"].as_u64().unwrap() >= 8, "{e}");
     let mae = e["mae"].as_f64().unwrap();
     assert!(mae < 0.1, "izb32's error against the truth is {mae}");
+
+    // Shadow volumes render in the viewer too (on the rasteriser), with
+    // an error against the truth like the IZB's 1 spp.
+    let r = report(&tmp.join("volumes"));
+    let methods = r["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 2);
+    assert_eq!(methods[1]["method"], "volumes");
+    let mae = methods[1]["error_against_truth"]["mae"].as_f64().unwrap();
+    assert!(mae < 0.1, "volumes' error against the truth is {mae}");
 }
 
 #[test]
