@@ -1,10 +1,19 @@
 // moments.glsl — the filtered maps' lookups, the GPU twin of
-// `baseline::moments::{moments_lookup, chebyshev, hamburger}`: the blurred
+// `baseline::moments::{moments_lookup, exponential, chebyshev, hamburger}`: the blurred
 // moments filtered bilinearly at the receiver, then Chebyshev's bound with
 // light-bleeding reduction (VSM; Donnelly & Lauritzen 2006, Lauritzen
-// 2007) or the Hamburger 4MSM reconstruction (Peters & Klein 2015). Same
+// 2007), the Hamburger 4MSM reconstruction (Peters & Klein 2015) or the
+// exponential test (ESM; Annen et al. 2008). Same
 // operation order as the CPU, every product `precise`. Include in
 // shadow_lookup.comp after texel_of and texel_world.
+
+// ESM (Annen et al. 2008): the filtered exp(c·(u − 1)) times exp(c·(1 − z)),
+// z taken at 0 in front of the range.
+float exponential(float mean, float z) {
+    precise float e = MAP_FILTER_ESM_EXPONENT * (1.0 - max(z, 0.0));
+    precise float lit = mean * exp(e);
+    return clamp(lit, 0.0, 1.0);
+}
 
 float chebyshev(float mean, float square, float z, float min_sigma) {
     if (z <= mean) return 1.0;
@@ -73,5 +82,6 @@ float moments_lookup(uint k, vec2 origin, vec2 texel, vec3 p, vec2 ndc) {
     float own = moment_of_distance(moment_range, light_distance(p));
     precise float bias = texel_world(texel, p) * CONSTANT_BIAS_TEXELS / moment_range.y;
     precise float z = own - bias;
+    if (n == 1u) return exponential(m[0], z);
     return n == 2u ? chebyshev(m[0], m[1], z, bias) : 1.0 - hamburger(m, z);
 }

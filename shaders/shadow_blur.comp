@@ -1,7 +1,8 @@
 #version 460
 // Baseline pass `shadow_blur` — GPU twin of `baseline::moments::
 // shadow_blur`: a filtered map's depths turned into moments of the moment
-// depth u (u, u², u³, u⁴; the first two for VSM) and blurred by a
+// depth u (u, u², u³, u⁴; the first two for VSM; exp(c·(u − 1)) for ESM)
+// and blurred by a
 // separable 9² Gaussian (weights C(8, i)/256). STEP_X: the moments of each
 // texel's row neighbours, summed into the rows; STEP_Y: the rows' column
 // neighbours into the result. Texels beyond the map read as empty (u = 1,
@@ -45,6 +46,10 @@ void main() {
         }
         precise float u2 = u * u;
         precise float m[4] = float[4](u, u2, u2 * u, u2 * u2);
+        if (frame.map_filter == MAP_FILTER_ESM) {
+            precise float e = MAP_FILTER_ESM_EXPONENT * (u - 1.0);
+            m[0] = exp(e);
+        }
         float w = blur_weight(uint(j));
         [[unroll]] for (int c = 0; c < 4; ++c) sum[c] += w * m[c];
     }

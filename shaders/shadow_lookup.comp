@@ -155,7 +155,8 @@ void main() {
         map_frame(k, origin, texel);
         if (frame.map_filter == 0u) {
             lit = one_tap(k, origin, texel, p, ndc);
-        } else if (frame.map_filter == MAP_FILTER_VSM || frame.map_filter == MAP_FILTER_MSM) {
+        } else if (frame.map_filter == MAP_FILTER_VSM || frame.map_filter == MAP_FILTER_MSM
+                   || frame.map_filter == MAP_FILTER_ESM) {
             lit = moments_lookup(k, origin, texel, p, ndc);
         } else if (frame.map_filter == PCSS_FILTER) {
             lit = pcss(k, origin, texel, position, p, n, ndc);

@@ -102,6 +102,7 @@ float moment_of_stored(vec2 depth_range, vec2 moment_range, float depth) {
 
 // Moments a filtered map keeps per texel (Filter::moments).
 uint moment_count() {
+    if (frame.map_filter == MAP_FILTER_ESM) return 1u;
     return frame.map_filter == MAP_FILTER_MSM ? 4u : 2u;
 }
 

@@ -303,6 +303,9 @@ shared_constants! {
         /// Moment shadow maps, four moments, Hamburger reconstruction
         /// (Peters & Klein 2015).
         MSM = 4;
+        /// Exponential shadow maps (Annen et al. 2008), one moment (an
+        /// even code, as odd ones are PCF sizes).
+        ESM = 6;
         /// Taps on each side of the centre of the separable blur: a 9²
         /// Gaussian (binomial weights C(8, i)/256), the filter of
         /// Peters 2017's compute blur.
@@ -333,6 +336,12 @@ shared_constants! {
         /// divisions, not always correctly rounded, moved results 0.022
         /// from the CPU twin's; see `paper-notes/baselines.md`).
         MOMENT_BIAS = 3.0e-5;
+        /// ESM's exponent c (Annen et al. 2008 use 80 with 32-bit
+        /// floats; larger is sharper and leaks less): the map keeps
+        /// `exp(c·(u − 1))` ∈ [e⁻⁷², 1], and at 72 even a blurred texel's
+        /// smallest share, e⁻⁷² / 256², stays a normal float (> 2⁻¹²⁶),
+        /// so a GPU that flushes subnormals stores what the CPU does.
+        ESM_EXPONENT = 72.0;
     }
 }
 

@@ -13,9 +13,9 @@
 //!   PCF disk of that size ([`pcss`]);
 //! - `…+contact`: any of them with screen-space contact shadows
 //!   ([`contact`]);
-//! - `vsm-R`, `msm-R`: variance (Donnelly & Lauritzen 2006) and moment
-//!   (Peters & Klein 2015) shadow maps, blurred by a 9² Gaussian
-//!   ([`moments`]).
+//! - `vsm-R`, `msm-R`, `esm-R`: variance (Donnelly & Lauritzen 2006),
+//!   moment (Peters & Klein 2015) and exponential (Annen et al. 2008)
+//!   shadow maps, blurred by a 9² Gaussian ([`moments`]).
 //!
 //! `R` is the side of each map in texels. The passes are
 //! [`shadow_map::shadow_map`] and [`shadow_map::shadow_lookup`]; their
@@ -59,15 +59,15 @@ pub struct ShadowMapSettings {
 
 impl ShadowMapSettings {
     /// Parses a method name: `sm-R`, `pcf3-R`, `pcf5-R`, `csmN-pcfK-R`,
-    /// `pcss-R` (one map, R ≥ [`PCSS_MIN_SIDE`]), `vsm-R`, `msm-R` (and
-    /// their cascaded `csmN-…`).
+    /// `pcss-R` (one map, R ≥ [`PCSS_MIN_SIDE`]), `vsm-R`, `msm-R`,
+    /// `esm-R` (and their cascaded `csmN-…`).
     pub fn parse(full_name: &str) -> Result<ShadowMapSettings, String> {
         let (name, contact) = match full_name.strip_suffix("+contact") {
             Some(base) => (base, true),
             None => (full_name, false),
         };
         let bad = || {
-            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R, pcss-R, vsm-R, msm-R, csmN-vsm-R, csmN-msm-R, any of them +contact; R a side 16..={MAX_MAP_SIDE})")
+            format!("`{name}` is not a shadow-map method (sm-R, pcf3-R, pcf5-R, csmN-pcfK-R, pcss-R, vsm-R, msm-R, esm-R, csmN-vsm-R, csmN-msm-R, csmN-esm-R, any of them +contact; R a side 16..={MAX_MAP_SIDE})")
         };
         let mut parts: Vec<&str> = name.split('-').collect();
         let side: u32 = parts.pop().and_then(|s| s.parse().ok()).ok_or_else(bad)?;
@@ -86,6 +86,7 @@ impl ShadowMapSettings {
             ["sm"] => Filter::OneTap,
             ["vsm"] => Filter::Vsm,
             ["msm"] => Filter::Msm,
+            ["esm"] => Filter::Esm,
             ["pcss"] => {
                 if cascades > 1 {
                     return Err(format!(
@@ -127,6 +128,7 @@ impl fmt::Display for ShadowMapSettings {
             Filter::Pcss => write!(f, "pcss-{}", self.side),
             Filter::Vsm => write!(f, "vsm-{}", self.side),
             Filter::Msm => write!(f, "msm-{}", self.side),
+            Filter::Esm => write!(f, "esm-{}", self.side),
         }?;
         if self.contact {
             write!(f, "+contact")?;
@@ -240,6 +242,10 @@ mod tests {
             "csm3-sm-256",
             "pcss-512",
             "pcss-2048",
+            "vsm-1024",
+            "msm-512+contact",
+            "esm-2048",
+            "csm2-esm-256",
         ] {
             let s = ShadowMapSettings::parse(name).unwrap();
             assert_eq!(s.to_string(), name);

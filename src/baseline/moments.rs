@@ -9,6 +9,11 @@
 //! - `msm-R`: moment shadow maps (Peters & Klein 2015): four moments,
 //!   the Hamburger 4MSM reconstruction (the sharpest lower bound the four
 //!   moments allow), moments biased by [`MOMENT_BIAS`].
+//! - `esm-R`: exponential shadow maps (Annen et al. 2008): one moment,
+//!   `exp(c·(u − 1))` with c = [`ESM_EXPONENT`]; the filtered moment
+//!   times `exp(c·(1 − z))` is the lit fraction, clamped to 1 (exact
+//!   where every occluder in the filter lies in front of the receiver by
+//!   much more than 1/c, bleeding light where they do not).
 //!
 //! Pass `shadow_blur` (after `shadow_map`) takes every texel's depth to a
 //! moment depth `u ∈ [0, 1]` ([`MomentDepth`]), its powers, and blurs
@@ -24,7 +29,7 @@ use super::shadow_map::{bilinear_taps, texel_world, CascadeMap, ShadowMaps, CONS
 use crate::cpu::light_setup::{LightSetup, Projection};
 use glam::{Vec2, Vec3};
 use izb_contract::filtered::BLUR_RADIUS;
-use izb_contract::filtered_params::{BLEEDING_CUT, MOMENT_BIAS};
+use izb_contract::filtered_params::{BLEEDING_CUT, ESM_EXPONENT, MOMENT_BIAS};
 use rayon::prelude::*;
 
 /// Which moments a filtered map keeps.
@@ -34,11 +39,14 @@ pub enum MomentKind {
     Variance,
     /// `u`, `u²`, `u³`, `u⁴`.
     FourMoments,
+    /// `exp(c·(u − 1))`.
+    Exponential,
 }
 
 impl MomentKind {
     pub fn count(self) -> usize {
         match self {
+            MomentKind::Exponential => 1,
             MomentKind::Variance => 2,
             MomentKind::FourMoments => 4,
         }
@@ -105,9 +113,14 @@ impl MomentDepth {
     }
 }
 
-/// `u`'s four powers as the moments store them: `u`, `u·u`, `u²·u`, `u²·u²`.
+/// The moments of `kind` a texel at moment depth `u` stores (the first
+/// `kind.count()` of the four): `u`'s powers `u`, `u·u`, `u²·u`, `u²·u²`,
+/// or ESM's exponential.
 #[inline]
-fn powers(u: f32) -> [f32; 4] {
+fn moments_of(kind: MomentKind, u: f32) -> [f32; 4] {
+    if kind == MomentKind::Exponential {
+        return [(ESM_EXPONENT * (u - 1.0)).exp(), 0.0, 0.0, 0.0];
+    }
     let u2 = u * u;
     [u, u2, u2 * u, u2 * u2]
 }
@@ -150,7 +163,7 @@ pub fn shadow_blur(setup: &LightSetup, maps: &ShadowMaps, kind: MomentKind) -> V
                     let (x, y) = (i % side, i / side);
                     let mut sum = [0.0f32; 4];
                     for (j, wj) in w.iter().enumerate() {
-                        let m = powers(u_at(x + j as i32 - r, y));
+                        let m = moments_of(kind, u_at(x + j as i32 - r, y));
                         for c in 0..4 {
                             sum[c] += wj * m[c];
                         }
@@ -217,9 +230,18 @@ pub fn moments_lookup(
     let bias = texel_world(map, projection, p) * CONSTANT_BIAS_TEXELS / depth.range;
     let z = own - bias;
     match kind {
+        MomentKind::Exponential => exponential(b[0], z),
         MomentKind::Variance => chebyshev(b[0], b[1], z, bias),
         MomentKind::FourMoments => 1.0 - hamburger(b, z),
     }
+}
+
+/// ESM: the filtered `exp(c·(u − 1))` times `exp(c·(1 − z))`, clamped to
+/// [0, 1]. A receiver in front of the range (`z < 0`) is taken at 0, which
+/// keeps the factor within `f32` (≤ e⁷²) and reads lit, as it is.
+fn exponential(mean: f32, z: f32) -> f32 {
+    let lit = mean * (ESM_EXPONENT * (1.0 - z.max(0.0))).exp();
+    lit.clamp(0.0, 1.0)
 }
 
 /// VSM: Chebyshev's upper bound on the lit fraction, the variance kept
@@ -291,7 +313,8 @@ mod tests {
 
     /// Two depths with weights: the occluded share behind both is 1, in
     /// front of both 0, and between them a bound the true share (the
-    /// front depth's weight) lies within for VSM and near for MSM.
+    /// front depth's weight) lies within for VSM and near for MSM; ESM's
+    /// lit fraction there never falls below the true one.
     #[test]
     fn reconstructions_bound_a_two_depth_distribution() {
         let (front, back, share) = (0.3f32, 0.7f32, 0.4f32);
@@ -308,5 +331,18 @@ mod tests {
         let uncut = lit * (1.0 - BLEEDING_CUT) + BLEEDING_CUT;
         assert!(uncut >= 1.0 - share - 1e-6, "VSM {lit}");
         assert_eq!(chebyshev(m[0], m[1], 0.2, 0.0), 1.0);
+        // ESM: lit in front of both depths, dark well behind both, and
+        // between them never darker than the truth (its light leak).
+        let e = share * moments_of(MomentKind::Exponential, front)[0]
+            + (1.0 - share) * moments_of(MomentKind::Exponential, back)[0];
+        assert_eq!(exponential(e, 0.2), 1.0);
+        assert!(exponential(e, 0.9) < 1e-4, "ESM {}", exponential(e, 0.9));
+        assert!(
+            exponential(e, 0.5) >= 1.0 - share,
+            "ESM {}",
+            exponential(e, 0.5)
+        );
+        // A receiver in front of the range reads lit without overflow.
+        assert_eq!(exponential(e, -5.0), 1.0);
     }
 }

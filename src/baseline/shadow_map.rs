@@ -39,6 +39,8 @@ pub enum Filter {
     /// Moment shadow map, four moments, blurred, Hamburger
     /// reconstruction ([`super::moments`]).
     Msm,
+    /// Exponential shadow map, blurred ([`super::moments`]).
+    Esm,
 }
 
 impl Filter {
@@ -49,7 +51,7 @@ impl Filter {
             Filter::Pcf(k) => k / 2 + 1,
             Filter::Pcss => izb_contract::pcss::MAX_RADIUS_TEXELS,
             // The blur's taps and the bilinear lookup's second texel.
-            Filter::Vsm | Filter::Msm => izb_contract::filtered::BLUR_RADIUS + 1,
+            Filter::Vsm | Filter::Msm | Filter::Esm => izb_contract::filtered::BLUR_RADIUS + 1,
         }
     }
 
@@ -58,6 +60,7 @@ impl Filter {
         match self {
             Filter::Vsm => Some(MomentKind::Variance),
             Filter::Msm => Some(MomentKind::FourMoments),
+            Filter::Esm => Some(MomentKind::Exponential),
             _ => None,
         }
     }
@@ -333,7 +336,7 @@ pub fn shadow_lookup(
                 Filter::OneTap => one_tap(setup.projection, map, p, ndc),
                 Filter::Pcf(k) => pcf(setup.projection, map, p, n, ndc, k),
                 Filter::Pcss => super::pcss::pcss(setup, light, map, g.position[i], p, n, ndc),
-                Filter::Vsm | Filter::Msm => {
+                Filter::Vsm | Filter::Msm | Filter::Esm => {
                     let k = setup.cascade_of(g.position[i]);
                     let kind = filter.moments().expect("a filtered map");
                     moments_lookup(&moment_depth, kind, map, &maps.moments[k], p, ndc)

@@ -15,7 +15,7 @@
 //!   instead; its shadow seconds are the tracing, its BVH build is in
 //!   `details`;
 //! - shadow maps, [`crate::baseline`] (`sm-R`, `pcf3-R`, `pcf5-R`,
-//!   `csmN-pcfK-R`, `pcss-R`, `vsm-R`, `msm-R`);
+//!   `csmN-pcfK-R`, `pcss-R`, `vsm-R`, `msm-R`, `esm-R`);
 //! - `volumes`: per-triangle shadow volumes counted depth-fail in the
 //!   stencil ([`crate::baseline::volumes`]), exact at one sample like
 //!   `izb1`; its details carry the fill (volume fragments per pixel).

@@ -36,7 +36,7 @@ pub struct BenchArgs {
     /// 32 µQuad samples ray traced; under an area light the 32 light
     /// samples, also named rt-soft), shadow maps `sm-R`, `pcf3-R`, `pcf5-R`,
     /// `csmN-pcfK-R`, `pcss-R` (soft, Fernando 2005), `vsm-R` (variance),
-    /// `msm-R` (4 moments; R texels a side), any of them `+contact`
+    /// `msm-R` (4 moments), `esm-R` (exponential; R texels a side), any of them `+contact`
     /// (screen-space contact shadows), `volumes` (per-triangle shadow
     /// volumes, stencil), or `shadow-maps` for sm, pcf3, pcf5, csm4-pcf3,
     /// vsm, msm and pcf3+contact at every `--map-sides`. The ground truth

@@ -36,6 +36,7 @@ pub(super) fn map_params(
         Filter::Pcss => izb_contract::pcss::FILTER,
         Filter::Vsm => izb_contract::filtered::VSM,
         Filter::Msm => izb_contract::filtered::MSM,
+        Filter::Esm => izb_contract::filtered::ESM,
     };
     params.map_reach = map.filter.reach();
     params.map_contact = map.contact as u32;

@@ -38,6 +38,7 @@ fn style_of(p: &Point) -> (RGBColor, &'static str) {
         "shadow-volume" => (RGBColor(90, 90, 90), "shadow volumes (1 spp)"),
         _ if m.contains("msm") => (RGBColor(0, 150, 150), "moment SM (4 moments)"),
         _ if m.contains("vsm") => (RGBColor(110, 180, 170), "variance SM"),
+        _ if m.contains("esm") => (RGBColor(60, 120, 160), "exponential SM"),
         _ if m.starts_with("pcss") => (RGBColor(200, 110, 150), "PCSS"),
         _ if m.starts_with("csm") => (RGBColor(140, 90, 40), "cascaded SM + PCF"),
         _ if m.starts_with("pcf5") => (RGBColor(150, 60, 170), "SM 5x5 PCF"),

@@ -19,7 +19,16 @@ pub const IZB_METHODS: [&str; 5] = [
     "izb64-paired",
 ];
 /// Shadow-map families, named `FAMILY-SIDE` (`paper-notes/baselines.md`).
-pub const MAP_FAMILIES: [&str; 7] = ["sm", "pcf3", "pcf5", "csm4-pcf3", "pcss", "vsm", "msm"];
+pub const MAP_FAMILIES: [&str; 8] = [
+    "sm",
+    "pcf3",
+    "pcf5",
+    "csm4-pcf3",
+    "pcss",
+    "vsm",
+    "msm",
+    "esm",
+];
 /// Methods without a size: shadow volumes (`paper-notes/baselines.md`).
 pub const OTHER_METHODS: [&str; 1] = ["volumes"];
 /// Map sides the control steps through.
@@ -267,7 +276,7 @@ mod tests {
             Ok(MethodKind::ShadowVolumes)
         ));
         checked += 1;
-        assert_eq!(checked, 41);
+        assert_eq!(checked, 46);
         assert!(method_kind("rt32").is_err());
         assert!(method_kind("izb7").is_err());
     }
