@@ -27,6 +27,19 @@ float blur_weight(uint i) {
     return float(c) / float(1u << n);
 }
 
+// moments::moments_of: the moments a texel at moment depth u stores (the
+// first moment_count() of the four).
+float[4] moments_of(float u) {
+    if (frame.map_filter == MAP_FILTER_ESM) {
+        precise float e = MAP_FILTER_ESM_EXPONENT * (u - 1.0);
+        return float[4](exp(e), 0.0, 0.0, 0.0);
+    }
+    precise float u2 = u * u;
+    precise float u3 = u2 * u;
+    precise float u4 = u2 * u2;
+    return float[4](u, u2, u3, u4);
+}
+
 void main() {
     uint side = frame.map_side;
     uvec2 id = gl_GlobalInvocationID.xy;
@@ -44,12 +57,7 @@ void main() {
         if (xx >= 0 && xx < int(side)) {
             u = moment_of_stored(depth_range, moment_range, shadow_map[cascade_start + uint(y) * side + uint(xx)]);
         }
-        precise float u2 = u * u;
-        precise float m[4] = float[4](u, u2, u2 * u, u2 * u2);
-        if (frame.map_filter == MAP_FILTER_ESM) {
-            precise float e = MAP_FILTER_ESM_EXPONENT * (u - 1.0);
-            m[0] = exp(e);
-        }
+        float m[4] = moments_of(u);
         float w = blur_weight(uint(j));
         [[unroll]] for (int c = 0; c < 4; ++c) sum[c] += w * m[c];
     }

@@ -116,10 +116,9 @@ impl GpuRenderer {
         map: ShadowMapSettings,
         source: GBufferSource,
     ) -> Result<GpuShadowMapRender, GpuError> {
-        let refuse = |why: String| GpuError::Unsupported(format!("{map}: {why}"));
         let passes = FramePasses::ShadowMap(map);
         let (upload, out, map_bytes) =
-            self.run_baseline_frame(scene, source, map.cascades, passes, refuse)?;
+            self.run_baseline_frame(scene, source, map.cascades, passes, &map.to_string())?;
         if out.light.grid_disabled != 0 {
             return Err(GpuError::Unsupported(format!(
                 "{map} on {}: the receivers surround the point light, which one shadow-map frustum cannot hold (a cube map would)",
@@ -135,20 +134,21 @@ impl GpuRenderer {
     /// the light setup the CPU baselines ask for (`cascades` fixed
     /// cascades; the 8×8 grid is unused), then `passes`. Returns the
     /// upload, the frame and the bytes of `passes`' map buffer, which must
-    /// fit the device's storage-buffer range (else `refuse` says so).
+    /// fit the device's storage-buffer range (else the refusal names
+    /// `method`).
     pub(super) fn run_baseline_frame(
         &self,
         scene: &Scene,
         source: GBufferSource,
         cascades: u32,
         passes: FramePasses,
-        refuse: impl Fn(String) -> GpuError,
+        method: &str,
     ) -> Result<(SceneUpload, FrameOutput, u64), GpuError> {
         let map_bytes = passes.shadow_map_words(scene.pixel_count() as u64) * 4;
         let range = u64::from(self.shared().limits.max_storage_buffer_range);
         if map_bytes > range {
-            return Err(refuse(format!(
-                "{} MiB of maps, above this device's {} MiB storage-buffer range",
+            return Err(GpuError::Unsupported(format!(
+                "{method}: {} MiB of maps, above this device's {} MiB storage-buffer range",
                 map_bytes >> 20,
                 range >> 20
             )));

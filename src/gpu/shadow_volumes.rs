@@ -280,9 +280,8 @@ impl GpuRenderer {
         scene: &Scene,
         source: GBufferSource,
     ) -> Result<GpuShadowMapRender, GpuError> {
-        let refuse = |why: String| GpuError::Unsupported(format!("volumes: {why}"));
         let passes = FramePasses::ShadowVolumes;
-        let (upload, out, bytes) = self.run_baseline_frame(scene, source, 1, passes, refuse)?;
+        let (upload, out, bytes) = self.run_baseline_frame(scene, source, 1, passes, "volumes")?;
         Ok(GpuShadowMapRender::from_frame(
             scene, source, &upload, out, bytes,
         ))

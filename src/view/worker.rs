@@ -250,6 +250,7 @@ fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<M
         },
         MethodKind::ShadowMap(map) => baseline_frame(
             name,
+            scene,
             device,
             r.render_shadow_map(scene, map, GBufferSource::Gpu),
             shade,
@@ -269,10 +270,10 @@ fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<M
                     visibility: out.visibility,
                 })
             },
-            scene,
         ),
         MethodKind::ShadowVolumes => baseline_frame(
             name,
+            scene,
             device,
             r.render_shadow_volumes(scene, GBufferSource::Gpu),
             shade,
@@ -285,7 +286,6 @@ fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<M
                     visibility: out.visibility,
                 })
             },
-            scene,
         ),
         _ => anyhow::bail!("`{name}` is not a viewer method"),
     }
@@ -304,11 +304,11 @@ struct CpuBaseline {
 /// when lavapipe's loop cap refused the frame.
 fn baseline_frame(
     name: &str,
+    scene: &Scene,
     device: String,
     gpu: Result<GpuShadowMapRender, GpuError>,
     shade: impl Fn(&GBuffer, &[f32]) -> Vec<[u8; 3]>,
     cpu: impl FnOnce(&GBuffer) -> anyhow::Result<CpuBaseline>,
-    scene: &Scene,
 ) -> anyhow::Result<MethodFrame> {
     match gpu {
         Ok(out) => {
