@@ -67,6 +67,10 @@ pub struct IzbSettings {
     pub split_lambda: f32,
     /// Exact shortcuts to take (all by default).
     pub skips: Skips,
+    /// Edge pixels' samples each on the surface its own ray sees
+    /// ([`crate::gbuffer::edge_surfaces`]), where the mode has per-sample
+    /// rays ([`Self::uses_edge_surfaces`]).
+    pub edge_surfaces: bool,
 }
 
 impl IzbSettings {
@@ -76,6 +80,19 @@ impl IzbSettings {
     /// light's centre alone, a hard shadow whatever the light's size.
     pub fn light_samples(&self, scene: &crate::scene::Scene) -> bool {
         scene.has_area_light() && self.mode != SampleMode::One
+    }
+
+    /// Whether a render of `scene` with these settings places edge
+    /// pixels' samples on their own surfaces: asked for, and the mode's 32
+    /// bits are samples of the pixel — µQuad samples, or (under an area
+    /// light) the light samples whose disk is seen from every surface in
+    /// turn, or `Paired32`'s pairs. One sample per pixel stays the centre's
+    /// point test; `Paired64`'s second half samples another µQuad pattern,
+    /// whose coverage is not traced yet.
+    pub fn uses_edge_surfaces(&self, scene: &crate::scene::Scene) -> bool {
+        self.edge_surfaces
+            && self.mode != SampleMode::One
+            && !(self.mode == SampleMode::Paired64 && self.light_samples(scene))
     }
 
     /// The 32-bit mask halves per pixel a render of `scene` forms: 2 for
@@ -98,6 +115,7 @@ impl Default for IzbSettings {
             cascades: CascadeCount::Auto,
             split_lambda: 1.0,
             skips: Skips::ALL,
+            edge_surfaces: false,
         }
     }
 }

@@ -4,23 +4,36 @@
 use super::{run_placeholder, MethodKind, Runs, SceneTruth};
 use crate::baseline::render_shadow_map;
 use crate::cpu::render_cpu;
-use crate::reference::same_samples::same_sample_masks;
+use crate::reference::same_samples::{edge_same_sample_masks, same_sample_masks};
 use crate::scene::Scene;
 use serde_json::json;
 use std::time::Instant;
 
-/// The same-sample reference of `scene`: `rt32` (the µQuad's samples), or
-/// under an area light `rt-soft` (the light's samples at P).
-pub(super) fn same_sample_masks_of(scene: &Scene, bvh: &crate::bvh::SceneBvh) -> Vec<u32> {
+/// The same-sample reference of `scene`: `rt32` (the µQuad's samples,
+/// with `edge_surfaces` each edge pixel's on its own surfaces), or under an
+/// area light `rt-soft` (the light's samples at P). With it, the samples
+/// that count per pixel when not all do.
+pub(super) fn same_sample_masks_of(
+    scene: &Scene,
+    bvh: &crate::bvh::SceneBvh,
+    edge_surfaces: bool,
+) -> (Vec<u32>, Option<Vec<u32>>) {
     if scene.has_area_light() {
-        crate::reference::soft_samples::soft_same_sample_masks(
+        let masks = crate::reference::soft_samples::soft_same_sample_masks(
             scene,
             bvh,
             crate::lut::light_pattern(),
             None,
-        )
+        );
+        (masks, None)
+    } else if edge_surfaces {
+        let m = edge_same_sample_masks(scene, bvh, crate::lut::sample_pattern());
+        (m.masks, Some(m.counted))
     } else {
-        same_sample_masks(scene, bvh, crate::lut::sample_pattern())
+        (
+            same_sample_masks(scene, bvh, crate::lut::sample_pattern()),
+            None,
+        )
     }
 }
 
@@ -50,11 +63,18 @@ pub(super) fn run_once(
             r.visibility = out.visibility;
             r.masks = Some(out.masks);
         }
-        MethodKind::RayTraced32 => {
+        MethodKind::RayTraced32 { edge_surfaces } => {
             let t = Instant::now();
-            let masks = same_sample_masks_of(scene, &shared.bvh);
+            let (masks, counted) = same_sample_masks_of(scene, &shared.bvh, *edge_surfaces);
             // rt32 casts its own primary rays: its whole run is its time.
             r.record_trace(masks, t.elapsed().as_secs_f64(), 0.0, shared);
+            if let Some(counted) = counted {
+                r.visibility = crate::cpu::resolve_counted(
+                    r.masks.as_deref().unwrap_or_default(),
+                    &counted,
+                    &shared.gbuffer,
+                );
+            }
         }
         MethodKind::Embree32 | MethodKind::ShadowRays32 if scene.has_area_light() => {
             return Err(

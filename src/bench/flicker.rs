@@ -11,7 +11,7 @@ use crate::baseline::render_shadow_map;
 use crate::cpu::{render_cpu, resolve};
 use crate::gbuffer::gbuffer;
 use crate::reference::reference;
-use crate::reference::same_samples::same_sample_masks;
+use crate::reference::same_samples::{edge_same_sample_masks, same_sample_masks};
 use crate::reference::ReferenceSettings;
 use crate::scene::{Light, Scene};
 use glam::{DQuat, DVec3};
@@ -151,10 +151,16 @@ pub fn flicker(
             let Some(delta) = d else { continue };
             let visibility = match &m.kind {
                 MethodKind::Izb(s) => render_cpu(&frame, bvh, *s).visibility,
-                MethodKind::RayTraced32 => resolve(
+                MethodKind::RayTraced32 {
+                    edge_surfaces: false,
+                } => resolve(
                     &same_sample_masks(&frame, bvh, crate::lut::sample_pattern()),
                     &g,
                 ),
+                MethodKind::RayTraced32 { edge_surfaces: true } => {
+                    let m = edge_same_sample_masks(&frame, bvh, crate::lut::sample_pattern());
+                    crate::cpu::resolve_counted(&m.masks, &m.counted, &g)
+                }
                 // Plain shadow rays of the same samples: their flicker is
                 // rt32's up to the rule's contacts, not measured again.
                 MethodKind::Embree32 | MethodKind::ShadowRays32 => {

@@ -7,8 +7,10 @@ use crate::settings::{IzbSettings, SampleMode};
 #[derive(Clone, Copy, Debug)]
 pub enum MethodKind {
     Izb(IzbSettings),
-    /// The 32 µQuad samples traced exactly.
-    RayTraced32,
+    /// The 32 µQuad samples traced exactly; with `edge_surfaces` each
+    /// edge pixel's samples on their own surfaces
+    /// ([`crate::reference::same_samples::edge_same_sample_masks`]).
+    RayTraced32 { edge_surfaces: bool },
     /// The 32 µQuad samples' shadow rays traced by Embree.
     Embree32,
     /// The 32 µQuad samples' shadow rays through a BVH (Vulkan pass or its
@@ -25,11 +27,21 @@ impl MethodKind {
     pub fn family(&self) -> &'static str {
         match self {
             MethodKind::Izb(_) => "izb",
-            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => {
+            MethodKind::RayTraced32 { .. } | MethodKind::Embree32 | MethodKind::ShadowRays32 => {
                 "ray-traced"
             }
             MethodKind::ShadowMap(_) => "shadow-map",
             MethodKind::ShadowVolumes => "shadow-volume",
+        }
+    }
+
+    /// Whether the method's masks place edge pixels' samples on their own
+    /// surfaces in `scene`.
+    pub(super) fn edge_surfaces(&self, scene: &crate::scene::Scene) -> bool {
+        match self {
+            MethodKind::Izb(s) => s.uses_edge_surfaces(scene),
+            MethodKind::RayTraced32 { edge_surfaces } => *edge_surfaces && !scene.has_area_light(),
+            _ => false,
         }
     }
 
@@ -39,7 +51,7 @@ impl MethodKind {
         match self {
             // Paired masks are over other rays than rt32 / rt-soft traces.
             MethodKind::Izb(s) => matches!(s.mode, SampleMode::Lut32 | SampleMode::Exact32),
-            MethodKind::RayTraced32 | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
+            MethodKind::RayTraced32 { .. } | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
             MethodKind::ShadowMap(_) | MethodKind::ShadowVolumes => false,
         }
     }
@@ -68,17 +80,36 @@ pub fn parse_methods(
     let mut out = Vec::new();
     for name in names {
         let name = name.trim();
-        let izb_mode = |mode| MethodKind::Izb(IzbSettings { mode, ..izb });
+        // `-flat`: every sample on the pixel centre's µQuad (no edge
+        // surfaces), for comparison with the default.
+        let (name, flat) = match name.strip_suffix("-flat") {
+            Some(base) if base.starts_with("izb") || base == "rt32" => (base, true),
+            _ => (name, false),
+        };
+        let suffix = if flat { "-flat" } else { "" };
+        let izb_mode = |mode| {
+            MethodKind::Izb(IzbSettings {
+                mode,
+                edge_surfaces: izb.edge_surfaces && !flat,
+                ..izb
+            })
+        };
+        let izb_name = format!("{name}{suffix}");
         match name {
             "reference" => {}
-            "izb1" => out.push((name.to_string(), izb_mode(SampleMode::One))),
-            "izb32" => out.push((name.to_string(), izb_mode(SampleMode::Lut32))),
-            "izb32-exact" => out.push((name.to_string(), izb_mode(SampleMode::Exact32))),
-            "izb32-paired" => out.push((name.to_string(), izb_mode(SampleMode::Paired32))),
-            "izb64-paired" => out.push((name.to_string(), izb_mode(SampleMode::Paired64))),
+            "izb1" => out.push((izb_name.clone(), izb_mode(SampleMode::One))),
+            "izb32" => out.push((izb_name.clone(), izb_mode(SampleMode::Lut32))),
+            "izb32-exact" => out.push((izb_name.clone(), izb_mode(SampleMode::Exact32))),
+            "izb32-paired" => out.push((izb_name.clone(), izb_mode(SampleMode::Paired32))),
+            "izb64-paired" => out.push((izb_name.clone(), izb_mode(SampleMode::Paired64))),
             // Under an area light the same-sample reference traces the
             // 32 light samples (`rt-soft`); the two names are one method.
-            "rt32" | "rt-soft" => out.push((name.to_string(), MethodKind::RayTraced32)),
+            "rt32" | "rt-soft" => out.push((
+                izb_name.clone(),
+                MethodKind::RayTraced32 {
+                    edge_surfaces: izb.edge_surfaces && !flat,
+                },
+            )),
             "rt32-rays" => out.push((name.to_string(), MethodKind::ShadowRays32)),
             "volumes" => out.push((name.to_string(), MethodKind::ShadowVolumes)),
             "rt32-embree" if cfg!(feature = "embree") => {
@@ -107,7 +138,8 @@ pub fn parse_methods(
                 other.to_string(),
                 MethodKind::ShadowMap(ShadowMapSettings::parse(other).map_err(|e| {
                     format!(
-                        "{e}; or one of reference, izb1, izb32, izb32-exact, izb32-paired, izb64-paired, rt32, rt-soft, rt32-rays, \
+                        "{e}; or one of reference, izb1, izb32, izb32-exact, izb32-paired, izb64-paired \
+                         (each also as …-flat: no edge surfaces), rt32, rt-soft, rt32-rays, \
                          rt32-embree, volumes, shadow-maps"
                     )
                 })?),

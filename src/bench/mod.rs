@@ -193,18 +193,20 @@ pub fn bench_scene_cpu(
         }
     }
     // The same-sample masks: the method's own run, or traced once here.
-    let rt_masks = match methods
+    // Per flavour: the pixel centre's µQuad alone, or edge surfaces.
+    let rt_masks_of = |edges: bool| match methods
         .iter()
         .zip(&runs)
-        .find(|(m, _)| matches!(m.kind, MethodKind::RayTraced32))
+        .find(|(m, _)| matches!(m.kind, MethodKind::RayTraced32 { edge_surfaces } if edge_surfaces == edges))
         .and_then(|(_, r)| r.as_ref()?.masks.clone())
     {
         Some(m) => Some(m),
-        None if methods.iter().any(|m| m.kind.masks_32()) => {
-            Some(same_sample_masks_of(scene, &shared.bvh))
+        None if methods.iter().any(|m| m.kind.masks_32() && m.kind.edge_surfaces(scene) == edges) => {
+            Some(same_sample_masks_of(scene, &shared.bvh, edges).0)
         }
         None => None,
     };
+    let rt_masks = [rt_masks_of(false), rt_masks_of(true)];
     let [w, h] = scene.resolution;
     if let Some(dir) = &options.images {
         let scene_dir = dir.join(file_stem(&scene.name));
@@ -233,7 +235,7 @@ pub fn bench_scene_cpu(
             }
             _ => None,
         };
-        let sample_mismatch_rate = match (&r.masks, &rt_masks) {
+        let sample_mismatch_rate = match (&r.masks, &rt_masks[m.kind.edge_surfaces(scene) as usize]) {
             (Some(a), Some(b)) if m.kind.masks_32() => {
                 let (d, n) = sample_mismatches(a, b, tested);
                 Some(d as f64 / n.max(1) as f64)
@@ -453,7 +455,7 @@ pub fn bench_scene_vulkan(
                             (out.gpu_milliseconds, out.visibility, details)
                         })
                 }
-                MethodKind::RayTraced32 | MethodKind::Embree32 => continue,
+                MethodKind::RayTraced32 { .. } | MethodKind::Embree32 => continue,
             };
             let entry = runs[k].get_or_insert(GpuRuns {
                 millis: Vec::new(),

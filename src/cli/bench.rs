@@ -115,6 +115,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
             let izb = IzbSettings {
                 skips,
                 cascades,
+                edge_surfaces: true,
                 ..Default::default()
             };
             for mut m in bench::parse_methods(&args.methods, &args.map_sides, izb)
@@ -139,7 +140,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
     let cpu_only = |m: &bench::Method| {
         matches!(
             m.kind,
-            bench::MethodKind::RayTraced32 | bench::MethodKind::Embree32
+            bench::MethodKind::RayTraced32 { .. } | bench::MethodKind::Embree32
         )
     };
     let has_gpu_method = methods.iter().any(|m| !cpu_only(m));

@@ -32,6 +32,11 @@ pub struct RenderArgs {
     /// second mask word (`mask_high` in visibility.exr).
     #[arg(long)]
     paired64: bool,
+    /// Every sample on the pixel centre's µQuad: no per-sample surfaces at
+    /// edge pixels (by default an edge pixel's samples each stand on the
+    /// surface their own ray sees).
+    #[arg(long)]
+    no_edge_surfaces: bool,
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     backend: Backend,
     /// Vulkan device index (see `izb devices`; default: the best one).
@@ -71,10 +76,19 @@ pub fn run_render(args: RenderArgs) -> Result<()> {
     let settings = args.grid.apply(IzbSettings {
         mode: mode_for(args.spp, args.exact, args.paired, args.paired64),
         skips: args.skip,
+        edge_surfaces: !args.no_edge_surfaces,
         ..Default::default()
     })?;
+    let edges_on_cpu_only = settings.uses_edge_surfaces(&scene);
     let renderer = match args.backend {
         Backend::Cpu => None,
+        Backend::Auto if edges_on_cpu_only => {
+            eprintln!(
+                "backend: cpu (edge surfaces are not on the Vulkan backend yet; \
+                 --no-edge-surfaces renders on Vulkan)"
+            );
+            None
+        }
         Backend::Vulkan | Backend::Auto => {
             let options = GpuOptions {
                 device_index: args.device,

@@ -479,18 +479,29 @@ pub fn evaluate(
     boxes: &MicroquadBoxes,
     rule: &MaskRule,
 ) -> (Vec<u32>, EvaluateStats) {
-    let w = g.width as usize;
-    // Bands of GROUP[1] rows, so each 8×4 group lies in one band.
-    let bands: Vec<(Vec<u32>, EvaluateStats)> = (0..g.height as usize)
-        .step_by(GROUP[1])
+    let w = (g.width as usize).max(1);
+    let n = g.flags.len();
+    // Bands of GROUP[1] rows, so each 8×4 group lies in one band; a
+    // one-row layer (the edge surfaces, `GBuffer::layers`) in bands of
+    // 1024 entries, its groups 32 consecutive entries.
+    let one_row = g.height == 1;
+    let band = if one_row { 1024 } else { w * GROUP[1] };
+    let bands: Vec<(Vec<u32>, EvaluateStats)> = (0..n)
+        .step_by(band)
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|y0| {
-            let rows = y0..(y0 + GROUP[1]).min(g.height as usize);
+        .map(|start| {
+            let entries = start..(start + band).min(n);
+            let group_of = |i: usize| {
+                if one_row {
+                    (i - start) / (GROUP[0] * GROUP[1])
+                } else {
+                    (i % w) / GROUP[0]
+                }
+            };
             let mut stats = EvaluateStats::default();
-            let mut longest = vec![0u64; w.div_ceil(GROUP[0])];
-            let masks = rows
-                .flat_map(|y| y * w..(y + 1) * w)
+            let mut longest = vec![0u64; group_of(entries.end - 1) + 1];
+            let masks = entries
                 .map(|i| {
                     if !is_receiver(g.flags[i], rule.skips) {
                         return 0;
@@ -500,7 +511,7 @@ pub fn evaluate(
                     let (mask, tests) =
                         evaluate_pixel(setup, bins, triangles, &px, rule, &mut stats);
                     stats.longest_pixel_tests = stats.longest_pixel_tests.max(tests);
-                    let group = &mut longest[(i % w) / GROUP[0]];
+                    let group = &mut longest[group_of(i)];
                     *group = (*group).max(tests);
                     if g.flags[i] & flags::SHADOW_TESTED == 0 {
                         0

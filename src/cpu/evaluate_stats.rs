@@ -7,6 +7,10 @@
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct EvaluateStats {
     pub pixels_tested: usize,
+    /// Edge pixels' extra surfaces tested (receivers beside the pixels,
+    /// [`crate::gbuffer::edge_surfaces`]); their tests are in the counters
+    /// below, so the per-pixel figures include them.
+    pub extra_surfaces_tested: usize,
     /// Frustum-triangle tests started (candidate triangles visited).
     pub tests_spawned: u64,
     /// Of those, triangles that passed the depth test at P.
@@ -42,6 +46,7 @@ impl EvaluateStats {
     /// `pixels_tested`).
     pub fn add(&mut self, s: &EvaluateStats) {
         self.pixels_tested += s.pixels_tested;
+        self.extra_surfaces_tested += s.extra_surfaces_tested;
         self.tests_spawned += s.tests_spawned;
         self.depth_passed += s.depth_passed;
         self.saturated_masks += s.saturated_masks;

@@ -299,7 +299,13 @@ impl LightSetup {
                 }
             })
             .collect();
-        MicroquadBoxes { ndc: boxes }
+        MicroquadBoxes {
+            ndc: boxes,
+            edges: g
+                .edges
+                .as_ref()
+                .map(|e| Box::new(self.microquad_boxes(&e.surfaces, skips))),
+        }
     }
 
     /// Where the light is, seen from the eye-relative point `p`, in eye
@@ -334,9 +340,16 @@ impl LightSetup {
 /// four corners are projected once per frame, not once per pass.
 pub struct MicroquadBoxes {
     pub ndc: Vec<(Vec2, Vec2)>,
+    /// The boxes of the G-buffer's edge surfaces ([`GBuffer::edges`]).
+    pub edges: Option<Box<MicroquadBoxes>>,
 }
 
 impl MicroquadBoxes {
+    /// The boxes of each of [`GBuffer::layers`], in its order.
+    pub fn layers(&self) -> impl Iterator<Item = &MicroquadBoxes> {
+        std::iter::once(self).chain(self.edges.as_deref())
+    }
+
     /// Pixel `i`'s box in `grid`'s coordinates
     /// ([`LightSetup::microquad_grid_box`]).
     #[inline]
@@ -427,16 +440,22 @@ impl From<&crate::settings::IzbSettings> for GridRequest {
 pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> LightSetup {
     let light = scene.light.relative_to(scene.camera.eye);
     let view_forward = scene.camera.frame(scene.resolution).forward.as_vec3();
-    let tested: Vec<usize> = (0..gbuffer.flags.len())
-        .filter(|&i| gbuffer.flags[i] & flags::SHADOW_TESTED != 0)
+    // Every shadow-tested receiver: the pixels' centre surfaces and the
+    // edge pixels' extra surfaces, whose µQuads the grids must hold too.
+    let tested: Vec<[Vec3; 3]> = gbuffer
+        .layers()
+        .flat_map(|g| {
+            (0..g.flags.len())
+                .filter(|&i| g.flags[i] & flags::SHADOW_TESTED != 0)
+                .map(|i| [g.position[i], g.axis_x[i], g.axis_y[i]])
+        })
         .collect();
     // Receivers' eye-relative bounds centre: the light-view origin of a
     // directional light, the aim of a point light. View depth range: the
     // cascade splits.
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     let (mut near, mut far) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &i in &tested {
-        let p = gbuffer.position[i];
+    for &[p, _, _] in &tested {
         lo = lo.min(p);
         hi = hi.max(p);
         let d = p.dot(view_forward);
@@ -506,19 +525,18 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
     setup.split_depths = cascades::split_depths(near, far, choice.count, request.split_lambda);
     let count = choice.count as usize;
     setup.cascade_choice = choice;
-    let cascade_of = |i: usize| {
-        cascades::cascade_of_depth(&setup.split_depths, gbuffer.position[i].dot(view_forward))
-            .min(count - 1)
+    let cascade_of = |p: Vec3| {
+        cascades::cascade_of_depth(&setup.split_depths, p.dot(view_forward)).min(count - 1)
     };
     // Per cascade: light-NDC bounds of its µQuads' corners.
     let mut nmin = [Vec2::splat(f32::INFINITY); MAX_CASCADES];
     let mut nmax = [Vec2::splat(f32::NEG_INFINITY); MAX_CASCADES];
     let mut receivers = [0usize; MAX_CASCADES];
     let (mut zmin, mut zmax) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &i in &tested {
-        let k = cascade_of(i);
+    for &[p, ex, ey] in &tested {
+        let k = cascade_of(p);
         receivers[k] += 1;
-        for corner in microquad_corners(gbuffer.position[i], gbuffer.axis_x[i], gbuffer.axis_y[i]) {
+        for corner in microquad_corners(p, ex, ey) {
             let p = setup.to_light_view(corner);
             zmin = zmin.min(p.z);
             zmax = zmax.max(p.z);

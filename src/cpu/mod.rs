@@ -28,7 +28,8 @@ pub use evaluate::{MaskRule, FULL};
 pub use light_setup::{light_setup, GridRequest, LightSetup};
 
 use crate::bvh::SceneBvh;
-use crate::gbuffer::{flags, gbuffer, GBuffer, GBufferStats};
+use crate::gbuffer::edge_surfaces::EdgeStats;
+use crate::gbuffer::{flags, gbuffer, gbuffer_with, GBuffer, GBufferStats};
 use crate::scene::Scene;
 use std::time::Instant;
 
@@ -47,6 +48,8 @@ pub struct RenderReport {
     pub settings: IzbSettings,
     pub seconds: PassSeconds,
     pub gbuffer: GBufferStats,
+    /// The edge pixels' surfaces, when the render placed samples on them.
+    pub edge_surfaces: Option<EdgeStats>,
     pub light: LightSetup,
     pub bin: bin::BinStats,
     pub evaluate: evaluate::EvaluateStats,
@@ -76,15 +79,62 @@ pub fn resolve(masks: &[u32], g: &GBuffer) -> Vec<f32> {
 
 /// [`resolve`] of 64-sample masks: bits 0–31 in `masks`, 32–63 in
 /// `high` (1 − popcount / 64), or of 32-sample ones when `high` is empty.
+/// With edge surfaces ([`GBuffer::edges`]) over the counted samples only:
+/// 1 − popcount(mask) / popcount(counted).
 pub fn resolve_halves(masks: &[u32], high: &[u32], g: &GBuffer) -> Vec<f32> {
-    let samples = if high.is_empty() { 32.0 } else { 64.0 };
+    let counted = g.edges.as_ref().map(|e| &e.counted);
+    (0..masks.len())
+        .map(|i| {
+            if g.flags[i] & flags::SHADOW_TESTED == 0 {
+                return f32::NAN;
+            }
+            let hidden = masks[i].count_ones() + high.get(i).map_or(0, |h| h.count_ones());
+            let samples = match counted {
+                Some(c) => c[i].count_ones(),
+                None => 32 * (1 + !high.is_empty() as u32),
+            };
+            1.0 - hidden as f32 / samples as f32
+        })
+        .collect()
+}
+
+/// The lit fraction of masks over the samples `counted` marks per pixel:
+/// 1 − popcount(mask) / popcount(counted), NaN where not shadow-tested
+/// (the same-sample reference's masks with edge surfaces).
+pub fn resolve_counted(masks: &[u32], counted: &[u32], g: &GBuffer) -> Vec<f32> {
     (0..masks.len())
         .map(|i| {
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 f32::NAN
             } else {
-                let hidden = masks[i].count_ones() + high.get(i).map_or(0, |h| h.count_ones());
-                1.0 - hidden as f32 / samples
+                1.0 - masks[i].count_ones() as f32 / counted[i].count_ones() as f32
+            }
+        })
+        .collect()
+}
+
+/// The lit fraction of light-sample masks (soft shadows, not paired) with
+/// edge surfaces: a surface's mask is over the light's samples seen from
+/// it, so each surface's lit fraction is weighted by the pixel samples it
+/// covers; samples on a surface facing away are dark. `masks` are the
+/// centre surfaces', `extra` the extra surfaces' (uncombined).
+pub fn resolve_light_samples(masks: &[u32], extra: &[u32], g: &GBuffer) -> Vec<f32> {
+    let Some(e) = g.edges.as_ref() else {
+        return resolve(masks, g);
+    };
+    let lit = |m: u32| 1.0 - m.count_ones() as f64 / 32.0;
+    let mut sum: Vec<f64> = (0..masks.len())
+        .map(|i| e.centre_coverage[i].count_ones() as f64 * lit(masks[i]))
+        .collect();
+    for (k, &m) in extra.iter().enumerate() {
+        sum[e.pixel[k] as usize] += e.coverage[k].count_ones() as f64 * lit(m);
+    }
+    (0..masks.len())
+        .map(|i| {
+            if g.flags[i] & flags::SHADOW_TESTED == 0 {
+                f32::NAN
+            } else {
+                (sum[i] / e.counted[i].count_ones() as f64) as f32
             }
         })
         .collect()
@@ -112,7 +162,8 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
             s
         }
     };
-    let g = gbuffer(scene, bvh);
+    let edge_surfaces = settings.uses_edge_surfaces(scene);
+    let g = gbuffer_with(scene, bvh, edge_surfaces);
     seconds.gbuffer = lap();
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     seconds.light_setup = lap();
@@ -122,7 +173,20 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
-    let (masks, mut eval_stats) = evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule);
+    let (mut masks, mut eval_stats) =
+        evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule);
+    // The edge pixels' extra surfaces: more receivers of the same bins.
+    let extra_masks = match (&g.edges, &boxes.edges) {
+        (Some(e), Some(b)) => {
+            let (m, stats) = evaluate::evaluate(&setup, &bins, &triangles, &e.surfaces, b, &rule);
+            let pixels_tested = eval_stats.pixels_tested;
+            eval_stats.add(&stats);
+            eval_stats.pixels_tested = pixels_tested;
+            eval_stats.extra_surfaces_tested = stats.pixels_tested;
+            m
+        }
+        _ => Vec::new(),
+    };
     // Paired64: the second half, the same pass with the turned patterns.
     let masks_high = if settings.mask_halves(scene) == 2 {
         let (high, stats) =
@@ -134,8 +198,18 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     } else {
         Vec::new()
     };
+    // Masks over the light's samples weigh each surface by its coverage;
+    // every other mode's bits are the pixel's own samples, combined bit
+    // by bit.
+    let light_sample_masks = soft && !settings.mode.is_paired();
+    let light_visibility = (light_sample_masks && g.edges.is_some())
+        .then(|| resolve_light_samples(&masks, &extra_masks, &g));
+    if let (Some(e), false) = (&g.edges, light_sample_masks) {
+        e.combine(&mut masks, &extra_masks);
+    }
     seconds.evaluate = lap();
-    let visibility = resolve_halves(&masks, &masks_high, &g);
+    let visibility =
+        light_visibility.unwrap_or_else(|| resolve_halves(&masks, &masks_high, &g));
     seconds.resolve = lap();
     seconds.total = start.elapsed().as_secs_f64();
     let evaluate_ns_per_test_per_thread =
@@ -146,6 +220,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
             settings,
             seconds,
             gbuffer: g.stats.clone(),
+            edge_surfaces: g.edges.as_ref().map(|e| e.stats.clone()),
             light: setup,
             bin: bins.stats,
             work_per_pixel: eval_stats.per_pixel(),

@@ -7,8 +7,11 @@
 //! `Ex = dP/dx`, `Ey = dP/dy` (Wyman et al. 2015, §4: the pixel's footprint on its
 //! tangent plane, the base of its shadow frustum).
 
+pub mod edge_surfaces;
+
 use crate::bvh::SceneBvh;
 use crate::scene::{CameraFrame, Light, Scene};
+use edge_surfaces::{EdgeStats, EdgeSurfaces, PixelSamples};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -133,6 +136,72 @@ pub struct GBuffer {
     /// [`flags`] bits.
     pub flags: Vec<u32>,
     pub stats: GBufferStats,
+    /// The edge pixels' per-sample surfaces ([`gbuffer_with`]), `None`
+    /// when every sample stands on its pixel's centre surface.
+    pub edges: Option<Box<EdgeSurfaces>>,
+}
+
+impl GBuffer {
+    /// An empty G-buffer of `width × height` entries.
+    fn with_capacity(width: u32, height: u32) -> GBuffer {
+        let n = width as usize * height as usize;
+        GBuffer {
+            width,
+            height,
+            triangle_id: Vec::with_capacity(n),
+            depth: Vec::with_capacity(n),
+            position: Vec::with_capacity(n),
+            normal: Vec::with_capacity(n),
+            axis_x: Vec::with_capacity(n),
+            axis_y: Vec::with_capacity(n),
+            flags: Vec::with_capacity(n),
+            stats: GBufferStats {
+                pixels: n,
+                ..Default::default()
+            },
+            edges: None,
+        }
+    }
+
+    /// Appends one entry (`None`: a miss), rounding the `f64` surface.
+    fn push(&mut self, s: Option<&PixelSurface>) {
+        match s {
+            Some(s) => {
+                let mut f = flags::HIT;
+                self.stats.hits += 1;
+                if s.shadow_tested {
+                    f |= flags::SHADOW_TESTED;
+                    self.stats.shadow_tested += 1;
+                }
+                if s.axes_clamped {
+                    f |= flags::AXES_CLAMPED;
+                    self.stats.clamped_microquads += 1;
+                }
+                self.triangle_id.push(s.hit.triangle);
+                self.depth.push(s.hit.t as f32);
+                self.position.push(s.hit.position.as_vec3());
+                self.normal.push(s.hit.normal.as_vec3());
+                self.axis_x.push(s.axis_x.as_vec3());
+                self.axis_y.push(s.axis_y.as_vec3());
+                self.flags.push(f);
+            }
+            None => {
+                self.triangle_id.push(NO_HIT);
+                self.depth.push(f32::INFINITY);
+                self.position.push(Vec3::ZERO);
+                self.normal.push(Vec3::ZERO);
+                self.axis_x.push(Vec3::ZERO);
+                self.axis_y.push(Vec3::ZERO);
+                self.flags.push(0);
+            }
+        }
+    }
+
+    /// Every receiver entry: the pixels' centre surfaces, then the edge
+    /// pixels' extra surfaces (as a one-row G-buffer).
+    pub fn layers(&self) -> impl Iterator<Item = &GBuffer> {
+        std::iter::once(self).chain(self.edges.as_deref().map(|e| &e.surfaces))
+    }
 }
 
 /// One pixel's G-buffer entry in `f64` (the form the reference uses).
@@ -166,8 +235,15 @@ pub fn pixel_surface(
     })
 }
 
-/// Primary visibility for the whole image (rayon over rows).
+/// Primary visibility for the whole image (rayon over rows): one surface
+/// per pixel, the one its centre ray hits.
 pub fn gbuffer(scene: &Scene, bvh: &SceneBvh) -> GBuffer {
+    gbuffer_with(scene, bvh, false)
+}
+
+/// [`gbuffer`], and with `edge_surfaces` the edge pixels' per-sample
+/// surfaces ([`edge_surfaces`]) for the µQuad pattern.
+pub fn gbuffer_with(scene: &Scene, bvh: &SceneBvh, edge_surfaces: bool) -> GBuffer {
     let [w, h] = scene.resolution;
     let frame = scene.camera.frame(scene.resolution);
     let rows: Vec<Vec<Option<PixelSurface>>> = (0..h)
@@ -178,53 +254,96 @@ pub fn gbuffer(scene: &Scene, bvh: &SceneBvh) -> GBuffer {
                 .collect()
         })
         .collect();
-    let n = scene.pixel_count();
-    let mut g = GBuffer {
-        width: w,
-        height: h,
-        triangle_id: Vec::with_capacity(n),
-        depth: Vec::with_capacity(n),
-        position: Vec::with_capacity(n),
-        normal: Vec::with_capacity(n),
-        axis_x: Vec::with_capacity(n),
-        axis_y: Vec::with_capacity(n),
-        flags: Vec::with_capacity(n),
-        stats: GBufferStats {
-            pixels: n,
-            ..Default::default()
-        },
-    };
-    for s in rows.into_iter().flatten() {
-        match s {
-            Some(s) => {
-                let mut f = flags::HIT;
-                g.stats.hits += 1;
-                if s.shadow_tested {
-                    f |= flags::SHADOW_TESTED;
-                    g.stats.shadow_tested += 1;
-                }
-                if s.axes_clamped {
-                    f |= flags::AXES_CLAMPED;
-                    g.stats.clamped_microquads += 1;
-                }
-                g.triangle_id.push(s.hit.triangle);
-                g.depth.push(s.hit.t as f32);
-                g.position.push(s.hit.position.as_vec3());
-                g.normal.push(s.hit.normal.as_vec3());
-                g.axis_x.push(s.axis_x.as_vec3());
-                g.axis_y.push(s.axis_y.as_vec3());
-                g.flags.push(f);
-            }
-            None => {
-                g.triangle_id.push(NO_HIT);
-                g.depth.push(f32::INFINITY);
-                g.position.push(Vec3::ZERO);
-                g.normal.push(Vec3::ZERO);
-                g.axis_x.push(Vec3::ZERO);
-                g.axis_y.push(Vec3::ZERO);
-                g.flags.push(0);
-            }
-        }
+    let mut g = GBuffer::with_capacity(w, h);
+    for s in rows.iter().flatten() {
+        g.push(s.as_ref());
+    }
+    if edge_surfaces {
+        g.edges = Some(Box::new(edge_surfaces_of(scene, bvh, &frame, &rows)));
     }
     g
+}
+
+/// The edge pixels' surfaces of the image whose centre surfaces are
+/// `rows`: corner rays shared by neighbouring pixels, then 32 sample rays
+/// per edge candidate.
+fn edge_surfaces_of(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    frame: &CameraFrame,
+    rows: &[Vec<Option<PixelSurface>>],
+) -> EdgeSurfaces {
+    let [w, h] = scene.resolution;
+    let (near, far) = (scene.camera.near, scene.camera.far);
+    let corners: Vec<Vec<Option<SurfaceHit>>> = (0..=h)
+        .into_par_iter()
+        .map(|y| {
+            (0..=w)
+                .map(|x| trace_primary(bvh, frame, near, far, x as f64, y as f64))
+                .collect()
+        })
+        .collect();
+    let pattern = crate::lut::sample_pattern();
+    let samples: Vec<PixelSamples> = (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let Some(centre) = rows[y as usize][x as usize].filter(|c| c.shadow_tested) else {
+                return PixelSamples::SMOOTH;
+            };
+            let (xu, yu) = (x as usize, y as usize);
+            let corner_probes = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                .into_iter()
+                .map(|(dx, dy)| corners[yu + dy][xu + dx].as_ref());
+            let neighbour_probes = (-1i64..=1)
+                .flat_map(|dy| (-1i64..=1).map(move |dx| (dx, dy)))
+                .filter(|&d| d != (0, 0))
+                .filter_map(|(dx, dy)| {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    let inside = nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64;
+                    inside.then(|| rows[ny as usize][nx as usize].as_ref().map(|s| &s.hit))
+                });
+            if edge_surfaces::is_edge_candidate(&centre, corner_probes.chain(neighbour_probes)) {
+                edge_surfaces::sample_surfaces(bvh, scene, frame, x, y, &centre, pattern)
+            } else {
+                PixelSamples::SMOOTH
+            }
+        })
+        .collect();
+    let mut stats = EdgeStats {
+        corner_rays: (w as u64 + 1) * (h as u64 + 1),
+        ..Default::default()
+    };
+    let n = samples.len();
+    let extra_count: usize = samples.iter().map(|s| s.extra.len()).sum();
+    let mut surfaces = GBuffer::with_capacity(extra_count as u32, 1);
+    let mut e = EdgeSurfaces {
+        surfaces: GBuffer::with_capacity(0, 1),
+        pixel: Vec::with_capacity(extra_count),
+        coverage: Vec::with_capacity(extra_count),
+        centre_coverage: Vec::with_capacity(n),
+        counted: Vec::with_capacity(n),
+        facing_away: Vec::with_capacity(n),
+        stats: EdgeStats::default(),
+    };
+    for (i, s) in samples.iter().enumerate() {
+        stats.candidates += s.traced as usize;
+        stats.sample_rays += 32 * s.traced as u64;
+        stats.edge_pixels += s.is_edge() as usize;
+        stats.extra_surfaces += s.extra.len();
+        stats.facing_away_samples += s.facing_away.count_ones() as u64;
+        stats.dropped_samples += s.dropped.count_ones() as u64;
+        stats.missed_samples += s.missed.count_ones() as u64;
+        e.centre_coverage.push(s.centre_coverage);
+        e.counted.push(s.counted);
+        e.facing_away.push(s.facing_away);
+        for x in &s.extra {
+            surfaces.push(Some(&x.surface));
+            e.pixel.push(i as u32);
+            e.coverage.push(x.coverage);
+        }
+    }
+    e.surfaces = surfaces;
+    e.stats = stats;
+    e
 }

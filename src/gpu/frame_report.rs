@@ -389,6 +389,7 @@ pub(super) fn read_back_gbuffer(
                     shadow_tested: out.counters[counter::SHADOW_TESTED] as usize,
                     clamped_microquads: out.counters[counter::CLAMPED] as usize,
                 },
+                edges: None,
             }
         }
     }

@@ -19,59 +19,137 @@
 
 use crate::bvh::SceneBvh;
 use crate::frustum::{may_shadow, LightRel};
-use crate::gbuffer::pixel_surface;
+use crate::gbuffer::edge_surfaces::{self, PixelSamples};
+use crate::gbuffer::{pixel_surface, trace_primary, PixelSurface, SurfaceHit};
 use crate::scene::{Light, Scene};
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// The 32-sample masks of every pixel (0 where not shadow-tested).
+/// A full 32-sample mask.
+const FULL: u32 = u32::MAX;
+
+/// Where a directional light's line starts, behind every triangle: 2R
+/// from the sample, R the scene's eye-relative radius (the BVH's rounding
+/// padding assumes rays start within 3R of the eye).
+fn line_start_distance(scene: &Scene) -> f64 {
+    let (lo, hi) = scene.bounds();
+    2.0 * (lo - scene.camera.eye)
+        .abs()
+        .max(hi - scene.camera.eye)
+        .length()
+}
+
+/// The samples of `samples` (bit i: pattern sample i) that the shadow rule
+/// darkens on the µQuad of `px`.
+fn surface_mask(
+    bvh: &SceneBvh,
+    light: Light,
+    far: f64,
+    px: &PixelSurface,
+    samples: u32,
+    pattern: &[[f32; 2]; 32],
+) -> u32 {
+    let p = px.hit.position;
+    let size = px.axis_x.length().max(px.axis_y.length());
+    let rel = match light {
+        Light::Directional { direction } => LightRel::Toward(-direction),
+        Light::Point { position } => LightRel::At(position - p),
+    };
+    let occludes = |id: u32| {
+        id != px.hit.triangle
+            && may_shadow(&bvh.triangle(id).map(|v| v - p), px.hit.normal, size, rel)
+    };
+    let mut mask = 0u32;
+    for (i, s) in pattern.iter().enumerate() {
+        if samples & (1 << i) == 0 {
+            continue;
+        }
+        let sample = p + (s[0] as f64 - 0.5) * px.axis_x + (s[1] as f64 - 0.5) * px.axis_y;
+        let (origin, dir): (DVec3, DVec3) = match light {
+            Light::Directional { direction } => (sample + direction * far, -direction),
+            Light::Point { position } => (position, sample - position),
+        };
+        if bvh.any_hit(origin, dir, 0.0, f64::INFINITY, occludes) {
+            mask |= 1 << i;
+        }
+    }
+    mask
+}
+
+/// The 32-sample masks of every pixel (0 where not shadow-tested), every
+/// sample on the pixel centre's µQuad.
 pub fn same_sample_masks(scene: &Scene, bvh: &SceneBvh, pattern: &[[f32; 2]; 32]) -> Vec<u32> {
     let frame = scene.camera.frame(scene.resolution);
     let light = scene.light.relative_to(scene.camera.eye);
-    // Where a directional light's line starts, behind every triangle: 2R
-    // from the sample, R the scene's eye-relative radius (the BVH's
-    // rounding padding assumes rays start within 3R of the eye).
-    let (lo, hi) = scene.bounds();
-    let far = 2.0
-        * (lo - scene.camera.eye)
-            .abs()
-            .max(hi - scene.camera.eye)
-            .length();
+    let far = line_start_distance(scene);
     let [w, h] = scene.resolution;
     (0..h)
         .into_par_iter()
         .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            let Some(px) = pixel_surface(bvh, scene, &frame, x, y) else {
-                return 0;
-            };
-            if !px.shadow_tested {
-                return 0;
-            }
-            let p = px.hit.position;
-            let size = px.axis_x.length().max(px.axis_y.length());
-            let rel = match light {
-                Light::Directional { direction } => LightRel::Toward(-direction),
-                Light::Point { position } => LightRel::At(position - p),
-            };
-            let occludes = |id: u32| {
-                id != px.hit.triangle
-                    && may_shadow(&bvh.triangle(id).map(|v| v - p), px.hit.normal, size, rel)
-            };
-            let mut mask = 0u32;
-            for (i, s) in pattern.iter().enumerate() {
-                let sample = p + (s[0] as f64 - 0.5) * px.axis_x + (s[1] as f64 - 0.5) * px.axis_y;
-                let (origin, dir): (DVec3, DVec3) = match light {
-                    Light::Directional { direction } => (sample + direction * far, -direction),
-                    Light::Point { position } => (position, sample - position),
-                };
-                if bvh.any_hit(origin, dir, 0.0, f64::INFINITY, occludes) {
-                    mask |= 1 << i;
-                }
-            }
-            mask
+        .map(|(x, y)| match pixel_surface(bvh, scene, &frame, x, y) {
+            Some(px) if px.shadow_tested => surface_mask(bvh, light, far, &px, FULL, pattern),
+            _ => 0,
         })
         .collect()
+}
+
+/// Same-sample masks with edge pixels' samples each on its own surface
+/// ([`crate::gbuffer::edge_surfaces`]), as the IZB tests them.
+#[derive(Clone, Debug)]
+pub struct EdgeSameSampleMasks {
+    /// Shadowed samples per pixel (0 where not shadow-tested).
+    pub masks: Vec<u32>,
+    /// The samples that count per pixel (all where not shadow-tested).
+    pub counted: Vec<u32>,
+}
+
+/// [`same_sample_masks`] with per-sample surfaces: the same probes, sample
+/// rays and surfaces as the G-buffer ([`crate::gbuffer::gbuffer_with`]),
+/// each surface's covered samples traced on its own µQuad, samples on a
+/// surface facing away shadowed.
+pub fn edge_same_sample_masks(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    pattern: &[[f32; 2]; 32],
+) -> EdgeSameSampleMasks {
+    let frame = scene.camera.frame(scene.resolution);
+    let light = scene.light.relative_to(scene.camera.eye);
+    let far = line_start_distance(scene);
+    let [w, h] = scene.resolution;
+    let (near, far_plane) = (scene.camera.near, scene.camera.far);
+    let (masks, counted) = (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let Some(px) = pixel_surface(bvh, scene, &frame, x, y).filter(|p| p.shadow_tested)
+            else {
+                return (0, FULL);
+            };
+            let corners = edge_surfaces::corner_hits(bvh, scene, &frame, x, y);
+            let neighbours: Vec<Option<SurfaceHit>> = (-1i64..=1)
+                .flat_map(|dy| (-1i64..=1).map(move |dx| (dx, dy)))
+                .filter(|&d| d != (0, 0))
+                .map(|(dx, dy)| (x as i64 + dx, y as i64 + dy))
+                .filter(|&(nx, ny)| nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64)
+                .map(|(nx, ny)| {
+                    trace_primary(bvh, &frame, near, far_plane, nx as f64 + 0.5, ny as f64 + 0.5)
+                })
+                .collect();
+            let probes = corners.iter().chain(&neighbours).map(Option::as_ref);
+            let samples = if edge_surfaces::is_edge_candidate(&px, probes) {
+                edge_surfaces::sample_surfaces(bvh, scene, &frame, x, y, &px, pattern)
+            } else {
+                PixelSamples::SMOOTH
+            };
+            let mut mask = samples.facing_away
+                | surface_mask(bvh, light, far, &px, samples.centre_coverage, pattern);
+            for e in &samples.extra {
+                mask |= surface_mask(bvh, light, far, &e.surface, e.coverage, pattern);
+            }
+            (mask, samples.counted)
+        })
+        .unzip();
+    EdgeSameSampleMasks { masks, counted }
 }
 
 /// Relative float tolerance of the IZB's `f32` decisions: a sample whose

@@ -1,0 +1,343 @@
+//! Edge pixels' per-sample surfaces: each of the 32 samples of a pixel
+//! whose footprint covers more than one surface is tested on the surface
+//! its own primary ray sees, not on the tangent plane through the pixel
+//! centre (paper-notes/edge-surfaces.md).
+//!
+//! Wyman et al. 2015 (§5), like every shadow method that resolves one
+//! shadow value per pixel, place all of a pixel's samples on the surface
+//! seen through its centre. At a silhouette, a crease or between two
+//! facets that are not coplanar, part of those samples then stands on a
+//! plane the pixel does not show there (railing floating in front of the
+//! wall it hides), and the ground truth — each sub-pixel ray shaded on
+//! what it hits — disagrees. Keeping a few surfaces per pixel, each with a
+//! coverage mask of the samples that see it, is the antialiased deferred
+//! shading of Kerzner & Salvi 2014 (streaming G-buffer compression) and
+//! Crassin et al. 2015 (aggregate G-buffers), applied to shadow masks.
+//!
+//! Per shadow-tested pixel:
+//! 1. **Edge candidates.** The pixel's four corner rays and its eight
+//!    neighbours' centre hits are probes: a pixel none of whose probes
+//!    misses or leaves the centre's plane is smooth and costs nothing more.
+//! 2. **Sample rays.** A candidate casts its 32 sample positions as primary
+//!    rays. A sample hit on the centre's plane (within 10⁻³ of the µQuad,
+//!    the reference's rule for a smooth pixel) belongs to the centre's
+//!    surface; the rest are grouped by plane.
+//! 3. **Surfaces.** At most [`MAX_SURFACES`] surfaces per pixel: the
+//!    centre's, then the groups by sample count. Each extra surface gets
+//!    its own µQuad: its plane's tangent frame at the centroid of its
+//!    samples (always a point its own rays hit), re-expressed about the
+//!    pixel centre so the µQuad coordinates, the LUT and the depth
+//!    tolerance are those of every other µQuad. A surface facing away from
+//!    the light shadows its samples, as the ground truth counts them.
+//!    Samples that miss, and those of surfaces past the limit, do not
+//!    count: the lit fraction is lit samples over counted samples.
+//!
+//! The same function serves the G-buffer ([`super::gbuffer_with`]) and
+//! the same-sample reference, which therefore test the same samples on
+//! the same surfaces.
+
+use super::{faces_light, microquad_axes, trace_primary, GBuffer, PixelSurface, SurfaceHit};
+use crate::bvh::SceneBvh;
+use crate::scene::{CameraFrame, Light, Scene};
+
+/// Surfaces a pixel keeps, the centre's included (K of issue 27; K = 2
+/// and 4 were measured, paper-notes/edge-surfaces.md).
+pub const MAX_SURFACES: usize = 4;
+
+/// A sample hit lies on a surface's plane when its distance to the plane
+/// is at most this fraction of the surface's µQuad: the reference's rule
+/// for a smooth pixel (coplanar neighbours ~10⁻¹², any other surface in
+/// the footprint ~1).
+pub const PLANE_TOLERANCE: f64 = 1e-3;
+
+/// A full 32-sample mask.
+const FULL: u32 = u32::MAX;
+
+/// One extra surface of an edge pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct SampleSurface {
+    /// Its µQuad, centred on the pixel centre's image point.
+    pub surface: PixelSurface,
+    /// The samples whose rays hit it.
+    pub coverage: u32,
+}
+
+/// What a pixel's 32 sample rays see.
+#[derive(Clone, Debug)]
+pub struct PixelSamples {
+    /// Samples on the centre's surface.
+    pub centre_coverage: u32,
+    /// Samples that count: those on a kept surface.
+    pub counted: u32,
+    /// Samples on a kept surface facing away from the light: shadowed.
+    pub facing_away: u32,
+    /// The extra surfaces that face the light, most samples first.
+    pub extra: Vec<SampleSurface>,
+    /// Whether the sample rays were cast (the pixel was an edge candidate).
+    pub traced: bool,
+    /// Samples on surfaces past [`MAX_SURFACES`] (not counted).
+    pub dropped: u32,
+    /// Samples whose ray missed everything (not counted).
+    pub missed: u32,
+}
+
+impl PixelSamples {
+    /// A pixel whose samples all see the centre's surface.
+    pub const SMOOTH: PixelSamples = PixelSamples {
+        centre_coverage: FULL,
+        counted: FULL,
+        facing_away: 0,
+        extra: Vec::new(),
+        traced: false,
+        dropped: 0,
+        missed: 0,
+    };
+
+    /// Whether the pixel has samples off the centre's surface.
+    pub fn is_edge(&self) -> bool {
+        self.centre_coverage != FULL
+    }
+}
+
+/// Whether the hit `probe` (or a miss) lies off `centre`'s plane.
+fn off_plane(centre: &PixelSurface, probe: Option<&SurfaceHit>) -> bool {
+    let tolerance = PLANE_TOLERANCE * centre.axis_x.length().max(centre.axis_y.length());
+    match probe {
+        None => true,
+        Some(h) => centre.hit.normal.dot(h.position - centre.hit.position).abs() > tolerance,
+    }
+}
+
+/// Whether a shadow-tested pixel with centre surface `centre` is an edge
+/// candidate: one of `probes` (its corner rays' hits and its neighbours'
+/// centre hits, `None` for a miss) misses or lies off the centre's plane.
+pub fn is_edge_candidate<'a>(
+    centre: &PixelSurface,
+    probes: impl IntoIterator<Item = Option<&'a SurfaceHit>>,
+) -> bool {
+    probes.into_iter().any(|p| off_plane(centre, p))
+}
+
+/// The hits of the corner rays of pixel (`x`, `y`): image points (x, y),
+/// (x + 1, y), (x, y + 1), (x + 1, y + 1).
+pub fn corner_hits(
+    bvh: &SceneBvh,
+    scene: &Scene,
+    frame: &CameraFrame,
+    x: u32,
+    y: u32,
+) -> [Option<SurfaceHit>; 4] {
+    let (near, far) = (scene.camera.near, scene.camera.far);
+    [(0, 0), (1, 0), (0, 1), (1, 1)]
+        .map(|(dx, dy)| trace_primary(bvh, frame, near, far, (x + dx) as f64, (y + dy) as f64))
+}
+
+/// A group of sample hits on one plane.
+struct PlaneGroup {
+    seed: SurfaceHit,
+    tolerance: f64,
+    coverage: u32,
+    count: u32,
+}
+
+/// The surfaces the sample rays of pixel (`x`, `y`) see (`pattern`, the
+/// µQuad's sub-pixel offsets), given its shadow-tested centre surface.
+pub fn sample_surfaces(
+    bvh: &SceneBvh,
+    scene: &Scene,
+    frame: &CameraFrame,
+    x: u32,
+    y: u32,
+    centre: &PixelSurface,
+    pattern: &[[f32; 2]; 32],
+) -> PixelSamples {
+    let light = scene.light.relative_to(scene.camera.eye);
+    let (near, far) = (scene.camera.near, scene.camera.far);
+    let centre_tolerance = PLANE_TOLERANCE * centre.axis_x.length().max(centre.axis_y.length());
+    let mut out = PixelSamples {
+        centre_coverage: 0,
+        counted: 0,
+        facing_away: 0,
+        extra: Vec::new(),
+        traced: true,
+        dropped: 0,
+        missed: 0,
+    };
+    let mut groups: Vec<PlaneGroup> = Vec::new();
+    for (i, s) in pattern.iter().enumerate() {
+        let bit = 1u32 << i;
+        let (px, py) = (x as f64 + s[0] as f64, y as f64 + s[1] as f64);
+        let Some(hit) = trace_primary(bvh, frame, near, far, px, py) else {
+            out.missed |= bit;
+            continue;
+        };
+        if centre.hit.normal.dot(hit.position - centre.hit.position).abs() <= centre_tolerance {
+            out.centre_coverage |= bit;
+            continue;
+        }
+        let member = groups
+            .iter_mut()
+            .find(|g| g.seed.normal.dot(hit.position - g.seed.position).abs() <= g.tolerance);
+        match member {
+            Some(g) => {
+                g.coverage |= bit;
+                g.count += 1;
+            }
+            None => {
+                let (ax, ay, _) = microquad_axes(frame, px, py, &hit);
+                groups.push(PlaneGroup {
+                    seed: hit,
+                    tolerance: PLANE_TOLERANCE * ax.length().max(ay.length()),
+                    coverage: bit,
+                    count: 1,
+                });
+            }
+        }
+    }
+    if out.centre_coverage == 0 && groups.is_empty() {
+        // Every sample ray slipped past a sub-pixel sliver the centre ray
+        // hit (or missed everything): the centre's surface stands for the
+        // whole pixel, as in the ground truth's fallback.
+        return PixelSamples {
+            traced: true,
+            missed: out.missed,
+            ..PixelSamples::SMOOTH
+        };
+    }
+    out.counted = out.centre_coverage;
+    // Most samples first; ties by the first sample, so the order is a pure
+    // function of the hits.
+    groups.sort_by_key(|g| (std::cmp::Reverse(g.count), g.coverage.trailing_zeros()));
+    for (k, g) in groups.iter().enumerate() {
+        if k + 1 >= MAX_SURFACES {
+            out.dropped |= g.coverage;
+            continue;
+        }
+        out.counted |= g.coverage;
+        match extra_surface(frame, x, y, g, pattern, &light) {
+            Some(surface) => out.extra.push(SampleSurface {
+                surface,
+                coverage: g.coverage,
+            }),
+            None => out.facing_away |= g.coverage,
+        }
+    }
+    out
+}
+
+/// The µQuad of a group's plane, or `None` when the plane faces away from
+/// the light (its samples are shadowed).
+fn extra_surface(
+    frame: &CameraFrame,
+    x: u32,
+    y: u32,
+    group: &PlaneGroup,
+    pattern: &[[f32; 2]; 32],
+    light: &Light,
+) -> Option<PixelSurface> {
+    let normal = group.seed.normal;
+    // The centroid of the group's sample offsets: a convex combination of
+    // points whose rays meet the plane in front of the eye, so its own
+    // ray does too (the directions meeting a plane in front form a half
+    // plane of the image).
+    let (mut su, mut sv) = (0.0, 0.0);
+    for i in (0..32).filter(|i| group.coverage & (1 << i) != 0) {
+        su += pattern[i][0] as f64;
+        sv += pattern[i][1] as f64;
+    }
+    let n = group.count as f64;
+    let (mut u, mut v) = (su / n, sv / n);
+    let mut d = frame.direction(x as f64 + u, y as f64 + v);
+    let mut t = normal.dot(group.seed.position) / normal.dot(d);
+    if !(t > 0.0 && t.is_finite()) {
+        // Rounding at a plane seen edge-on: anchor at the seed's own ray.
+        let s = pattern[group.coverage.trailing_zeros() as usize];
+        (u, v) = (s[0] as f64, s[1] as f64);
+        d = frame.direction(x as f64 + u, y as f64 + v);
+        t = group.seed.t;
+    }
+    let anchor = SurfaceHit {
+        triangle: group.seed.triangle,
+        t,
+        position: d * t,
+        normal,
+    };
+    if !faces_light(light, anchor.position, normal) {
+        return None;
+    }
+    let (axis_x, axis_y, axes_clamped) =
+        microquad_axes(frame, x as f64 + u, y as f64 + v, &anchor);
+    // The same tangent frame, centred where the pixel centre's offsets
+    // (½, ½) put it: the µQuad coordinates of every sample stay the
+    // pattern's own, as for the centre's surface.
+    let position = anchor.position + (0.5 - u) * axis_x + (0.5 - v) * axis_y;
+    Some(PixelSurface {
+        hit: SurfaceHit {
+            triangle: group.seed.triangle,
+            t: frame.view_depth(position),
+            position,
+            normal,
+        },
+        axis_x,
+        axis_y,
+        axes_clamped,
+        shadow_tested: true,
+    })
+}
+
+/// Counts of the edge-surface step.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct EdgeStats {
+    /// Shadow-tested pixels whose probes left the centre's plane.
+    pub candidates: usize,
+    /// Pixels with samples off the centre's surface.
+    pub edge_pixels: usize,
+    /// Extra surfaces facing the light (each an extra receiver).
+    pub extra_surfaces: usize,
+    /// Primary rays cast for samples (32 per candidate) and corners.
+    pub sample_rays: u64,
+    pub corner_rays: u64,
+    /// Samples on surfaces facing away from the light (shadowed).
+    pub facing_away_samples: u64,
+    /// Samples on surfaces past [`MAX_SURFACES`] (not counted).
+    pub dropped_samples: u64,
+    /// Samples whose rays missed (not counted).
+    pub missed_samples: u64,
+}
+
+/// The edge pixels' extra surfaces of a G-buffer and each pixel's sample
+/// coverage.
+#[derive(Clone, Debug)]
+pub struct EdgeSurfaces {
+    /// The extra surfaces, one entry each, as a one-row G-buffer (whose
+    /// own `edges` is `None`): every pass that reads receivers reads them
+    /// as it reads pixels.
+    pub surfaces: GBuffer,
+    /// The pixel of each extra surface.
+    pub pixel: Vec<u32>,
+    /// The samples of its pixel each extra surface covers.
+    pub coverage: Vec<u32>,
+    /// Per pixel: samples on the centre's surface (all for a smooth pixel
+    /// or one not shadow-tested).
+    pub centre_coverage: Vec<u32>,
+    /// Per pixel: the samples that count (on a kept surface).
+    pub counted: Vec<u32>,
+    /// Per pixel: samples on a surface facing away from the light.
+    pub facing_away: Vec<u32>,
+    pub stats: EdgeStats,
+}
+
+impl EdgeSurfaces {
+    /// The per-pixel masks combined over a pixel's surfaces: the centre's
+    /// mask on its own samples, each extra surface's on its samples, and
+    /// every sample on a surface facing away. `masks` holds the centre
+    /// surfaces' masks (per pixel), `extra` the extra surfaces' (per entry).
+    pub fn combine(&self, masks: &mut [u32], extra: &[u32]) {
+        for (i, m) in masks.iter_mut().enumerate() {
+            *m = (*m & self.centre_coverage[i]) | self.facing_away[i];
+        }
+        for (k, &m) in extra.iter().enumerate() {
+            masks[self.pixel[k] as usize] |= m & self.coverage[k];
+        }
+    }
+}
