@@ -15,13 +15,19 @@
 //! Crassin et al. 2015 (aggregate G-buffers), applied to shadow masks.
 //!
 //! Per shadow-tested pixel:
-//! 1. **Edge candidates.** The pixel's four corner rays and its eight
-//!    neighbours' centre hits are probes: a pixel none of whose probes
-//!    misses or leaves the centre's plane is smooth and costs nothing more.
+//! 1. **Edge candidates.** The eight neighbours' centre hits are probes
+//!    (already traced, so free): a pixel none of whose neighbours misses
+//!    or leaves its centre's plane is smooth and costs nothing more.
 //! 2. **Sample rays.** A candidate casts its 32 sample positions as primary
-//!    rays. A sample hit on the centre's plane (within 10⁻³ of the µQuad,
-//!    the reference's rule for a smooth pixel) belongs to the centre's
-//!    surface; the rest are grouped by plane.
+//!    rays, first against the triangles its probes and its centre hit —
+//!    each a camera-space edge test, three dot products per sample (the
+//!    homogeneous rasterisation of Olano & Greer 1997) — and through the
+//!    BVH only where none of them is hit. A sample hit on the centre's
+//!    plane (within 10⁻³ of the µQuad, the reference's rule for a smooth
+//!    pixel) belongs to the centre's surface; the rest are grouped by plane.
+//!    A sub-pixel feature that no probe hits and that lies in front of a
+//!    probed triangle is not seen (the price of not tracing 32 rays per
+//!    pixel through the BVH; measured in paper-notes/edge-surfaces.md).
 //! 3. **Surfaces.** At most [`MAX_SURFACES`] surfaces per pixel: the
 //!    centre's, then the groups by sample count. Each extra surface gets
 //!    its own µQuad: its plane's tangent frame at the centroid of its
@@ -39,6 +45,7 @@
 use super::{faces_light, microquad_axes, trace_primary, GBuffer, PixelSurface, SurfaceHit};
 use crate::bvh::SceneBvh;
 use crate::scene::{CameraFrame, Light, Scene};
+use glam::DVec3;
 
 /// Surfaces a pixel keeps, the centre's included (K of issue 27; K = 2
 /// and 4 were measured, paper-notes/edge-surfaces.md).
@@ -79,6 +86,8 @@ pub struct PixelSamples {
     pub dropped: u32,
     /// Samples whose ray missed everything (not counted).
     pub missed: u32,
+    /// Sample rays no probed triangle answered: traced through the BVH.
+    pub bvh_rays: u32,
 }
 
 impl PixelSamples {
@@ -91,6 +100,7 @@ impl PixelSamples {
         traced: false,
         dropped: 0,
         missed: 0,
+        bvh_rays: 0,
     };
 
     /// Whether the pixel has samples off the centre's surface.
@@ -118,18 +128,110 @@ pub fn is_edge_candidate<'a>(
     probes.into_iter().any(|p| off_plane(centre, p))
 }
 
-/// The hits of the corner rays of pixel (`x`, `y`): image points (x, y),
-/// (x + 1, y), (x, y + 1), (x + 1, y + 1).
-pub fn corner_hits(
-    bvh: &SceneBvh,
-    scene: &Scene,
-    frame: &CameraFrame,
+/// The probes of pixel (`x`, `y`) of a `w × h` image: the centre hits of
+/// its neighbours inside the image (each `None` for a miss, from
+/// `hit_at`), and how many there are.
+pub fn neighbour_probes<'a>(
     x: u32,
     y: u32,
-) -> [Option<SurfaceHit>; 4] {
-    let (near, far) = (scene.camera.near, scene.camera.far);
-    [(0, 0), (1, 0), (0, 1), (1, 1)]
-        .map(|(dx, dy)| trace_primary(bvh, frame, near, far, (x + dx) as f64, (y + dy) as f64))
+    [w, h]: [u32; 2],
+    hit_at: impl Fn(u32, u32) -> Option<&'a SurfaceHit>,
+) -> ([Option<&'a SurfaceHit>; 8], usize) {
+    let mut probes = [None; 8];
+    let mut n = 0;
+    for (dx, dy) in NEIGHBOURS {
+        let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+        if nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64 {
+            probes[n] = hit_at(nx as u32, ny as u32);
+            n += 1;
+        }
+    }
+    (probes, n)
+}
+
+/// The eight neighbours' offsets.
+const NEIGHBOURS: [(i64, i64); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
+/// A triangle the sample rays are tested against before the BVH: its
+/// camera-space edge normals `Vₐ × V_b` (a ray direction D meets the
+/// triangle when the three `e·D` share a sign: the homogeneous
+/// rasterisation of Olano & Greer 1997, the eye at the origin) and its
+/// plane.
+#[derive(Clone, Copy, Default)]
+struct ProbedTriangle {
+    id: u32,
+    edges: [DVec3; 3],
+    normal: DVec3,
+    offset: f64,
+}
+
+impl ProbedTriangle {
+    fn new(id: u32, t: &crate::scene::Triangle) -> ProbedTriangle {
+        let normal = (t[1] - t[0]).cross(t[2] - t[0]);
+        ProbedTriangle {
+            id,
+            edges: [t[0].cross(t[1]), t[1].cross(t[2]), t[2].cross(t[0])],
+            normal,
+            offset: normal.dot(t[0]),
+        }
+    }
+
+    /// The ray parameter where direction `d` meets the triangle, if it does.
+    #[inline]
+    fn hit(&self, d: DVec3) -> Option<f64> {
+        let e = self.edges.map(|e| e.dot(d));
+        let inside = (e[0] >= 0.0 && e[1] >= 0.0 && e[2] >= 0.0)
+            || (e[0] <= 0.0 && e[1] <= 0.0 && e[2] <= 0.0);
+        let t = self.offset / self.normal.dot(d);
+        (inside && t.is_finite()).then_some(t)
+    }
+}
+
+/// The primary hit of direction `d` (through image point `px`, `py`):
+/// the nearest of the probed triangles within [near, far], or where none
+/// is hit the BVH's closest hit. Returns the hit and whether the BVH
+/// was asked.
+fn sample_hit(
+    bvh: &SceneBvh,
+    frame: &CameraFrame,
+    (near, far): (f64, f64),
+    probed: &[ProbedTriangle],
+    (px, py): (f64, f64),
+) -> (Option<SurfaceHit>, bool) {
+    let d = frame.direction(px, py);
+    let mut best: Option<(f64, &ProbedTriangle)> = None;
+    for tri in probed {
+        if let Some(t) = tri.hit(d) {
+            if t > near && t < far && best.is_none_or(|(b, _)| t < b) {
+                best = Some((t, tri));
+            }
+        }
+    }
+    match best {
+        Some((t, tri)) => {
+            let mut normal = tri.normal.normalize();
+            if normal.dot(d) > 0.0 {
+                normal = -normal;
+            }
+            let hit = SurfaceHit {
+                triangle: tri.id,
+                t,
+                position: d * t,
+                normal,
+            };
+            (Some(hit), false)
+        }
+        None => (trace_primary(bvh, frame, near, far, px, py), true),
+    }
 }
 
 /// A group of sample hits on one plane.
@@ -141,7 +243,9 @@ struct PlaneGroup {
 }
 
 /// The surfaces the sample rays of pixel (`x`, `y`) see (`pattern`, the
-/// µQuad's sub-pixel offsets), given its shadow-tested centre surface.
+/// µQuad's sub-pixel offsets), given its shadow-tested centre surface and
+/// its `probes` ([`neighbour_probes`]).
+#[allow(clippy::too_many_arguments)]
 pub fn sample_surfaces(
     bvh: &SceneBvh,
     scene: &Scene,
@@ -149,11 +253,22 @@ pub fn sample_surfaces(
     x: u32,
     y: u32,
     centre: &PixelSurface,
+    probes: &[Option<&SurfaceHit>],
     pattern: &[[f32; 2]; 32],
 ) -> PixelSamples {
     let light = scene.light.relative_to(scene.camera.eye);
-    let (near, far) = (scene.camera.near, scene.camera.far);
+    let depth_range = (scene.camera.near, scene.camera.far);
     let centre_tolerance = PLANE_TOLERANCE * centre.axis_x.length().max(centre.axis_y.length());
+    // The centre's triangle and the probes' (at most 9, without repeats).
+    let mut probed = [ProbedTriangle::default(); 9];
+    let mut count = 0;
+    for id in std::iter::once(centre.hit.triangle).chain(probes.iter().flatten().map(|h| h.triangle)) {
+        if probed[..count].iter().all(|p| p.id != id) {
+            probed[count] = ProbedTriangle::new(id, bvh.triangle(id));
+            count += 1;
+        }
+    }
+    let probed = &probed[..count];
     let mut out = PixelSamples {
         centre_coverage: 0,
         counted: 0,
@@ -162,12 +277,15 @@ pub fn sample_surfaces(
         traced: true,
         dropped: 0,
         missed: 0,
+        bvh_rays: 0,
     };
     let mut groups: Vec<PlaneGroup> = Vec::new();
     for (i, s) in pattern.iter().enumerate() {
         let bit = 1u32 << i;
         let (px, py) = (x as f64 + s[0] as f64, y as f64 + s[1] as f64);
-        let Some(hit) = trace_primary(bvh, frame, near, far, px, py) else {
+        let (hit, traced) = sample_hit(bvh, frame, depth_range, probed, (px, py));
+        out.bvh_rays += traced as u32;
+        let Some(hit) = hit else {
             out.missed |= bit;
             continue;
         };
@@ -201,6 +319,7 @@ pub fn sample_surfaces(
         return PixelSamples {
             traced: true,
             missed: out.missed,
+            bvh_rays: out.bvh_rays,
             ..PixelSamples::SMOOTH
         };
     }
@@ -294,9 +413,10 @@ pub struct EdgeStats {
     pub edge_pixels: usize,
     /// Extra surfaces facing the light (each an extra receiver).
     pub extra_surfaces: usize,
-    /// Primary rays cast for samples (32 per candidate) and corners.
+    /// Sample rays cast (32 per candidate), and of those the ones the
+    /// probed triangles did not answer (traced through the BVH).
     pub sample_rays: u64,
-    pub corner_rays: u64,
+    pub sample_rays_through_bvh: u64,
     /// Samples on surfaces facing away from the light (shadowed).
     pub facing_away_samples: u64,
     /// Samples on surfaces past [`MAX_SURFACES`] (not counted).

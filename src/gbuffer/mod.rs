@@ -265,8 +265,7 @@ pub fn gbuffer_with(scene: &Scene, bvh: &SceneBvh, edge_surfaces: bool) -> GBuff
 }
 
 /// The edge pixels' surfaces of the image whose centre surfaces are
-/// `rows`: corner rays shared by neighbouring pixels, then 32 sample rays
-/// per edge candidate.
+/// `rows`: 32 sample rays per edge candidate.
 fn edge_surfaces_of(
     scene: &Scene,
     bvh: &SceneBvh,
@@ -274,69 +273,51 @@ fn edge_surfaces_of(
     rows: &[Vec<Option<PixelSurface>>],
 ) -> EdgeSurfaces {
     let [w, h] = scene.resolution;
-    let (near, far) = (scene.camera.near, scene.camera.far);
-    let corners: Vec<Vec<Option<SurfaceHit>>> = (0..=h)
-        .into_par_iter()
-        .map(|y| {
-            (0..=w)
-                .map(|x| trace_primary(bvh, frame, near, far, x as f64, y as f64))
-                .collect()
-        })
-        .collect();
     let pattern = crate::lut::sample_pattern();
-    let samples: Vec<PixelSamples> = (0..h)
+    // Only the candidates' results are kept: a smooth pixel's entries are
+    // the defaults below.
+    let samples: Vec<(usize, PixelSamples)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            let Some(centre) = rows[y as usize][x as usize].filter(|c| c.shadow_tested) else {
-                return PixelSamples::SMOOTH;
-            };
-            let (xu, yu) = (x as usize, y as usize);
-            let corner_probes = [(0, 0), (1, 0), (0, 1), (1, 1)]
-                .into_iter()
-                .map(|(dx, dy)| corners[yu + dy][xu + dx].as_ref());
-            let neighbour_probes = (-1i64..=1)
-                .flat_map(|dy| (-1i64..=1).map(move |dx| (dx, dy)))
-                .filter(|&d| d != (0, 0))
-                .filter_map(|(dx, dy)| {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    let inside = nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64;
-                    inside.then(|| rows[ny as usize][nx as usize].as_ref().map(|s| &s.hit))
-                });
-            if edge_surfaces::is_edge_candidate(&centre, corner_probes.chain(neighbour_probes)) {
-                edge_surfaces::sample_surfaces(bvh, scene, frame, x, y, &centre, pattern)
-            } else {
-                PixelSamples::SMOOTH
-            }
+        .filter_map(|(x, y)| {
+            let centre = rows[y as usize][x as usize].filter(|c| c.shadow_tested)?;
+            let (probes, n) = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
+                rows[ny as usize][nx as usize].as_ref().map(|s| &s.hit)
+            });
+            let probes = &probes[..n];
+            edge_surfaces::is_edge_candidate(&centre, probes.iter().copied()).then(|| {
+                let s =
+                    edge_surfaces::sample_surfaces(bvh, scene, frame, x, y, &centre, probes, pattern);
+                ((y * w + x) as usize, s)
+            })
         })
         .collect();
-    let mut stats = EdgeStats {
-        corner_rays: (w as u64 + 1) * (h as u64 + 1),
-        ..Default::default()
-    };
-    let n = samples.len();
-    let extra_count: usize = samples.iter().map(|s| s.extra.len()).sum();
+    let mut stats = EdgeStats::default();
+    let n = (w * h) as usize;
+    let extra_count: usize = samples.iter().map(|(_, s)| s.extra.len()).sum();
     let mut surfaces = GBuffer::with_capacity(extra_count as u32, 1);
     let mut e = EdgeSurfaces {
         surfaces: GBuffer::with_capacity(0, 1),
         pixel: Vec::with_capacity(extra_count),
         coverage: Vec::with_capacity(extra_count),
-        centre_coverage: Vec::with_capacity(n),
-        counted: Vec::with_capacity(n),
-        facing_away: Vec::with_capacity(n),
+        centre_coverage: vec![u32::MAX; n],
+        counted: vec![u32::MAX; n],
+        facing_away: vec![0; n],
         stats: EdgeStats::default(),
     };
-    for (i, s) in samples.iter().enumerate() {
+    for (i, s) in &samples {
+        let i = *i;
         stats.candidates += s.traced as usize;
         stats.sample_rays += 32 * s.traced as u64;
+        stats.sample_rays_through_bvh += s.bvh_rays as u64;
         stats.edge_pixels += s.is_edge() as usize;
         stats.extra_surfaces += s.extra.len();
         stats.facing_away_samples += s.facing_away.count_ones() as u64;
         stats.dropped_samples += s.dropped.count_ones() as u64;
         stats.missed_samples += s.missed.count_ones() as u64;
-        e.centre_coverage.push(s.centre_coverage);
-        e.counted.push(s.counted);
-        e.facing_away.push(s.facing_away);
+        e.centre_coverage[i] = s.centre_coverage;
+        e.counted[i] = s.counted;
+        e.facing_away[i] = s.facing_away;
         for x in &s.extra {
             surfaces.push(Some(&x.surface));
             e.pixel.push(i as u32);

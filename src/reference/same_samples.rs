@@ -125,19 +125,25 @@ pub fn edge_same_sample_masks(
             else {
                 return (0, FULL);
             };
-            let corners = edge_surfaces::corner_hits(bvh, scene, &frame, x, y);
-            let neighbours: Vec<Option<SurfaceHit>> = (-1i64..=1)
-                .flat_map(|dy| (-1i64..=1).map(move |dx| (dx, dy)))
-                .filter(|&d| d != (0, 0))
-                .map(|(dx, dy)| (x as i64 + dx, y as i64 + dy))
-                .filter(|&(nx, ny)| nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64)
+            let neighbours: Vec<Option<SurfaceHit>> = (0..9)
+                .map(|k| (x as i64 + k % 3 - 1, y as i64 + k / 3 - 1))
                 .map(|(nx, ny)| {
-                    trace_primary(bvh, &frame, near, far_plane, nx as f64 + 0.5, ny as f64 + 0.5)
+                    let inside = nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64;
+                    inside
+                        .then(|| {
+                            let (cx, cy) = (nx as f64 + 0.5, ny as f64 + 0.5);
+                            trace_primary(bvh, &frame, near, far_plane, cx, cy)
+                        })
+                        .flatten()
                 })
                 .collect();
-            let probes = corners.iter().chain(&neighbours).map(Option::as_ref);
-            let samples = if edge_surfaces::is_edge_candidate(&px, probes) {
-                edge_surfaces::sample_surfaces(bvh, scene, &frame, x, y, &px, pattern)
+            let probes = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
+                let k = (ny as i64 - y as i64 + 1) * 3 + (nx as i64 - x as i64 + 1);
+                neighbours[k as usize].as_ref()
+            });
+            let probes = &probes.0[..probes.1];
+            let samples = if edge_surfaces::is_edge_candidate(&px, probes.iter().copied()) {
+                edge_surfaces::sample_surfaces(bvh, scene, &frame, x, y, &px, probes, pattern)
             } else {
                 PixelSamples::SMOOTH
             };
