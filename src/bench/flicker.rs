@@ -157,7 +157,9 @@ pub fn flicker(
                     &same_sample_masks(&frame, bvh, crate::lut::sample_pattern()),
                     &g,
                 ),
-                MethodKind::RayTraced32 { edge_surfaces: true } => {
+                MethodKind::RayTraced32 {
+                    edge_surfaces: true,
+                } => {
                     let m = edge_same_sample_masks(&frame, bvh, crate::lut::sample_pattern());
                     crate::cpu::resolve_counted(&m.masks, &m.counted, &g)
                 }

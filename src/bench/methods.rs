@@ -10,7 +10,9 @@ pub enum MethodKind {
     /// The 32 µQuad samples traced exactly; with `edge_surfaces` each
     /// edge pixel's samples on their own surfaces
     /// ([`crate::reference::same_samples::edge_same_sample_masks`]).
-    RayTraced32 { edge_surfaces: bool },
+    RayTraced32 {
+        edge_surfaces: bool,
+    },
     /// The 32 µQuad samples' shadow rays traced by Embree.
     Embree32,
     /// The 32 µQuad samples' shadow rays through a BVH (Vulkan pass or its
@@ -51,7 +53,9 @@ impl MethodKind {
         match self {
             // Paired masks are over other rays than rt32 / rt-soft traces.
             MethodKind::Izb(s) => matches!(s.mode, SampleMode::Lut32 | SampleMode::Exact32),
-            MethodKind::RayTraced32 { .. } | MethodKind::Embree32 | MethodKind::ShadowRays32 => true,
+            MethodKind::RayTraced32 { .. } | MethodKind::Embree32 | MethodKind::ShadowRays32 => {
+                true
+            }
             MethodKind::ShadowMap(_) | MethodKind::ShadowVolumes => false,
         }
     }

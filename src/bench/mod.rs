@@ -194,7 +194,8 @@ pub fn bench_scene_cpu(
     }
     // The same-sample masks: the method's own run, or traced once here.
     // Per flavour: the pixel centre's µQuad alone, or edge surfaces.
-    let rt_masks_of = |edges: bool| match methods
+    let rt_masks_of = |edges: bool| {
+        match methods
         .iter()
         .zip(&runs)
         .find(|(m, _)| matches!(m.kind, MethodKind::RayTraced32 { edge_surfaces } if edge_surfaces == edges))
@@ -205,6 +206,7 @@ pub fn bench_scene_cpu(
             Some(same_sample_masks_of(scene, &shared.bvh, edges).0)
         }
         None => None,
+    }
     };
     let rt_masks = [rt_masks_of(false), rt_masks_of(true)];
     let [w, h] = scene.resolution;
@@ -235,7 +237,8 @@ pub fn bench_scene_cpu(
             }
             _ => None,
         };
-        let sample_mismatch_rate = match (&r.masks, &rt_masks[m.kind.edge_surfaces(scene) as usize]) {
+        let sample_mismatch_rate = match (&r.masks, &rt_masks[m.kind.edge_surfaces(scene) as usize])
+        {
             (Some(a), Some(b)) if m.kind.masks_32() => {
                 let (d, n) = sample_mismatches(a, b, tested);
                 Some(d as f64 / n.max(1) as f64)

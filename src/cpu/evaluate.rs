@@ -58,6 +58,9 @@ struct PixelFrustum {
     /// With a paired mode under an area light: the pixel's 32
     /// (µQuad sample, light sample) rays of the rule's half.
     paired: Option<PairedRays>,
+    /// The samples whose bits count (an edge pixel's surface covers only
+    /// some): the mask is full once these are set.
+    wanted: u32,
 }
 
 /// Pixel `i`'s frustum; `ndc_box` its µQuad's light-NDC box
@@ -110,6 +113,7 @@ fn pixel_frustum(
         centre,
         soft,
         paired,
+        wanted: FULL,
     }
 }
 
@@ -416,7 +420,8 @@ fn evaluate_pixel(
         tests += 1;
         mask |= triangle_mask(px, &triangles[cover as usize], rule, &mut counters);
     }
-    let (cells, levels) = if mask == FULL {
+    let full = |mask: u32| mask & px.wanted == px.wanted;
+    let (cells, levels) = if full(mask) {
         stats.shadow_map_early_outs += 1;
         (0, 0)
     } else {
@@ -426,9 +431,9 @@ fn evaluate_pixel(
                 tests += 1;
                 mask |= triangle_mask(px, &triangles[id as usize], rule, &mut counters);
             }
-            stop_when_full && mask == FULL
+            stop_when_full && full(mask)
         });
-        stats.early_outs += (stop_when_full && mask == FULL) as usize;
+        stats.early_outs += (stop_when_full && full(mask)) as usize;
         cells
     };
     stats.tests_spawned += tests;
@@ -479,6 +484,22 @@ pub fn evaluate(
     boxes: &MicroquadBoxes,
     rule: &MaskRule,
 ) -> (Vec<u32>, EvaluateStats) {
+    evaluate_wanted(setup, bins, triangles, g, boxes, rule, None)
+}
+
+/// [`evaluate`] where only the samples `wanted[i]` of entry `i` count
+/// (an edge pixel's surface, [`crate::gbuffer::edge_surfaces`]): a mask
+/// is full, and its pixel stops, once those are set. Bits outside them
+/// are left as they fall (the caller masks them out).
+pub fn evaluate_wanted(
+    setup: &LightSetup,
+    bins: &Bins,
+    triangles: &[[Vec3; 3]],
+    g: &GBuffer,
+    boxes: &MicroquadBoxes,
+    rule: &MaskRule,
+    wanted: Option<&[u32]>,
+) -> (Vec<u32>, EvaluateStats) {
     let w = (g.width as usize).max(1);
     let n = g.flags.len();
     // Bands of GROUP[1] rows, so each 8×4 group lies in one band; a
@@ -507,7 +528,10 @@ pub fn evaluate(
                         return 0;
                     }
                     stats.pixels_tested += 1;
-                    let px = pixel_frustum(setup, g, i, boxes.ndc[i], rule);
+                    let mut px = pixel_frustum(setup, g, i, boxes.ndc[i], rule);
+                    if let Some(w) = wanted {
+                        px.wanted = w[i];
+                    }
                     let (mask, tests) =
                         evaluate_pixel(setup, bins, triangles, &px, rule, &mut stats);
                     stats.longest_pixel_tests = stats.longest_pixel_tests.max(tests);

@@ -173,12 +173,29 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
+    // Masks over the light's samples weigh each surface by its coverage;
+    // every other mode's bits are the pixel's own samples, combined bit
+    // by bit, so a surface's mask is full once its own samples are set.
+    let light_sample_masks = soft && !settings.mode.is_paired();
+    let centre_wanted = g
+        .edges
+        .as_ref()
+        .filter(|_| !light_sample_masks)
+        .map(|e| &e.centre_coverage[..]);
     let (mut masks, mut eval_stats) =
-        evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule);
+        evaluate::evaluate_wanted(&setup, &bins, &triangles, &g, &boxes, &rule, centre_wanted);
     // The edge pixels' extra surfaces: more receivers of the same bins.
     let extra_masks = match (&g.edges, &boxes.edges) {
         (Some(e), Some(b)) => {
-            let (m, stats) = evaluate::evaluate(&setup, &bins, &triangles, &e.surfaces, b, &rule);
+            let (m, stats) = evaluate::evaluate_wanted(
+                &setup,
+                &bins,
+                &triangles,
+                &e.surfaces,
+                b,
+                &rule,
+                (!light_sample_masks).then_some(&e.coverage[..]),
+            );
             let pixels_tested = eval_stats.pixels_tested;
             eval_stats.add(&stats);
             eval_stats.pixels_tested = pixels_tested;
@@ -198,18 +215,13 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     } else {
         Vec::new()
     };
-    // Masks over the light's samples weigh each surface by its coverage;
-    // every other mode's bits are the pixel's own samples, combined bit
-    // by bit.
-    let light_sample_masks = soft && !settings.mode.is_paired();
     let light_visibility = (light_sample_masks && g.edges.is_some())
         .then(|| resolve_light_samples(&masks, &extra_masks, &g));
     if let (Some(e), false) = (&g.edges, light_sample_masks) {
         e.combine(&mut masks, &extra_masks);
     }
     seconds.evaluate = lap();
-    let visibility =
-        light_visibility.unwrap_or_else(|| resolve_halves(&masks, &masks_high, &g));
+    let visibility = light_visibility.unwrap_or_else(|| resolve_halves(&masks, &masks_high, &g));
     seconds.resolve = lap();
     seconds.total = start.elapsed().as_secs_f64();
     let evaluate_ns_per_test_per_thread =

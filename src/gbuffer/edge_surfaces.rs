@@ -42,7 +42,7 @@
 //! the same-sample reference, which therefore test the same samples on
 //! the same surfaces.
 
-use super::{faces_light, microquad_axes, trace_primary, GBuffer, PixelSurface, SurfaceHit};
+use super::{faces_light, microquad_axes, GBuffer, PixelSurface, SurfaceHit};
 use crate::bvh::SceneBvh;
 use crate::scene::{CameraFrame, Light, Scene};
 use glam::DVec3;
@@ -114,7 +114,14 @@ fn off_plane(centre: &PixelSurface, probe: Option<&SurfaceHit>) -> bool {
     let tolerance = PLANE_TOLERANCE * centre.axis_x.length().max(centre.axis_y.length());
     match probe {
         None => true,
-        Some(h) => centre.hit.normal.dot(h.position - centre.hit.position).abs() > tolerance,
+        Some(h) => {
+            centre
+                .hit
+                .normal
+                .dot(h.position - centre.hit.position)
+                .abs()
+                > tolerance
+        }
     }
 }
 
@@ -196,6 +203,28 @@ impl ProbedTriangle {
     }
 }
 
+/// The most triangles a pixel's sample rays test before the BVH.
+const MAX_PROBED: usize = 16;
+
+/// The triangles tested before the BVH.
+struct Probed {
+    triangles: [ProbedTriangle; MAX_PROBED],
+    count: usize,
+}
+
+impl Probed {
+    fn slice(&self) -> &[ProbedTriangle] {
+        &self.triangles[..self.count]
+    }
+
+    fn add(&mut self, id: u32, bvh: &SceneBvh) {
+        if self.count < MAX_PROBED && self.slice().iter().all(|p| p.id != id) {
+            self.triangles[self.count] = ProbedTriangle::new(id, bvh.triangle(id));
+            self.count += 1;
+        }
+    }
+}
+
 /// The primary hit of direction `d` (through image point `px`, `py`):
 /// the nearest of the probed triangles within [near, far], or where none
 /// is hit the BVH's closest hit. Returns the hit and whether the BVH
@@ -216,22 +245,30 @@ fn sample_hit(
             }
         }
     }
-    match best {
-        Some((t, tri)) => {
-            let mut normal = tri.normal.normalize();
-            if normal.dot(d) > 0.0 {
-                normal = -normal;
-            }
-            let hit = SurfaceHit {
-                triangle: tri.id,
-                t,
-                position: d * t,
-                normal,
-            };
-            (Some(hit), false)
-        }
-        None => (trace_primary(bvh, frame, near, far, px, py), true),
+    // The BVH, bounded by the nearest probed hit: a nearer triangle that
+    // no probe saw (a slat in front of the ground) is still found, and
+    // the traversal prunes every box behind the probed hit.
+    let bound = best.map_or(far, |(t, _)| (t * (1.0 + 1e-9)).min(far));
+    let traced = bvh
+        .closest_hit(DVec3::ZERO, d, near, bound, crate::gbuffer::NO_HIT)
+        .map(|h| (h.triangle, h.t));
+    let (triangle, t) = match (traced, best) {
+        (Some(hit), _) => hit,
+        (None, Some((t, tri))) => (tri.id, t),
+        (None, None) => return (None, true),
+    };
+    let tri = bvh.triangle(triangle);
+    let mut normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+    if normal.dot(d) > 0.0 {
+        normal = -normal;
     }
+    let hit = SurfaceHit {
+        triangle,
+        t,
+        position: d * t,
+        normal,
+    };
+    (Some(hit), best.is_none())
 }
 
 /// A group of sample hits on one plane.
@@ -259,16 +296,22 @@ pub fn sample_surfaces(
     let light = scene.light.relative_to(scene.camera.eye);
     let depth_range = (scene.camera.near, scene.camera.far);
     let centre_tolerance = PLANE_TOLERANCE * centre.axis_x.length().max(centre.axis_y.length());
-    // The centre's triangle and the probes' (at most 9, without repeats).
-    let mut probed = [ProbedTriangle::default(); 9];
+    // The centre's triangle and the probes' (at most 9, without repeats),
+    // then those the BVH finds for earlier samples.
+    let mut probed = [ProbedTriangle::default(); MAX_PROBED];
     let mut count = 0;
-    for id in std::iter::once(centre.hit.triangle).chain(probes.iter().flatten().map(|h| h.triangle)) {
+    for id in
+        std::iter::once(centre.hit.triangle).chain(probes.iter().flatten().map(|h| h.triangle))
+    {
         if probed[..count].iter().all(|p| p.id != id) {
             probed[count] = ProbedTriangle::new(id, bvh.triangle(id));
             count += 1;
         }
     }
-    let probed = &probed[..count];
+    let mut probed = Probed {
+        triangles: probed,
+        count,
+    };
     let mut out = PixelSamples {
         centre_coverage: 0,
         counted: 0,
@@ -283,13 +326,23 @@ pub fn sample_surfaces(
     for (i, s) in pattern.iter().enumerate() {
         let bit = 1u32 << i;
         let (px, py) = (x as f64 + s[0] as f64, y as f64 + s[1] as f64);
-        let (hit, traced) = sample_hit(bvh, frame, depth_range, probed, (px, py));
+        let (hit, traced) = sample_hit(bvh, frame, depth_range, probed.slice(), (px, py));
         out.bvh_rays += traced as u32;
+        if let (true, Some(h)) = (traced, &hit) {
+            // Later samples are likely to hit the same triangle.
+            probed.add(h.triangle, bvh);
+        }
         let Some(hit) = hit else {
             out.missed |= bit;
             continue;
         };
-        if centre.hit.normal.dot(hit.position - centre.hit.position).abs() <= centre_tolerance {
+        if centre
+            .hit
+            .normal
+            .dot(hit.position - centre.hit.position)
+            .abs()
+            <= centre_tolerance
+        {
             out.centre_coverage |= bit;
             continue;
         }
@@ -384,8 +437,7 @@ fn extra_surface(
     if !faces_light(light, anchor.position, normal) {
         return None;
     }
-    let (axis_x, axis_y, axes_clamped) =
-        microquad_axes(frame, x as f64 + u, y as f64 + v, &anchor);
+    let (axis_x, axis_y, axes_clamped) = microquad_axes(frame, x as f64 + u, y as f64 + v, &anchor);
     // The same tangent frame, centred where the pixel centre's offsets
     // (½, ½) put it: the µQuad coordinates of every sample stay the
     // pattern's own, as for the centre's surface.
@@ -459,5 +511,33 @@ impl EdgeSurfaces {
         for (k, &m) in extra.iter().enumerate() {
             masks[self.pixel[k] as usize] |= m & self.coverage[k];
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One pixel's masks: the centre's on its samples, each extra
+    /// surface's on its own, the facing-away samples dark; bits outside
+    /// the coverage ignored.
+    #[test]
+    fn combine_takes_each_surface_on_its_samples() {
+        let edges = EdgeSurfaces {
+            surfaces: GBuffer::with_capacity(2, 1),
+            pixel: vec![1, 1],
+            coverage: vec![0x0000_ff00, 0x00ff_0000],
+            centre_coverage: vec![FULL, 0x0000_00ff],
+            counted: vec![FULL, 0xffff_ffff],
+            facing_away: vec![0, 0xff00_0000],
+            stats: EdgeStats::default(),
+        };
+        let mut masks = vec![0x1234_5678, 0xffff_ff0f];
+        edges.combine(&mut masks, &[0xffff_0f00, 0x00f0_0000]);
+        assert_eq!(masks[0], 0x1234_5678, "a smooth pixel keeps its mask");
+        assert_eq!(
+            masks[1],
+            0x0000_000f | 0x0000_0f00 | 0x00f0_0000 | 0xff00_0000
+        );
     }
 }

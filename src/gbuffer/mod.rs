@@ -286,8 +286,9 @@ fn edge_surfaces_of(
             });
             let probes = &probes[..n];
             edge_surfaces::is_edge_candidate(&centre, probes.iter().copied()).then(|| {
-                let s =
-                    edge_surfaces::sample_surfaces(bvh, scene, frame, x, y, &centre, probes, pattern);
+                let s = edge_surfaces::sample_surfaces(
+                    bvh, scene, frame, x, y, &centre, probes, pattern,
+                );
                 ((y * w + x) as usize, s)
             })
         })

@@ -116,36 +116,12 @@ pub fn edge_same_sample_masks(
     let light = scene.light.relative_to(scene.camera.eye);
     let far = line_start_distance(scene);
     let [w, h] = scene.resolution;
-    let (near, far_plane) = (scene.camera.near, scene.camera.far);
     let (masks, counted) = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| {
-            let Some(px) = pixel_surface(bvh, scene, &frame, x, y).filter(|p| p.shadow_tested)
-            else {
+            let Some((px, samples)) = pixel_samples_at(bvh, scene, &frame, x, y, pattern) else {
                 return (0, FULL);
-            };
-            let neighbours: Vec<Option<SurfaceHit>> = (0..9)
-                .map(|k| (x as i64 + k % 3 - 1, y as i64 + k / 3 - 1))
-                .map(|(nx, ny)| {
-                    let inside = nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64;
-                    inside
-                        .then(|| {
-                            let (cx, cy) = (nx as f64 + 0.5, ny as f64 + 0.5);
-                            trace_primary(bvh, &frame, near, far_plane, cx, cy)
-                        })
-                        .flatten()
-                })
-                .collect();
-            let probes = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
-                let k = (ny as i64 - y as i64 + 1) * 3 + (nx as i64 - x as i64 + 1);
-                neighbours[k as usize].as_ref()
-            });
-            let probes = &probes.0[..probes.1];
-            let samples = if edge_surfaces::is_edge_candidate(&px, probes.iter().copied()) {
-                edge_surfaces::sample_surfaces(bvh, scene, &frame, x, y, &px, probes, pattern)
-            } else {
-                PixelSamples::SMOOTH
             };
             let mut mask = samples.facing_away
                 | surface_mask(bvh, light, far, &px, samples.centre_coverage, pattern);
@@ -156,6 +132,42 @@ pub fn edge_same_sample_masks(
         })
         .unzip();
     EdgeSameSampleMasks { masks, counted }
+}
+
+/// The centre surface of pixel (`x`, `y`) and what its sample rays see
+/// ([`edge_surfaces::sample_surfaces`] when its neighbours make it an edge
+/// candidate), as the G-buffer finds them; `None` where the pixel is not
+/// shadow-tested.
+pub fn pixel_samples_at(
+    bvh: &SceneBvh,
+    scene: &Scene,
+    frame: &crate::scene::CameraFrame,
+    x: u32,
+    y: u32,
+    pattern: &[[f32; 2]; 32],
+) -> Option<(PixelSurface, PixelSamples)> {
+    let px = pixel_surface(bvh, scene, frame, x, y).filter(|p| p.shadow_tested)?;
+    let [w, h] = scene.resolution;
+    let (near, far) = (scene.camera.near, scene.camera.far);
+    let neighbour =
+        |nx: u32, ny: u32| trace_primary(bvh, frame, near, far, nx as f64 + 0.5, ny as f64 + 0.5);
+    let hits: Vec<(u32, u32, Option<SurfaceHit>)> = (0..9)
+        .map(|k| (x as i64 + k % 3 - 1, y as i64 + k / 3 - 1))
+        .filter(|&(nx, ny)| nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64)
+        .map(|(nx, ny)| (nx as u32, ny as u32, neighbour(nx as u32, ny as u32)))
+        .collect();
+    let (probes, n) = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
+        hits.iter()
+            .find(|(hx, hy, _)| (*hx, *hy) == (nx, ny))
+            .and_then(|(_, _, h)| h.as_ref())
+    });
+    let probes = &probes[..n];
+    let samples = if edge_surfaces::is_edge_candidate(&px, probes.iter().copied()) {
+        edge_surfaces::sample_surfaces(bvh, scene, frame, x, y, &px, probes, pattern)
+    } else {
+        PixelSamples::SMOOTH
+    };
+    Some((px, samples))
 }
 
 /// Relative float tolerance of the IZB's `f32` decisions: a sample whose
