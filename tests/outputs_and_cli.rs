@@ -213,11 +213,18 @@ fn cli_render_writes_masks_consistent_with_visibility() {
         let (_, _, v) = read_exr_channel(&dir.join("visibility.exr"), "visibility").unwrap();
         let (_, _, masks) =
             izb::output::read_exr_mask(&dir.join("visibility.exr"), "mask").unwrap();
-        for (m, v) in masks.iter().zip(&v) {
+        // With edge surfaces (32 samples by default) the samples that count
+        // are in `coverage`; without, all 32 do.
+        let coverage = izb::output::read_exr_mask(&dir.join("visibility.exr"), "coverage")
+            .map(|(_, _, c)| c)
+            .unwrap_or_else(|_| vec![u32::MAX; masks.len()]);
+        assert_eq!(spp == "32", coverage.iter().any(|&c| c != u32::MAX));
+        for ((m, v), c) in masks.iter().zip(&v).zip(&coverage) {
             if v.is_nan() {
                 assert_eq!(*m, 0);
             } else {
-                assert_eq!(*v, 1.0 - m.count_ones() as f32 / 32.0);
+                assert_eq!(*m & !c, 0, "shadowed samples that do not count");
+                assert_eq!(*v, 1.0 - m.count_ones() as f32 / c.count_ones() as f32);
                 if spp == "1" {
                     assert!(*m == 0 || *m == u32::MAX, "1 spp masks are all or nothing");
                 }

@@ -180,6 +180,7 @@ pub fn render_on_gpu(
         &render.visibility,
         &render.masks,
         &render.masks_high,
+        &[],
     )?;
     let shaded =
         image::RgbImage::from_raw(w, h, render.shaded.concat()).context("shaded image size")?;
@@ -231,6 +232,11 @@ pub fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) ->
         &render.visibility,
         &render.masks,
         &render.masks_high,
+        render
+            .gbuffer
+            .edges
+            .as_ref()
+            .map_or(&[][..], |e| &e.counted),
     )?;
     let light = scene.light.relative_to(scene.camera.eye);
     write_shaded_png(

@@ -218,13 +218,15 @@ pub fn shade_pixel(
 }
 
 /// Writes `visibility.exr` (lit fraction + masks when not empty; `mask_high` with bits
-/// 32–63 when `masks_high` is not empty) and `visibility.png`.
+/// 32–63 when `masks_high` is not empty; `coverage`, the samples that
+/// count, when not empty) and `visibility.png`.
 pub fn write_mask_outputs(
     out: &Path,
     scene: &crate::scene::Scene,
     visibility: &[f32],
     masks: &[u32],
     masks_high: &[u32],
+    coverage: &[u32],
 ) -> Result<()> {
     let [w, h] = scene.resolution;
     let mut channels = Vec::new();
@@ -233,6 +235,11 @@ pub fn write_mask_outputs(
     }
     if !masks_high.is_empty() {
         channels.push(("mask_high", masks_high));
+    }
+    // With edge surfaces: which samples hit a surface and count (lit
+    // fraction = 1 − popcount(mask) / popcount(coverage)).
+    if !coverage.is_empty() {
+        channels.push(("coverage", coverage));
     }
     write_exr_with_masks(
         &out.join("visibility.exr"),

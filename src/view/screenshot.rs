@@ -38,6 +38,7 @@ pub fn write(
             &frame.visibility,
             &frame.masks,
             &frame.masks_high,
+            &[],
         )?;
         let shaded =
             image::RgbImage::from_raw(w, h, frame.shaded.concat()).context("shaded image size")?;
