@@ -89,12 +89,6 @@ fn check_exact(name: &str, scene: Scene) -> (u64, u64, usize) {
     (diff, total, edges.stats.edge_pixels)
 }
 
-fn assert_rate(diff: u64, total: u64) {
-    let rate = diff as f64 / total as f64;
-    println!("all: {diff} of {total} samples within float rounding of a boundary ({rate:.2e})");
-    assert!(rate < 1e-5, "{diff} of {total} samples differ ({rate:.2e})");
-}
-
 #[test]
 fn exact_edge_masks_match_the_extended_same_sample_reference() {
     let (mut diff, mut total, mut checked) = (0, 0, 0);
@@ -123,7 +117,7 @@ fn exact_edge_masks_match_the_extended_same_sample_reference() {
         edge_pixels > 1000,
         "only {edge_pixels} edge pixels over the scenes"
     );
-    assert_rate(diff, total);
+    common::assert_boundary_rate(diff, total);
 }
 
 /// MAE of `v` against `truth` over the shadow-tested pixels `keep` selects.

@@ -77,12 +77,6 @@ fn check_exact(name: &str, scene: Scene) -> (u64, u64) {
     (diff, total)
 }
 
-fn assert_rate(diff: u64, total: u64) {
-    let rate = diff as f64 / total as f64;
-    println!("all: {diff} of {total} samples within float rounding of a boundary ({rate:.2e})");
-    assert!(rate < 1e-5, "{diff} of {total} samples differ ({rate:.2e})");
-}
-
 #[test]
 fn exact_matches_same_samples_on_procedural_scenes() {
     let (mut diff, mut total) = (0, 0);
@@ -91,7 +85,7 @@ fn exact_matches_same_samples_on_procedural_scenes() {
         diff += d;
         total += t;
     }
-    assert_rate(diff, total);
+    common::assert_boundary_rate(diff, total);
 }
 
 #[test]
@@ -109,5 +103,5 @@ fn exact_matches_same_samples_on_shared_scenes() {
         diff += d;
         total += t;
     }
-    assert_rate(diff, total);
+    common::assert_boundary_rate(diff, total);
 }

@@ -21,13 +21,12 @@
 //! 2. **Sample rays.** A candidate casts its 32 sample positions as primary
 //!    rays, first against the triangles its probes and its centre hit —
 //!    each a camera-space edge test, three dot products per sample (the
-//!    homogeneous rasterisation of Olano & Greer 1997) — and through the
-//!    BVH only where none of them is hit. A sample hit on the centre's
-//!    plane (within 10⁻³ of the µQuad, the reference's rule for a smooth
-//!    pixel) belongs to the centre's surface; the rest are grouped by plane.
-//!    A sub-pixel feature that no probe hits and that lies in front of a
-//!    probed triangle is not seen (the price of not tracing 32 rays per
-//!    pixel through the BVH; measured in paper-notes/edge-surfaces.md).
+//!    homogeneous rasterisation of Olano & Greer 1997) — then through the
+//!    BVH bounded by the nearest of those hits, so a nearer triangle no
+//!    probe saw is still found: the hits are the BVH's closest hits. A
+//!    sample hit on the centre's plane (within 10⁻³ of the µQuad, the
+//!    reference's rule for a smooth pixel) belongs to the centre's
+//!    surface; the rest are grouped by plane.
 //! 3. **Surfaces.** At most [`MAX_SURFACES`] surfaces per pixel: the
 //!    centre's, then the groups by sample count. Each extra surface gets
 //!    its own µQuad: its plane's tangent frame at the centroid of its
@@ -42,7 +41,9 @@
 //! the same-sample reference, which therefore test the same samples on
 //! the same surfaces.
 
-use super::{faces_light, microquad_axes, GBuffer, PixelSurface, SurfaceHit};
+use super::{
+    faces_light, facing_normal, microquad_axes, GBuffer, PixelSurface, SurfaceHit, NO_HIT,
+};
 use crate::bvh::SceneBvh;
 use crate::scene::{CameraFrame, Light, Scene};
 use glam::DVec3;
@@ -86,8 +87,8 @@ pub struct PixelSamples {
     pub dropped: u32,
     /// Samples whose ray missed everything (not counted).
     pub missed: u32,
-    /// Sample rays no probed triangle answered: traced through the BVH.
-    pub bvh_rays: u32,
+    /// Sample rays no probed triangle answered: BVH queries without a bound.
+    pub unbounded_rays: u32,
 }
 
 impl PixelSamples {
@@ -100,7 +101,7 @@ impl PixelSamples {
         traced: false,
         dropped: 0,
         missed: 0,
-        bvh_rays: 0,
+        unbounded_rays: 0,
     };
 
     /// Whether the pixel has samples off the centre's surface.
@@ -109,41 +110,50 @@ impl PixelSamples {
     }
 }
 
-/// Whether the hit `probe` (or a miss) lies off `centre`'s plane.
-fn off_plane(centre: &PixelSurface, probe: Option<&SurfaceHit>) -> bool {
-    let tolerance = PLANE_TOLERANCE * centre.axis_x.length().max(centre.axis_y.length());
-    match probe {
-        None => true,
-        Some(h) => {
-            centre
-                .hit
-                .normal
-                .dot(h.position - centre.hit.position)
-                .abs()
-                > tolerance
+/// A plane and how far from it a hit may lie and still be on it:
+/// [`PLANE_TOLERANCE`] of the µQuad of a surface on the plane.
+struct Plane {
+    point: DVec3,
+    normal: DVec3,
+    tolerance: f64,
+}
+
+impl Plane {
+    /// The plane of the surface hit at `hit` whose µQuad axes are `ex`, `ey`.
+    fn of(hit: &SurfaceHit, ex: DVec3, ey: DVec3) -> Plane {
+        Plane {
+            point: hit.position,
+            normal: hit.normal,
+            tolerance: PLANE_TOLERANCE * ex.length().max(ey.length()),
         }
+    }
+
+    #[inline]
+    fn holds(&self, position: DVec3) -> bool {
+        self.normal.dot(position - self.point).abs() <= self.tolerance
     }
 }
 
 /// Whether a shadow-tested pixel with centre surface `centre` is an edge
-/// candidate: one of `probes` (its corner rays' hits and its neighbours'
-/// centre hits, `None` for a miss) misses or lies off the centre's plane.
-pub fn is_edge_candidate<'a>(
-    centre: &PixelSurface,
-    probes: impl IntoIterator<Item = Option<&'a SurfaceHit>>,
-) -> bool {
-    probes.into_iter().any(|p| off_plane(centre, p))
+/// candidate: one of `probes` (its neighbours' centre hits,
+/// [`neighbour_probes`]; `None` for a miss) misses or lies off the
+/// centre's plane.
+pub fn is_edge_candidate(centre: &PixelSurface, probes: &[Option<SurfaceHit>]) -> bool {
+    let plane = Plane::of(&centre.hit, centre.axis_x, centre.axis_y);
+    probes
+        .iter()
+        .any(|p| p.as_ref().is_none_or(|h| !plane.holds(h.position)))
 }
 
 /// The probes of pixel (`x`, `y`) of a `w × h` image: the centre hits of
 /// its neighbours inside the image (each `None` for a miss, from
 /// `hit_at`), and how many there are.
-pub fn neighbour_probes<'a>(
+pub fn neighbour_probes(
     x: u32,
     y: u32,
     [w, h]: [u32; 2],
-    hit_at: impl Fn(u32, u32) -> Option<&'a SurfaceHit>,
-) -> ([Option<&'a SurfaceHit>; 8], usize) {
+    hit_at: impl Fn(u32, u32) -> Option<SurfaceHit>,
+) -> ([Option<SurfaceHit>; 8], usize) {
     let mut probes = [None; 8];
     let mut n = 0;
     for (dx, dy) in NEIGHBOURS {
@@ -213,6 +223,18 @@ struct Probed {
 }
 
 impl Probed {
+    /// The centre's triangle and the probes' (at most 9, without repeats).
+    fn new(bvh: &SceneBvh, centre: u32, probes: &[Option<SurfaceHit>]) -> Probed {
+        let mut probed = Probed {
+            triangles: [ProbedTriangle::default(); MAX_PROBED],
+            count: 0,
+        };
+        for id in std::iter::once(centre).chain(probes.iter().flatten().map(|h| h.triangle)) {
+            probed.add(id, bvh);
+        }
+        probed
+    }
+
     fn slice(&self) -> &[ProbedTriangle] {
         &self.triangles[..self.count]
     }
@@ -225,10 +247,10 @@ impl Probed {
     }
 }
 
-/// The primary hit of direction `d` (through image point `px`, `py`):
-/// the nearest of the probed triangles within [near, far], or where none
-/// is hit the BVH's closest hit. Returns the hit and whether the BVH
-/// was asked.
+/// The primary hit of the ray through image point (`px`, `py`): the BVH's
+/// closest hit within [near, far], the query bounded by the nearest of the
+/// probed triangles' hits (every box behind it pruned). Returns the hit
+/// and whether no probed triangle bounded the query.
 fn sample_hit(
     bvh: &SceneBvh,
     frame: &CameraFrame,
@@ -237,44 +259,34 @@ fn sample_hit(
     (px, py): (f64, f64),
 ) -> (Option<SurfaceHit>, bool) {
     let d = frame.direction(px, py);
-    let mut best: Option<(f64, &ProbedTriangle)> = None;
+    let mut best: Option<(f64, u32)> = None;
     for tri in probed {
         if let Some(t) = tri.hit(d) {
             if t > near && t < far && best.is_none_or(|(b, _)| t < b) {
-                best = Some((t, tri));
+                best = Some((t, tri.id));
             }
         }
     }
-    // The BVH, bounded by the nearest probed hit: a nearer triangle that
-    // no probe saw (a slat in front of the ground) is still found, and
-    // the traversal prunes every box behind the probed hit.
+    // A nearer triangle that no probe saw (a slat in front of the ground)
+    // is still found; the probed hit itself is the fallback the bound's
+    // rounding could drop.
     let bound = best.map_or(far, |(t, _)| (t * (1.0 + 1e-9)).min(far));
     let traced = bvh
-        .closest_hit(DVec3::ZERO, d, near, bound, crate::gbuffer::NO_HIT)
-        .map(|h| (h.triangle, h.t));
-    let (triangle, t) = match (traced, best) {
-        (Some(hit), _) => hit,
-        (None, Some((t, tri))) => (tri.id, t),
-        (None, None) => return (None, true),
-    };
-    let tri = bvh.triangle(triangle);
-    let mut normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
-    if normal.dot(d) > 0.0 {
-        normal = -normal;
-    }
-    let hit = SurfaceHit {
+        .closest_hit(DVec3::ZERO, d, near, bound, NO_HIT)
+        .map(|h| (h.t, h.triangle));
+    let hit = traced.or(best).map(|(t, triangle)| SurfaceHit {
         triangle,
         t,
         position: d * t,
-        normal,
-    };
-    (Some(hit), best.is_none())
+        normal: facing_normal(bvh.triangle(triangle), d),
+    });
+    (hit, best.is_none())
 }
 
 /// A group of sample hits on one plane.
 struct PlaneGroup {
     seed: SurfaceHit,
-    tolerance: f64,
+    plane: Plane,
     coverage: u32,
     count: u32,
 }
@@ -290,28 +302,15 @@ pub fn sample_surfaces(
     x: u32,
     y: u32,
     centre: &PixelSurface,
-    probes: &[Option<&SurfaceHit>],
+    probes: &[Option<SurfaceHit>],
     pattern: &[[f32; 2]; 32],
 ) -> PixelSamples {
     let light = scene.light.relative_to(scene.camera.eye);
     let depth_range = (scene.camera.near, scene.camera.far);
-    let centre_tolerance = PLANE_TOLERANCE * centre.axis_x.length().max(centre.axis_y.length());
-    // The centre's triangle and the probes' (at most 9, without repeats),
-    // then those the BVH finds for earlier samples.
-    let mut probed = [ProbedTriangle::default(); MAX_PROBED];
-    let mut count = 0;
-    for id in
-        std::iter::once(centre.hit.triangle).chain(probes.iter().flatten().map(|h| h.triangle))
-    {
-        if probed[..count].iter().all(|p| p.id != id) {
-            probed[count] = ProbedTriangle::new(id, bvh.triangle(id));
-            count += 1;
-        }
-    }
-    let mut probed = Probed {
-        triangles: probed,
-        count,
-    };
+    let centre_plane = Plane::of(&centre.hit, centre.axis_x, centre.axis_y);
+    // Then the triangles the BVH finds for earlier samples: later samples
+    // are likely to hit them too.
+    let mut probed = Probed::new(bvh, centre.hit.triangle, probes);
     let mut out = PixelSamples {
         centre_coverage: 0,
         counted: 0,
@@ -320,36 +319,24 @@ pub fn sample_surfaces(
         traced: true,
         dropped: 0,
         missed: 0,
-        bvh_rays: 0,
+        unbounded_rays: 0,
     };
     let mut groups: Vec<PlaneGroup> = Vec::new();
     for (i, s) in pattern.iter().enumerate() {
         let bit = 1u32 << i;
         let (px, py) = (x as f64 + s[0] as f64, y as f64 + s[1] as f64);
-        let (hit, traced) = sample_hit(bvh, frame, depth_range, probed.slice(), (px, py));
-        out.bvh_rays += traced as u32;
-        if let (true, Some(h)) = (traced, &hit) {
-            // Later samples are likely to hit the same triangle.
-            probed.add(h.triangle, bvh);
-        }
+        let (hit, unbounded) = sample_hit(bvh, frame, depth_range, probed.slice(), (px, py));
+        out.unbounded_rays += unbounded as u32;
         let Some(hit) = hit else {
             out.missed |= bit;
             continue;
         };
-        if centre
-            .hit
-            .normal
-            .dot(hit.position - centre.hit.position)
-            .abs()
-            <= centre_tolerance
-        {
+        probed.add(hit.triangle, bvh);
+        if centre_plane.holds(hit.position) {
             out.centre_coverage |= bit;
             continue;
         }
-        let member = groups
-            .iter_mut()
-            .find(|g| g.seed.normal.dot(hit.position - g.seed.position).abs() <= g.tolerance);
-        match member {
+        match groups.iter_mut().find(|g| g.plane.holds(hit.position)) {
             Some(g) => {
                 g.coverage |= bit;
                 g.count += 1;
@@ -358,7 +345,7 @@ pub fn sample_surfaces(
                 let (ax, ay, _) = microquad_axes(frame, px, py, &hit);
                 groups.push(PlaneGroup {
                     seed: hit,
-                    tolerance: PLANE_TOLERANCE * ax.length().max(ay.length()),
+                    plane: Plane::of(&hit, ax, ay),
                     coverage: bit,
                     count: 1,
                 });
@@ -372,7 +359,7 @@ pub fn sample_surfaces(
         return PixelSamples {
             traced: true,
             missed: out.missed,
-            bvh_rays: out.bvh_rays,
+            unbounded_rays: out.unbounded_rays,
             ..PixelSamples::SMOOTH
         };
     }
@@ -465,10 +452,11 @@ pub struct EdgeStats {
     pub edge_pixels: usize,
     /// Extra surfaces facing the light (each an extra receiver).
     pub extra_surfaces: usize,
-    /// Sample rays cast (32 per candidate), and of those the ones the
-    /// probed triangles did not answer (traced through the BVH).
+    /// Sample rays cast (32 per candidate), each a BVH query bounded by
+    /// the nearest probed hit; and of those the ones no probed triangle
+    /// answered (unbounded queries).
     pub sample_rays: u64,
-    pub sample_rays_through_bvh: u64,
+    pub sample_rays_unbounded: u64,
     /// Samples on surfaces facing away from the light (shadowed).
     pub facing_away_samples: u64,
     /// Samples on surfaces past [`MAX_SURFACES`] (not counted).

@@ -52,17 +52,23 @@ pub fn trace_primary(
 ) -> Option<SurfaceHit> {
     let direction = frame.direction(px, py);
     let hit = bvh.closest_hit(DVec3::ZERO, direction, near, far, NO_HIT)?;
-    let tri = bvh.triangle(hit.triangle);
-    let mut normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
-    if normal.dot(direction) > 0.0 {
-        normal = -normal;
-    }
     Some(SurfaceHit {
         triangle: hit.triangle,
         t: hit.t,
         position: direction * hit.t,
-        normal,
+        normal: facing_normal(bvh.triangle(hit.triangle), direction),
     })
+}
+
+/// The unit geometric normal of `tri`, flipped to face a ray along
+/// `direction`.
+pub fn facing_normal(tri: &crate::scene::Triangle, direction: DVec3) -> DVec3 {
+    let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+    if normal.dot(direction) > 0.0 {
+        -normal
+    } else {
+        normal
+    }
 }
 
 /// Exact µQuad axes at the pixel whose centre ray hit `hit`: the derivatives
@@ -282,10 +288,10 @@ fn edge_surfaces_of(
         .filter_map(|(x, y)| {
             let centre = rows[y as usize][x as usize].filter(|c| c.shadow_tested)?;
             let (probes, n) = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
-                rows[ny as usize][nx as usize].as_ref().map(|s| &s.hit)
+                rows[ny as usize][nx as usize].map(|s| s.hit)
             });
             let probes = &probes[..n];
-            edge_surfaces::is_edge_candidate(&centre, probes.iter().copied()).then(|| {
+            edge_surfaces::is_edge_candidate(&centre, probes).then(|| {
                 let s = edge_surfaces::sample_surfaces(
                     bvh, scene, frame, x, y, &centre, probes, pattern,
                 );
@@ -293,12 +299,10 @@ fn edge_surfaces_of(
             })
         })
         .collect();
-    let mut stats = EdgeStats::default();
     let n = (w * h) as usize;
     let extra_count: usize = samples.iter().map(|(_, s)| s.extra.len()).sum();
-    let mut surfaces = GBuffer::with_capacity(extra_count as u32, 1);
     let mut e = EdgeSurfaces {
-        surfaces: GBuffer::with_capacity(0, 1),
+        surfaces: GBuffer::with_capacity(extra_count as u32, 1),
         pixel: Vec::with_capacity(extra_count),
         coverage: Vec::with_capacity(extra_count),
         centre_coverage: vec![u32::MAX; n],
@@ -308,24 +312,22 @@ fn edge_surfaces_of(
     };
     for (i, s) in &samples {
         let i = *i;
-        stats.candidates += s.traced as usize;
-        stats.sample_rays += 32 * s.traced as u64;
-        stats.sample_rays_through_bvh += s.bvh_rays as u64;
-        stats.edge_pixels += s.is_edge() as usize;
-        stats.extra_surfaces += s.extra.len();
-        stats.facing_away_samples += s.facing_away.count_ones() as u64;
-        stats.dropped_samples += s.dropped.count_ones() as u64;
-        stats.missed_samples += s.missed.count_ones() as u64;
+        e.stats.candidates += s.traced as usize;
+        e.stats.sample_rays += 32 * s.traced as u64;
+        e.stats.sample_rays_unbounded += s.unbounded_rays as u64;
+        e.stats.edge_pixels += s.is_edge() as usize;
+        e.stats.extra_surfaces += s.extra.len();
+        e.stats.facing_away_samples += s.facing_away.count_ones() as u64;
+        e.stats.dropped_samples += s.dropped.count_ones() as u64;
+        e.stats.missed_samples += s.missed.count_ones() as u64;
         e.centre_coverage[i] = s.centre_coverage;
         e.counted[i] = s.counted;
         e.facing_away[i] = s.facing_away;
         for x in &s.extra {
-            surfaces.push(Some(&x.surface));
+            e.surfaces.push(Some(&x.surface));
             e.pixel.push(i as u32);
             e.coverage.push(x.coverage);
         }
     }
-    e.surfaces = surfaces;
-    e.stats = stats;
     e
 }

@@ -175,13 +175,7 @@ impl GpuRenderer {
         source: GBufferSource,
     ) -> Result<GpuRender, GpuError> {
         if settings.uses_edge_surfaces(scene) {
-            return Err(GpuError::Unsupported(
-                "edge surfaces (each edge pixel's samples on the surface its own ray sees) are \
-                 not on the Vulkan backend yet: render them with --backend cpu, or the pixel \
-                 centre's µQuad alone on Vulkan (--no-edge-surfaces, or an izb…-flat bench \
-                 method)"
-                    .into(),
-            ));
+            return Err(GpuError::EdgeSurfaces);
         }
         let pixels = scene.pixel_count();
         let upload = self.prepare_frame(scene, source)?;

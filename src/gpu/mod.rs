@@ -91,6 +91,14 @@ pub enum GpuError {
     },
     #[error("{0}")]
     Unsupported(String),
+    /// Edge pixels' per-sample surfaces (`crate::gbuffer::edge_surfaces`)
+    /// have no GPU passes yet.
+    #[error(
+        "edge surfaces (each edge pixel's samples on the surface its own ray sees) are not on \
+         the Vulkan backend yet: render them with --backend cpu, or the pixel centre's µQuad \
+         alone on Vulkan (--no-edge-surfaces, or an izb…-flat bench method)"
+    )]
+    EdgeSurfaces,
 }
 
 impl GpuError {

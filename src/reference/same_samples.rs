@@ -20,7 +20,7 @@
 use crate::bvh::SceneBvh;
 use crate::frustum::{may_shadow, LightRel};
 use crate::gbuffer::edge_surfaces::{self, PixelSamples};
-use crate::gbuffer::{pixel_surface, trace_primary, PixelSurface, SurfaceHit};
+use crate::gbuffer::{pixel_surface, trace_primary, PixelSurface};
 use crate::scene::{Light, Scene};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -147,22 +147,12 @@ pub fn pixel_samples_at(
     pattern: &[[f32; 2]; 32],
 ) -> Option<(PixelSurface, PixelSamples)> {
     let px = pixel_surface(bvh, scene, frame, x, y).filter(|p| p.shadow_tested)?;
-    let [w, h] = scene.resolution;
     let (near, far) = (scene.camera.near, scene.camera.far);
-    let neighbour =
-        |nx: u32, ny: u32| trace_primary(bvh, frame, near, far, nx as f64 + 0.5, ny as f64 + 0.5);
-    let hits: Vec<(u32, u32, Option<SurfaceHit>)> = (0..9)
-        .map(|k| (x as i64 + k % 3 - 1, y as i64 + k / 3 - 1))
-        .filter(|&(nx, ny)| nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64)
-        .map(|(nx, ny)| (nx as u32, ny as u32, neighbour(nx as u32, ny as u32)))
-        .collect();
-    let (probes, n) = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
-        hits.iter()
-            .find(|(hx, hy, _)| (*hx, *hy) == (nx, ny))
-            .and_then(|(_, _, h)| h.as_ref())
+    let (probes, n) = edge_surfaces::neighbour_probes(x, y, scene.resolution, |nx, ny| {
+        trace_primary(bvh, frame, near, far, nx as f64 + 0.5, ny as f64 + 0.5)
     });
     let probes = &probes[..n];
-    let samples = if edge_surfaces::is_edge_candidate(&px, probes.iter().copied()) {
+    let samples = if edge_surfaces::is_edge_candidate(&px, probes) {
         edge_surfaces::sample_surfaces(bvh, scene, frame, x, y, &px, probes, pattern)
     } else {
         PixelSamples::SMOOTH

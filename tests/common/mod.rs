@@ -30,6 +30,15 @@ pub fn penumbra_pixels(masks: &[u32], g: &izb::gbuffer::GBuffer) -> usize {
 
 /// `../shared/scenes`, or `None` with a printed skip when it is missing;
 /// with `IZB_REQUIRE_SCENES=1` (CI) a missing folder fails the test.
+/// Asserts that the `diff` of `total` samples where exact masks and the
+/// same-sample reference disagree (each already checked to lie within
+/// float rounding of a boundary) stay below 1e-5 of all samples.
+pub fn assert_boundary_rate(diff: u64, total: u64) {
+    let rate = diff as f64 / total as f64;
+    println!("all: {diff} of {total} samples within float rounding of a boundary ({rate:.2e})");
+    assert!(rate < 1e-5, "{diff} of {total} samples differ ({rate:.2e})");
+}
+
 pub fn shared_scenes_dir() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
     if dir.is_dir() {
