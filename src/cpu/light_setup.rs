@@ -288,14 +288,56 @@ impl LightSetup {
     /// decides which pixels are: [`super::is_receiver`]), computed once
     /// per frame for the bin's receiver registration and evaluate.
     pub fn microquad_boxes(&self, g: &GBuffer, skips: super::Skips) -> MicroquadBoxes {
+        self.receiver_boxes(g, skips, false)
+    }
+
+    /// [`Self::microquad_boxes`] where an edge pixel's surface covers only
+    /// some of the µQuad samples ([`GBuffer::edges`]): its box is that of
+    /// the part of the µQuad its own samples span (`covered_only`, under a
+    /// point-like light, where each bit is a µQuad sample's line toward
+    /// the light). Every triangle able to shadow one of them projects over
+    /// that part, so the candidates stay complete; fewer cells are visited.
+    pub fn receiver_boxes(
+        &self,
+        g: &GBuffer,
+        skips: super::Skips,
+        covered_only: bool,
+    ) -> MicroquadBoxes {
+        let edges = g.edges.as_deref().filter(|_| covered_only);
+        self.boxes_of(g, skips, edges.map(|e| &e.centre_coverage[..]), |layer| {
+            Some(self.boxes_of(layer, skips, edges.map(|e| &e.coverage[..]), |_| None))
+        })
+    }
+
+    fn boxes_of(
+        &self,
+        g: &GBuffer,
+        skips: super::Skips,
+        coverage: Option<&[u32]>,
+        edge_layer: impl Fn(&GBuffer) -> Option<MicroquadBoxes>,
+    ) -> MicroquadBoxes {
+        let pattern = crate::lut::sample_pattern();
         let boxes: Vec<(Vec2, Vec2)> = (0..g.flags.len())
             .into_par_iter()
             .with_min_len(4096)
             .map(|i| {
-                if super::is_receiver(g.flags[i], skips) {
-                    self.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i])
-                } else {
-                    (Vec2::NAN, Vec2::NAN)
+                if !super::is_receiver(g.flags[i], skips) {
+                    return (Vec2::NAN, Vec2::NAN);
+                }
+                let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
+                match coverage.map(|c| c[i]).filter(|&c| c != u32::MAX && c != 0) {
+                    None => self.microquad_ndc_box(p, ex, ey),
+                    Some(c) => {
+                        let (lo, hi) = covered_rectangle(pattern, c);
+                        // The sub-rectangle as a µQuad of its own.
+                        let centre = (lo + hi) * 0.5 - Vec2::splat(0.5);
+                        let size = hi - lo;
+                        self.microquad_ndc_box(
+                            p + centre.x * ex + centre.y * ey,
+                            ex * size.x,
+                            ey * size.y,
+                        )
+                    }
                 }
             })
             .collect();
@@ -304,7 +346,8 @@ impl LightSetup {
             edges: g
                 .edges
                 .as_ref()
-                .map(|e| Box::new(self.microquad_boxes(&e.surfaces, skips))),
+                .and_then(|e| edge_layer(&e.surfaces))
+                .map(Box::new),
         }
     }
 
@@ -372,6 +415,26 @@ fn basis_with_z(z: DVec3) -> DMat3 {
     let x = helper.cross(z).normalize();
     let y = z.cross(x);
     DMat3::from_cols(x, y, z).transpose()
+}
+
+/// Sample offsets' margin around a covered sub-rectangle, in µQuad units:
+/// its corners are not samples, so rounding at a corner cannot drop one.
+const COVERED_MARGIN: f32 = 1.0 / 64.0;
+
+/// The rectangle of µQuad offsets (in [0, 1]²) spanned by the samples of
+/// `pattern` that `coverage` marks, grown by [`COVERED_MARGIN`].
+fn covered_rectangle(pattern: &[[f32; 2]; 32], coverage: u32) -> (Vec2, Vec2) {
+    let (mut lo, mut hi) = (Vec2::ONE, Vec2::ZERO);
+    for (i, s) in pattern.iter().enumerate() {
+        if coverage & (1 << i) != 0 {
+            lo = lo.min(Vec2::from(*s));
+            hi = hi.max(Vec2::from(*s));
+        }
+    }
+    (
+        (lo - COVERED_MARGIN).max(Vec2::ZERO),
+        (hi + COVERED_MARGIN).min(Vec2::ONE),
+    )
 }
 
 /// The four corners of a pixel's µQuad, eye-relative.

@@ -168,15 +168,17 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
-    let boxes = setup.microquad_boxes(&g, settings.skips);
+    // Masks over the light's samples weigh each surface by its coverage;
+    // every other mode's bits are the pixel's own samples, combined bit
+    // by bit, so its mask is full once its own samples are set; under a
+    // point-like light a surface needs only the part of its µQuad its
+    // samples span.
+    let light_sample_masks = soft && !settings.mode.is_paired();
+    let boxes = setup.receiver_boxes(&g, settings.skips, !soft);
     let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
-    // Masks over the light's samples weigh each surface by its coverage;
-    // every other mode's bits are the pixel's own samples, combined bit
-    // by bit, so a surface's mask is full once its own samples are set.
-    let light_sample_masks = soft && !settings.mode.is_paired();
     let centre_wanted = g
         .edges
         .as_ref()
