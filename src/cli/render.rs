@@ -25,9 +25,15 @@ pub struct RenderArgs {
     /// Under an area light: pair the 32 light samples with the µQuad's 32
     /// samples, each ray from its own point of the pixel, evaluated
     /// exactly (the soft mask antialiased over the pixel); implies
-    /// --exact.
+    /// --exact. The default under an area light at 32 spp, unless
+    /// --exact or --unpaired asks for the light seen from P alone.
     #[arg(long)]
     paired: bool,
+    /// Under an area light: the light's 32 samples seen from the µQuad
+    /// centre P alone, with the light LUT (before issue 27 the default;
+    /// no edge surfaces).
+    #[arg(long, conflicts_with_all = ["paired", "paired64", "exact"])]
+    unpaired: bool,
     /// --paired with 64 pairs: a second 32, both patterns turned, in a
     /// second mask word (`mask_high` in visibility.exr).
     #[arg(long)]
@@ -73,8 +79,13 @@ pub fn run_render(args: RenderArgs) -> Result<()> {
         !((args.exact || args.paired || args.paired64) && args.spp == 1),
         "--exact, --paired and --paired64 apply to 32 spp; 1 spp is always an exact point test"
     );
+    // Under an area light the paired rays average over the pixel's area
+    // as the ground truth does, and take edge surfaces: measured the
+    // closest to the truth (paper-notes/edge-surfaces.md).
+    let paired =
+        args.paired || (scene.has_area_light() && !args.exact && !args.unpaired && !args.paired64);
     let settings = args.grid.apply(IzbSettings {
-        mode: mode_for(args.spp, args.exact, args.paired, args.paired64),
+        mode: mode_for(args.spp, args.exact, paired, args.paired64),
         skips: args.skip,
         edge_surfaces: !args.no_edge_surfaces,
         ..Default::default()

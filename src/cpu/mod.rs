@@ -113,33 +113,6 @@ pub fn resolve_counted(masks: &[u32], counted: &[u32], g: &GBuffer) -> Vec<f32> 
         .collect()
 }
 
-/// The lit fraction of light-sample masks (soft shadows, not paired) with
-/// edge surfaces: a surface's mask is over the light's samples seen from
-/// it, so each surface's lit fraction is weighted by the pixel samples it
-/// covers; samples on a surface facing away are dark. `masks` are the
-/// centre surfaces', `extra` the extra surfaces' (uncombined).
-pub fn resolve_light_samples(masks: &[u32], extra: &[u32], g: &GBuffer) -> Vec<f32> {
-    let Some(e) = g.edges.as_ref() else {
-        return resolve(masks, g);
-    };
-    let lit = |m: u32| 1.0 - m.count_ones() as f64 / 32.0;
-    let mut sum: Vec<f64> = (0..masks.len())
-        .map(|i| e.centre_coverage[i].count_ones() as f64 * lit(masks[i]))
-        .collect();
-    for (k, &m) in extra.iter().enumerate() {
-        sum[e.pixel[k] as usize] += e.coverage[k].count_ones() as f64 * lit(m);
-    }
-    (0..masks.len())
-        .map(|i| {
-            if g.flags[i] & flags::SHADOW_TESTED == 0 {
-                f32::NAN
-            } else {
-                (sum[i] / e.counted[i].count_ones() as f64) as f32
-            }
-        })
-        .collect()
-}
-
 /// Eye-relative `f32` triangles: the vertex buffer a GPU would receive.
 pub fn eye_relative_f32(scene: &Scene) -> Vec<[glam::Vec3; 3]> {
     scene
@@ -168,22 +141,17 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);
-    // Masks over the light's samples weigh each surface by its coverage;
-    // every other mode's bits are the pixel's own samples, combined bit
-    // by bit, so its mask is full once its own samples are set; under a
+    // With edge surfaces every bit is one of the pixel's own samples (a
+    // µQuad sample's line toward the light, or a paired ray), so a
+    // surface's mask is full once its own samples are set; under a
     // point-like light a surface needs only the part of its µQuad its
     // samples span.
-    let light_sample_masks = soft && !settings.mode.is_paired();
     let boxes = setup.receiver_boxes(&g, settings.skips, !soft);
     let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
-    let centre_wanted = g
-        .edges
-        .as_ref()
-        .filter(|_| !light_sample_masks)
-        .map(|e| &e.centre_coverage[..]);
+    let centre_wanted = g.edges.as_ref().map(|e| &e.centre_coverage[..]);
     let (mut masks, mut eval_stats) =
         evaluate::evaluate_wanted(&setup, &bins, &triangles, &g, &boxes, &rule, centre_wanted);
     // The edge pixels' extra surfaces: more receivers of the same bins.
@@ -196,7 +164,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
                 &e.surfaces,
                 b,
                 &rule,
-                (!light_sample_masks).then_some(&e.coverage[..]),
+                Some(&e.coverage[..]),
             );
             let pixels_tested = eval_stats.pixels_tested;
             eval_stats.add(&stats);
@@ -217,13 +185,11 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     } else {
         Vec::new()
     };
-    let light_visibility = (light_sample_masks && g.edges.is_some())
-        .then(|| resolve_light_samples(&masks, &extra_masks, &g));
-    if let (Some(e), false) = (&g.edges, light_sample_masks) {
+    if let Some(e) = &g.edges {
         e.combine(&mut masks, &extra_masks);
     }
     seconds.evaluate = lap();
-    let visibility = light_visibility.unwrap_or_else(|| resolve_halves(&masks, &masks_high, &g));
+    let visibility = resolve_halves(&masks, &masks_high, &g);
     seconds.resolve = lap();
     seconds.total = start.elapsed().as_secs_f64();
     let evaluate_ns_per_test_per_thread =
