@@ -41,6 +41,14 @@ pub struct EvaluateStats {
 }
 
 impl EvaluateStats {
+    /// Adds the counters of another pass over the same pixels (the second
+    /// mask half, the edge surfaces): its tests count, its pixels do not.
+    pub fn add_pass(&mut self, s: &EvaluateStats) {
+        let pixels_tested = self.pixels_tested;
+        self.add(s);
+        self.pixels_tested = pixels_tested;
+    }
+
     /// Adds the counters of `s` (another band of pixels, or another mask
     /// half of the same pixels: the caller then keeps one half's
     /// `pixels_tested`).

@@ -166,9 +166,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
                 &rule,
                 Some(&e.coverage[..]),
             );
-            let pixels_tested = eval_stats.pixels_tested;
-            eval_stats.add(&stats);
-            eval_stats.pixels_tested = pixels_tested;
+            eval_stats.add_pass(&stats);
             eval_stats.extra_surfaces_tested = stats.pixels_tested;
             m
         }
@@ -178,9 +176,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let masks_high = if settings.mask_halves(scene) == 2 {
         let (high, stats) =
             evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule.half(1));
-        let pixels_tested = eval_stats.pixels_tested;
-        eval_stats.add(&stats);
-        eval_stats.pixels_tested = pixels_tested;
+        eval_stats.add_pass(&stats);
         high
     } else {
         Vec::new()

@@ -81,8 +81,6 @@ pub struct PixelSamples {
     pub facing_away: u32,
     /// The extra surfaces that face the light, most samples first.
     pub extra: Vec<SampleSurface>,
-    /// Whether the sample rays were cast (the pixel was an edge candidate).
-    pub traced: bool,
     /// Samples on surfaces past [`MAX_SURFACES`] (not counted).
     pub dropped: u32,
     /// Samples whose ray missed everything (not counted).
@@ -98,7 +96,6 @@ impl PixelSamples {
         counted: FULL,
         facing_away: 0,
         extra: Vec::new(),
-        traced: false,
         dropped: 0,
         missed: 0,
         unbounded_rays: 0,
@@ -316,7 +313,6 @@ pub fn sample_surfaces(
         counted: 0,
         facing_away: 0,
         extra: Vec::new(),
-        traced: true,
         dropped: 0,
         missed: 0,
         unbounded_rays: 0,
@@ -357,7 +353,6 @@ pub fn sample_surfaces(
         // hit (or missed everything): the centre's surface stands for the
         // whole pixel, as in the ground truth's fallback.
         return PixelSamples {
-            traced: true,
             missed: out.missed,
             unbounded_rays: out.unbounded_rays,
             ..PixelSamples::SMOOTH

@@ -295,11 +295,11 @@ fn edge_surfaces_of(
                 let s = edge_surfaces::sample_surfaces(
                     bvh, scene, frame, x, y, &centre, probes, pattern,
                 );
-                ((y * w + x) as usize, s)
+                (y as usize * w as usize + x as usize, s)
             })
         })
         .collect();
-    let n = (w * h) as usize;
+    let n = w as usize * h as usize;
     let extra_count: usize = samples.iter().map(|(_, s)| s.extra.len()).sum();
     let mut e = EdgeSurfaces {
         surfaces: GBuffer::with_capacity(extra_count as u32, 1),
@@ -308,12 +308,14 @@ fn edge_surfaces_of(
         centre_coverage: vec![u32::MAX; n],
         counted: vec![u32::MAX; n],
         facing_away: vec![0; n],
-        stats: EdgeStats::default(),
+        stats: EdgeStats {
+            candidates: samples.len(),
+            sample_rays: 32 * samples.len() as u64,
+            ..Default::default()
+        },
     };
     for (i, s) in &samples {
         let i = *i;
-        e.stats.candidates += s.traced as usize;
-        e.stats.sample_rays += 32 * s.traced as u64;
         e.stats.sample_rays_unbounded += s.unbounded_rays as u64;
         e.stats.edge_pixels += s.is_edge() as usize;
         e.stats.extra_surfaces += s.extra.len();
