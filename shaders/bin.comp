@@ -51,6 +51,7 @@ layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[
 layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint pixel_cascade[]; };
 
 #include "light_view.glsl"
+#include "edge_receivers.glsl"
 #define LOOP_BUDGET_SLOTS WORKGROUP_LINEAR
 #include "loop_budget.glsl"
 #include "counters.glsl"
@@ -203,15 +204,16 @@ bool walk_rectangles(Triangle t, uint k, Footprint f, bool cells) {
 void main() {
     loop_budget_reset();
 #ifdef STEP_RECEIVERS
-    // One thread per pixel: bin::cell_receivers, in the pixel's cascade,
-    // on every level of its pyramid.
+    // One thread per receiver (the pixels, then the edge pixels' extra
+    // surfaces): bin::cell_receivers, in the receiver's cascade, on every
+    // level of its pyramid.
     uint i = gl_GlobalInvocationID.x;
-    if (i >= frame.width * frame.height || light.grid_disabled != 0u) return;
+    if (i >= frame.width * frame.receiver_rows || light.grid_disabled != 0u) return;
     if (!is_receiver(gbuffer_flags(g_id_flags[i]), frame.skips)) return;
     uint k = pixel_cascade[i];
     vec3 p = g_position[i];
     vec2 lo, hi;
-    microquad_grid_box(k, p, g_axis_x[i], g_axis_y[i], lo, hi);
+    receiver_grid_box(k, i, p, g_axis_x[i], g_axis_y[i], lo, hi);
     // bin::receiver_key: z toward a directional light, −depth for a point
     // light: the lowest is the farthest.
     vec3 p_light = to_light_view(p);

@@ -32,7 +32,10 @@
 // its B_MASKS word, which the first half overwrites.
 //
 // The test itself: pixel_frustum.glsl. Masks are ORed per pixel, stopping
-// when full (Wyman et al. 2015, §6.6).
+// when full (Wyman et al. 2015, §6.6): when the samples the receiver
+// covers are all set (an edge pixel's surfaces, edge_receivers.glsl, cover
+// some of them). The tiles run over every receiver row: the image's, then
+// the extra surfaces' (frame.receiver_rows).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -73,6 +76,7 @@ layout(scalar, binding = B_MASKS_HIGH) buffer MaskHighBuf { uint masks_high[]; }
 #endif
 
 #include "light_view.glsl"
+#include "edge_receivers.glsl"
 #include "loop_budget.glsl"
 #include "counters.glsl"
 
@@ -123,7 +127,8 @@ void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     uint lid = gl_LocalInvocationIndex;
     uint i = pixel.y * frame.width + pixel.x;
-    bool inside = pixel.x < frame.width && pixel.y < frame.height;
+    // The image's rows, then the edge pixels' extra surfaces.
+    bool inside = pixel.x < frame.width && pixel.y < frame.receiver_rows;
     uint pixel_flags = inside ? gbuffer_flags(g_id_flags[i]) : 0u;
     bool live = inside && is_receiver(pixel_flags, frame.skips);
     stop_when_full = (frame.skips & SKIP_FULL_MASK) != 0u;
@@ -151,7 +156,7 @@ void main() {
             tests_spawned += 1u;
             mask |= triangle_mask(triangles[px_cover]);
         }
-        covered = mask == FULL_MASK;
+        covered = (mask & px_wanted) == px_wanted;
         if (!done(mask) && px_has_cells && grid_usable && frame.heavy_entries != 0u
                 && listed_entries(frame.heavy_entries) > frame.heavy_entries) {
             uint slot = atomicAdd(counters[C_HALF_HEAVY_PIXELS], 1u);
@@ -268,7 +273,8 @@ void main() {
     if (!live) return;
     loop_budget_report();
 #ifndef MASK_HALF_HIGH
-    count_add(C_PIXELS_TESTED, 1u);   // once per pixel, not per half
+    // Once per pixel, not per half; extra surfaces apart.
+    count_add(i < frame.width * frame.height ? C_PIXELS_TESTED : C_EXTRA_SURFACES_TESTED, 1u);
 #endif
     count_add(C_SHADOW_MAP_EARLY_OUTS, covered ? 1u : 0u);
     count_add(C_EARLY_OUTS, !covered && !deferred && done(mask) ? 1u : 0u);
@@ -288,7 +294,7 @@ shared uint sm_mask;
 struct PixelState {
     vec3 p, normal, ex, ey, light;
     float size;
-    uint receiver, cascade, has_cells, cover, soft;
+    uint receiver, cascade, has_cells, cover, soft, wanted;
     vec2 lo, hi;
     vec3 disk_c, disk_u, disk_v;
 };
@@ -300,7 +306,7 @@ void share_pixel(uint i, uint cascade) {
         if (subgroupElect()) {
             sm_pixel = PixelState(px_p, px_normal, px_ex, px_ey, px_light, px_size, px_receiver,
                                   px_cascade, px_has_cells ? 1u : 0u, px_cover, px_soft ? 1u : 0u,
-                                  px_lo, px_hi, px_disk_c, px_disk_u, px_disk_v);
+                                  px_wanted, px_lo, px_hi, px_disk_c, px_disk_u, px_disk_v);
         }
     }
     barrier();
@@ -316,6 +322,7 @@ void share_pixel(uint i, uint cascade) {
     px_has_cells = s.has_cells != 0u;
     px_cover = s.cover;
     px_soft = s.soft != 0u;
+    px_wanted = s.wanted;
     px_lo = s.lo;
     px_hi = s.hi;
     px_disk_c = s.disk_c;

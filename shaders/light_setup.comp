@@ -13,6 +13,9 @@
 //                               corners; the light-view depth range;
 //   STEP_GRID      (1 thread)   per cascade padded bounds, grid size, cell
 //                               offset and overflow threshold.
+// The per-pixel steps run over every receiver row (frame.receiver_rows):
+// the image, then the edge pixels' extra surfaces (edge_receivers.glsl),
+// which the fit covers as the CPU twin's GBuffer::layers().
 // Light view is a rotation plus a translation ([Compute IZB]): only the grid
 // lookup uses NDC.
 #extension GL_GOOGLE_include_directive : require
@@ -76,7 +79,7 @@ void wg_reset() {
 bool receiver_pixel(out uint i) {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     i = pixel.y * frame.width + pixel.x;
-    return pixel.x < frame.width && pixel.y < frame.height
+    return pixel.x < frame.width && pixel.y < frame.receiver_rows
         && (gbuffer_flags(g_id_flags[i]) & FLAG_SHADOW_TESTED) != 0u;
 }
 #endif
@@ -179,7 +182,7 @@ void main() {
     wg_reset();
     uvec2 pixel = gl_GlobalInvocationID.xy;
     uint i = pixel.y * frame.width + pixel.x;
-    uint word = pixel.x < frame.width && pixel.y < frame.height ? g_id_flags[i] : 0u;
+    uint word = pixel.x < frame.width && pixel.y < frame.receiver_rows ? g_id_flags[i] : 0u;
     // Every hit gets its cascade (evaluate tests facing-away hits too when
     // that skip is off); the fit covers the shadow-tested ones.
     uint k = 0u;

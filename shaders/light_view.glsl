@@ -5,6 +5,7 @@
 // cascade_of_depth` and `bin::{cell_range, place}`, same operation order.
 // Include after declaring `FrameParams frame` and `LightState light`.
 // Grid functions take the cascade `k` whose grid they work in.
+#define LIGHT_VIEW_GLSL
 
 // bin::CELL_PADDING: cell rectangles grow by 1/64 cell on every side, far
 // above the f32 rounding of a grid coordinate.

@@ -22,6 +22,7 @@ uint px_cascade;
 vec2 px_lo, px_hi; // the µQuad's level-0 grid box
 bool px_has_cells;
 uint px_cover;    // the centre cell's cover triangle, or NO_COVER
+uint px_wanted;   // the samples that count (edge_receivers.glsl)
 // Soft shadows (frame.light_samples): the light's disk seen from P
 // (LightSetup::light_disk_from), its samples at c + (u-1/2) du + (v-1/2) dv.
 bool px_soft;
@@ -186,9 +187,10 @@ uint levels_visited = 0u, masks_nonempty = 0u;
 bool stop_when_full;   // the full-mask skip
 bool covered = false;  // the cover triangle alone filled the mask
 
-// Whether the pixel is done testing.
+// Whether the receiver is done testing: its wanted samples are all set
+// (evaluate_wanted's `full`).
 bool done(uint mask) {
-    return covered || (stop_when_full && mask == FULL_MASK);
+    return covered || (stop_when_full && (mask & px_wanted) == px_wanted);
 }
 
 // light_samples::occluded_light_samples: the light samples triangle
@@ -362,7 +364,8 @@ bool tests_overflow(uint entry) {
 }
 
 // evaluate::pixel_frustum: the eye-space µQuad, its cascade, its cell
-// rectangle and the cover triangle of the centre's cell.
+// rectangle, the cover triangle of the centre's cell and the samples that
+// count. Receiver i is a pixel or an edge pixel's extra surface.
 void pixel_frustum(uint i, uint cascade) {
     vec3 p = g_position[i], ex = g_axis_x[i], ey = g_axis_y[i];
     px_p = p;
@@ -388,8 +391,9 @@ void pixel_frustum(uint i, uint cascade) {
     if (px_soft) light_disk_from(p);
     px_has_cells = false;
     px_cover = NO_COVER;
+    px_wanted = receiver_wanted(i);
     if (light.grid_disabled != 0u) return;
-    microquad_grid_box(px_cascade, p, ex, ey, px_lo, px_hi);
+    receiver_grid_box(px_cascade, i, p, ex, ey, px_lo, px_hi);
     uvec4 cells;
     px_has_cells = cell_range(px_cascade, px_lo, px_hi, cells);
     vec3 p_light_view = to_light_view(p);

@@ -4,7 +4,9 @@
 // fraction, display gamma 2.2) as packed RGB8, with the lit fraction in
 // alpha as the count of lit samples, 32 − popcount(mask), exact (the host
 // divides by 32), or ALPHA_NOT_TESTED. A MODE_PAIRED64 frame's 64 samples:
-// 64 − both halves' popcounts (the host divides by 64).
+// 64 − both halves' popcounts (the host divides by 64). With edge
+// surfaces (edge_receivers.glsl) the pixel's surfaces' masks are combined
+// first, over the samples that count (the host divides by their number).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -14,7 +16,8 @@ layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; 
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
-layout(scalar, binding = B_MASKS) readonly buffer MaskBuf { uint masks[]; };
+// With edge surfaces the pixel's combined mask is written back to its word.
+layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 layout(scalar, binding = B_MASKS_HIGH) readonly buffer MaskHighBuf { uint masks_high[]; };
 layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; };
 
@@ -22,6 +25,19 @@ layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; }
 #define AMBIENT 0.18
 #define DIFFUSE 0.85
 const vec3 SKY = vec3(0.55, 0.7, 0.9);
+
+#include "edge_receivers.glsl"
+
+// EdgeSurfaces::combine for pixel i: the centre's mask on its samples,
+// each extra surface's on its own, every sample on a surface facing away.
+uint combined_mask(uint i, uvec4 e) {
+    uint mask = (masks[i] & e.x) | e.z;
+    uint first = e.w & ((1u << EDGE_COUNT_SHIFT) - 1u);
+    uint count = e.w >> EDGE_COUNT_SHIFT;
+    uint extra = frame.width * frame.height + first;
+    for (uint k = 0u; k < count; ++k) mask |= masks[extra + k] & edge_coverage[first + k];
+    return mask;
+}
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
@@ -33,6 +49,15 @@ void main() {
     uint samples = 32u * frame.mask_halves;
     uint hidden = uint(bitCount(masks[i]));
     if (frame.mask_halves == 2u) hidden += uint(bitCount(masks_high[i]));
+    if (frame.edge_surfaces != 0u) {
+        // Over the samples that count (resolve_halves): the host divides
+        // alpha by their number.
+        uvec4 e = edge_pixels[i];
+        uint mask = combined_mask(i, e);
+        masks[i] = mask;
+        samples = uint(bitCount(e.y));
+        hidden = uint(bitCount(mask));
+    }
     uint lit_samples = samples - hidden;
     vec3 rgb = SKY;
     if ((flags & FLAG_HIT) != 0u) {
@@ -40,7 +65,11 @@ void main() {
         vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
         vec3 n = receiver_normal(triangle_normals[gbuffer_triangle(word)], word);
         float lambert = max(dot(n, toward), 0.0);
-        float v = tested ? float(lit_samples) / float(samples) : 0.0;
+        // 1 − hidden / samples, as the CPU twin: with edge surfaces the
+        // count is no power of two and (samples − hidden) / samples can
+        // round the other way. No sample that counts: dark, as the host
+        // shades its NaN lit fraction.
+        float v = tested && samples > 0u ? 1.0 - float(hidden) / float(samples) : 0.0;
         rgb = vec3(AMBIENT + (1.0 - AMBIENT) * DIFFUSE * lambert * v);
     }
     uvec3 c = uvec3(round(pow(clamp(rgb, 0.0, 1.0), vec3(1.0 / 2.2)) * 255.0));

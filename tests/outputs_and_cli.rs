@@ -179,8 +179,21 @@ fn cli_rejects_bad_arguments_with_a_clear_message() {
 
 #[test]
 fn cli_render_writes_masks_consistent_with_visibility() {
-    for (spp, exact) in [("32", false), ("32", true), ("1", false)] {
-        let dir = TempDir::new(&format!("render-{spp}-{exact}"));
+    // `--backend vulkan` with edge surfaces (the CPU's G-buffer uploaded)
+    // where a device is required; `auto` would take the CPU for them.
+    let vulkan = std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1");
+    if !vulkan {
+        eprintln!("the --backend vulkan case skipped (IZB_REQUIRE_GPU is not 1)");
+    }
+    let cases = [
+        ("32", false, false),
+        ("32", true, false),
+        ("1", false, false),
+    ]
+    .into_iter()
+    .chain(vulkan.then_some(("32", false, true)));
+    for (spp, exact, on_vulkan) in cases {
+        let dir = TempDir::new(&format!("render-{spp}-{exact}-{on_vulkan}"));
         let out = dir.to_str().unwrap();
         let mut args = vec![
             "render",
@@ -195,6 +208,9 @@ fn cli_render_writes_masks_consistent_with_visibility() {
         if exact {
             // One run pins the CPU twin; the others take `auto`.
             args.extend(["--exact", "--backend", "cpu"]);
+        }
+        if on_vulkan {
+            args.extend(["--backend", "vulkan"]);
         }
         let run = izb(&args);
         assert!(
@@ -243,6 +259,7 @@ fn cli_render_writes_masks_consistent_with_visibility() {
         ];
         // `auto` renders on Vulkan where a device opens, else on the CPU;
         // the report says which and carries that backend's timings.
+        assert!(!on_vulkan || report["backend"] == "vulkan");
         match report["backend"].as_str().unwrap() {
             "cpu" => {
                 for pass in passes {
@@ -259,6 +276,13 @@ fn cli_render_writes_masks_consistent_with_visibility() {
             }
             "vulkan" => {
                 assert!(r["device"].is_string());
+                // Edge surfaces at 32 spp: the CPU's G-buffer went up.
+                let gbuffer = if spp == "32" {
+                    "cpu (uploaded)"
+                } else {
+                    "vulkan"
+                };
+                assert_eq!(report["gbuffer"], gbuffer);
                 if !r["gpu_milliseconds"].is_null() {
                     for pass in passes {
                         assert!(

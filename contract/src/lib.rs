@@ -60,11 +60,20 @@ shared_constants! {
         /// Bits 32–63 of a `MODE_PAIRED64` frame's masks under an area
         /// light (evaluate's second half writes them); 4 bytes otherwise.
         MASKS_HIGH = 21;
+        /// Edge surfaces, per pixel (`uvec4`): the samples on the centre's
+        /// surface, the samples that count, the samples on a surface facing
+        /// away, and its extra surfaces (first entry, count above
+        /// `EDGE_COUNT_SHIFT`); 4 bytes in a frame without them.
+        EDGE_PIXELS = 22;
+        /// Edge surfaces, per extra surface: the samples of its pixel it
+        /// covers. Its receiver is G-buffer entry `width × height + k` (the
+        /// rows below the image); 4 bytes in a frame without them.
+        EDGE_COVERAGE = 23;
     }
 }
 
 /// Number of bindings (one past the last of [`binding`]).
-pub const BINDING_COUNT: u32 = binding::MASKS_HIGH + 1;
+pub const BINDING_COUNT: u32 = binding::EDGE_COVERAGE + 1;
 
 shared_constants! {
     /// Word indices into the counters buffer (`C_*`); 64-bit counters take
@@ -114,8 +123,11 @@ shared_constants! {
         /// `HEAVY_PIXELS` of evaluate's second mask half (`MODE_PAIRED64`),
         /// which runs first and has its own queue count.
         HEAVY_PIXELS_HIGH = 33;
+        /// Edge pixels' extra surfaces evaluate tested (receivers past the
+        /// image's rows; `PIXELS_TESTED` counts the image's).
+        EXTRA_SURFACES_TESTED = 34;
         /// Words in the counters buffer.
-        WORDS = 34;
+        WORDS = 35;
     }
 }
 
@@ -217,6 +229,9 @@ shared_constants! {
         /// Cells per block of the bin's prefix sum (a workgroup each; the
         /// block sums follow `cell_start`'s cells and total).
         SCAN_BLOCK_CELLS = 4096;
+        /// `B_EDGE_PIXELS`' fourth word: the first extra surface below
+        /// this bit, their count (0..=3) above it.
+        EDGE_COUNT_SHIFT = 30;
     }
 }
 
@@ -236,6 +251,10 @@ shared_constants! {
         BEHIND_MARGIN = 1.0 / 1024.0;
         /// Padding of every cell box, in cells (1/64).
         CELL_PADDING = 1.0 / 64.0;
+        /// Margin around an edge surface's covered sub-rectangle of its
+        /// µQuad, in µQuad units (1/64): its corners are not samples, so
+        /// rounding at a corner cannot drop one.
+        COVERED_MARGIN = 1.0 / 64.0;
         /// Rounding bound of the triangle–cell overlap test (2⁻¹⁸).
         TOUCH_ROUNDING = 1.0 / 262_144.0;
         /// A projection thinner than this share of its edge products keeps

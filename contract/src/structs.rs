@@ -101,6 +101,16 @@ shared_struct! {
         pub heavy_entries: u32 => "uint heavy_entries",
         /// Entries of the heavy step's queue (`B_HEAVY_PIXELS`).
         pub heavy_capacity: u32 => "uint heavy_capacity",
+        /// Rows of receivers: `height`, then the rows of the edge pixels'
+        /// extra surfaces (`B_EDGE_COVERAGE`), `width` per row, the last
+        /// padded with misses.
+        pub receiver_rows: u32 => "uint receiver_rows",
+        /// 1 when the frame has edge surfaces (`B_EDGE_PIXELS`).
+        pub edge_surfaces: u32 => "uint edge_surfaces",
+        /// 1: a receiver covering only some of its µQuad's samples is
+        /// binned and evaluated over the part its samples span (edge
+        /// surfaces under a point-like light).
+        pub covered_boxes: u32 => "uint covered_boxes",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area

@@ -95,8 +95,8 @@ pub fn run_render(args: RenderArgs) -> Result<()> {
         Backend::Cpu => None,
         Backend::Auto if edges_on_cpu_only => {
             eprintln!(
-                "backend: cpu (edge surfaces are not on the Vulkan backend yet; \
-                 --no-edge-surfaces renders on Vulkan)"
+                "backend: cpu (edge surfaces' G-buffer is the CPU's; --backend vulkan uploads \
+                 it, --no-edge-surfaces renders wholly on Vulkan)"
             );
             None
         }
@@ -179,7 +179,17 @@ pub fn render_on_gpu(
         renderer.context.info().name,
         renderer.context.info().kind
     );
-    let render = renderer.render(scene, settings, GBufferSource::Gpu)?;
+    // Edge surfaces: the CPU twin's G-buffer with its sample rays goes up
+    // (the GPU gbuffer pass does not cast them yet); the passes after it
+    // run on the device.
+    let cpu_gbuffer = settings.uses_edge_surfaces(scene).then(|| {
+        eprintln!("gbuffer: cpu (edge surfaces' sample rays), uploaded");
+        crate::gbuffer::gbuffer_with(scene, &SceneBvh::build(scene), true)
+    });
+    let source = cpu_gbuffer
+        .as_ref()
+        .map_or(GBufferSource::Gpu, GBufferSource::Upload);
+    let render = renderer.render(scene, settings, source)?;
     let messages = renderer.take_validation_messages();
     for m in &messages {
         eprintln!("validation: {m}");
@@ -191,7 +201,11 @@ pub fn render_on_gpu(
         &render.visibility,
         &render.masks,
         &render.masks_high,
-        &[],
+        render
+            .gbuffer
+            .edges
+            .as_ref()
+            .map_or(&[][..], |e| &e.counted),
     )?;
     let shaded =
         image::RgbImage::from_raw(w, h, render.shaded.concat()).context("shaded image size")?;
@@ -199,6 +213,7 @@ pub fn render_on_gpu(
     let report = serde_json::json!({
         "command": "render",
         "backend": "vulkan",
+        "gbuffer": if cpu_gbuffer.is_some() { "cpu (uploaded)" } else { "vulkan" },
         "scene": scene.summary(),
         "render": render.report,
         "validation_messages": messages,

@@ -14,6 +14,10 @@ pub struct InfoArgs {
     /// device needed).
     #[arg(long)]
     gpu_memory: bool,
+    /// With --gpu-memory: plan for the edge pixels' extra surfaces too
+    /// (casts the CPU G-buffer's sample rays to count them).
+    #[arg(long, requires = "gpu_memory")]
+    edge_surfaces: bool,
 }
 
 #[derive(Args)]
@@ -95,7 +99,12 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
     let mut summary = scene.summary();
     summary["bounds"] = serde_json::json!({"min": lo, "max": hi});
     if args.gpu_memory {
-        let plan = crate::gpu::frame::planned_memory(&scene, IzbSettings::default())?;
+        let extra = args.edge_surfaces.then(|| {
+            let bvh = crate::bvh::SceneBvh::build(&scene);
+            let g = crate::gbuffer::gbuffer_with(&scene, &bvh, true);
+            g.edges.map_or(0, |e| e.pixel.len() as u64)
+        });
+        let plan = crate::gpu::frame::planned_memory(&scene, IzbSettings::default(), extra)?;
         let total: u64 = plan.iter().map(|m| m.bytes).sum();
         let (p, t) = (scene.pixel_count() as u64, scene.triangles.len() as u64);
         summary["gpu_memory"] = serde_json::json!({
@@ -104,6 +113,7 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
             "total_mib": total as f64 / (1024.0 * 1024.0),
             "budget_bytes_64_per_pixel_plus_64_per_triangle": 64 * (p + t),
             "bytes_per_pixel_plus_triangle": total as f64 / (p + t).max(1) as f64,
+            "edge_surfaces": extra,
         });
     }
     println!("{}", serde_json::to_string_pretty(&summary)?);

@@ -419,7 +419,8 @@ fn basis_with_z(z: DVec3) -> DMat3 {
 
 /// Sample offsets' margin around a covered sub-rectangle, in µQuad units:
 /// its corners are not samples, so rounding at a corner cannot drop one.
-const COVERED_MARGIN: f32 = 1.0 / 64.0;
+/// The GPU's `receiver_grid_box` grows it by the same margin.
+const COVERED_MARGIN: f32 = izb_contract::tolerance::COVERED_MARGIN;
 
 /// The rectangle of µQuad offsets (in [0, 1]²) spanned by the samples of
 /// `pattern` that `coverage` marks, grown by [`COVERED_MARGIN`].

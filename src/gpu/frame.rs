@@ -6,12 +6,13 @@
 //! in `shadow_map` and `shadow_rays`.
 
 use super::context::{DeviceShared, GpuContext, GpuOptions};
+use super::edge_surfaces::EdgeUpload;
 pub use super::frame_inputs::LLVMPIPE_LOOP_CAP;
 use super::frame_inputs::{
-    frame_params, grid_budget_side, heavy_entries, loop_budget, SceneUpload,
+    check_workgroups, frame_params, grid_budget_side, heavy_entries, loop_budget, SceneUpload,
 };
 pub use super::frame_memory::{frame_buffer_descs, planned_memory, FrameSizes};
-use super::frame_memory::{initial_cell_capacity, memory_by_pass};
+use super::frame_memory::{initial_cell_capacity, memory_by_pass, reset_pass_state};
 use super::frame_report::{FrameOutput, FramePasses};
 pub use super::frame_report::{
     GpuCascadeSummary, GpuCounters, GpuLightSummary, GpuPassMillis, GpuRender, GpuRenderReport,
@@ -134,20 +135,7 @@ impl GpuRenderer {
         source: GBufferSource,
     ) -> Result<SceneUpload, GpuError> {
         let [w, h] = scene.resolution;
-        let limits = &self.shared().limits;
-        let [tile_x, tile_y] = shared::WORKGROUP_PIXELS;
-        let groups = [w.div_ceil(tile_x), h.div_ceil(tile_y)];
-        if groups[0] > limits.max_compute_work_group_count[0]
-            || groups[1] > limits.max_compute_work_group_count[1]
-        {
-            return Err(GpuError::Unsupported(format!(
-                "{w}x{h} needs {}x{} workgroups, above this device's limit of {}x{}",
-                groups[0],
-                groups[1],
-                limits.max_compute_work_group_count[0],
-                limits.max_compute_work_group_count[1]
-            )));
-        }
+        check_workgroups(&self.shared().limits, [w, h])?;
         if let GBufferSource::Upload(g) = source {
             if g.width != w || g.height != h {
                 return Err(GpuError::Unsupported(format!(
@@ -174,8 +162,14 @@ impl GpuRenderer {
         settings: IzbSettings,
         source: GBufferSource,
     ) -> Result<GpuRender, GpuError> {
-        if settings.uses_edge_surfaces(scene) {
-            return Err(GpuError::EdgeSurfaces);
+        let uploaded_edges = matches!(source, GBufferSource::Upload(g) if g.edges.is_some());
+        if settings.uses_edge_surfaces(scene) != uploaded_edges {
+            return Err(match source {
+                GBufferSource::Upload(_) if uploaded_edges => GpuError::Unsupported(
+                    "the uploaded G-buffer has edge surfaces the settings do not use".into(),
+                ),
+                _ => GpuError::EdgeSurfaces,
+            });
         }
         let pixels = scene.pixel_count();
         let upload = self.prepare_frame(scene, source)?;
@@ -258,6 +252,17 @@ impl GpuRenderer {
         let [w, h] = scene.resolution;
         let pixels = scene.pixel_count() as u64;
         let t = triangles.len() as u64;
+        // An IZB frame's edge surfaces: receivers in rows below the image.
+        let edges = match (source, passes) {
+            (GBufferSource::Upload(g), FramePasses::Izb) => match g.edges.as_deref() {
+                Some(e) => Some(EdgeUpload::new(g, e, upload)?),
+                None => None,
+            },
+            _ => None,
+        };
+        let receiver_rows = h + edges.as_ref().map_or(0, |e| e.rows);
+        check_workgroups(&self.shared().limits, [w, receiver_rows])?;
+        let receivers = u64::from(w) * u64::from(receiver_rows);
         let (lut, _) = crate::lut::tables_for(settings.light_samples(scene));
         let halves = match passes {
             FramePasses::Izb => settings.mask_halves(scene),
@@ -265,6 +270,8 @@ impl GpuRenderer {
         };
         let descs = frame_buffer_descs(&FrameSizes {
             pixels,
+            receivers,
+            edge_surfaces: edges.as_ref().map(EdgeUpload::surfaces),
             triangles: t,
             bvh_nodes: bvh.nodes.len() as u64,
             bvh_prims: bvh.prims.len() as u64,
@@ -304,6 +311,13 @@ impl GpuRenderer {
             self.heavy_entries,
         );
         params.mask_halves = halves as u32;
+        if edges.is_some() {
+            params.receiver_rows = receiver_rows;
+            params.edge_surfaces = 1;
+            // LightSetup::receiver_boxes' `covered_only`.
+            params.covered_boxes = u32::from(!settings.light_samples(scene));
+            params.heavy_capacity = super::frame_memory::heavy_capacity(receivers) as u32;
+        }
         match passes {
             FramePasses::ShadowMap(map) => {
                 super::shadow_map::map_params(&mut params, scene, triangles, map)
@@ -339,7 +353,14 @@ impl GpuRenderer {
         stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
         stage(binding::LIGHT, bytemuck::bytes_of(&LightState::reset()))?;
         stage(binding::EDGE_LUT, as_bytes(&lut.masks))?;
-        if let GBufferSource::Upload(g) = source {
+        if let Some(e) = &edges {
+            stage(binding::G_POSITION, as_bytes(&e.position))?;
+            stage(binding::G_AXIS_X, as_bytes(&e.axis_x))?;
+            stage(binding::G_AXIS_Y, as_bytes(&e.axis_y))?;
+            stage(binding::G_ID_FLAGS, as_bytes(&e.id_flags))?;
+            stage(binding::EDGE_PIXELS, as_bytes(&e.pixels))?;
+            stage(binding::EDGE_COVERAGE, as_bytes(&e.coverage))?;
+        } else if let GBufferSource::Upload(g) = source {
             let words = upload.gbuffer_words(g)?;
             stage(binding::G_POSITION, as_bytes(&g.position))?;
             stage(binding::G_AXIS_X, as_bytes(&g.axis_x))?;
@@ -417,7 +438,7 @@ impl GpuRenderer {
                         };
                     }
                 }
-                reset_pass_state(device, cmd, fb);
+                reset_pass_state(device, cmd, |b| fb.get(b).buffer);
                 rec.barrier();
                 let mark = |j: u32| timestamps.write(cmd, rep * TIMESTAMPS_PER_FRAME + j);
                 mark(0);
@@ -429,24 +450,20 @@ impl GpuRenderer {
                     super::gbuffer::gbuffer(&rec, &self.kernels, [w, h]);
                 }
                 mark(1);
-                super::light_setup::light_setup(&rec, &self.kernels, [w, h]);
+                super::light_setup::light_setup(&rec, &self.kernels, [w, receiver_rows]);
                 mark(2);
                 match passes {
                     FramePasses::Izb => {
-                        let receivers = settings.skips.behind_receivers.then_some(w * h);
-                        super::bin::bin(
-                            &rec,
-                            &self.kernels,
-                            triangles.len() as u32,
-                            max_cells,
-                            receivers,
-                        );
+                        let gather = settings.skips.behind_receivers.then_some(receivers as u32);
+                        let n = triangles.len() as u32;
+                        super::bin::bin(&rec, &self.kernels, n, max_cells, gather);
                         mark(3);
                         let heavy = (params.heavy_entries != 0).then_some((
                             params.heavy_capacity,
                             super::evaluate::heavy_workgroups(&shared.info),
                         ));
-                        super::evaluate::evaluate(&rec, &self.kernels, [w, h], heavy, halves);
+                        let rows = [w, receiver_rows];
+                        super::evaluate::evaluate(&rec, &self.kernels, rows, heavy, halves);
                         mark(4);
                         super::resolve::resolve(&rec, &self.kernels, [w, h]);
                     }
@@ -573,23 +590,3 @@ impl GpuRenderer {
 /// Timestamps of one repetition of a frame's passes: before the G-buffer,
 /// then after each pass.
 const TIMESTAMPS_PER_FRAME: u32 = 6;
-
-/// What the passes accumulate into, back to its starting state: counters
-/// 0, empty cell counts, no cover triangle, no receiver. (The light state
-/// is copied again from its upload; the shadow maps are cleared by their
-/// render pass.)
-fn reset_pass_state(device: &ash::Device, cmd: vk::CommandBuffer, fb: &FrameBuffers) {
-    let fills = [
-        (binding::COUNTERS, 0),
-        (binding::CELL_START, 0),
-        // Floor bits 0, !id 0.
-        (binding::CELL_COVER, 0),
-        // z = ~0, reach 0 stored as !0.
-        (binding::CELL_RECEIVERS, u32::MAX),
-    ];
-    for (b, word) in fills {
-        // SAFETY: `cmd` is recording; the buffer belongs to the frame and
-        // lives until after its fence wait; the fill covers the whole buffer.
-        unsafe { device.cmd_fill_buffer(cmd, fb.get(b).buffer, 0, vk::WHOLE_SIZE, word) };
-    }
-}

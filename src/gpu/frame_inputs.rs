@@ -203,9 +203,30 @@ pub(super) fn frame_params(
         heavy_entries,
         heavy_capacity: super::frame_memory::heavy_capacity(scene.pixel_count() as u64)
             .min(u64::from(u32::MAX)) as u32,
+        receiver_rows: scene.resolution[1],
+        edge_surfaces: 0,
+        covered_boxes: 0,
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
         second_pattern: *crate::lut::paired_patterns(1).0,
         second_pair_pattern: *crate::lut::paired_patterns(1).1,
     }
+}
+
+/// A pixel pass over `[w, h]` entries (the image, or every receiver row)
+/// fits the device's workgroup counts.
+pub(super) fn check_workgroups(
+    limits: &ash::vk::PhysicalDeviceLimits,
+    [w, h]: [u32; 2],
+) -> Result<(), GpuError> {
+    let max = limits.max_compute_work_group_count;
+    let [tile_x, tile_y] = shared::WORKGROUP_PIXELS;
+    let groups = [w.div_ceil(tile_x), h.div_ceil(tile_y)];
+    if groups[0] > max[0] || groups[1] > max[1] {
+        return Err(GpuError::Unsupported(format!(
+            "{w}x{h} entries need {}x{} workgroups, above this device's limit of {}x{}",
+            groups[0], groups[1], max[0], max[1]
+        )));
+    }
+    Ok(())
 }

@@ -8,10 +8,17 @@ use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
 use super::GpuError;
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
+use ash::vk;
 
 /// The sizes that decide a frame's buffers.
 pub struct FrameSizes {
     pub pixels: u64,
+    /// G-buffer entries: the pixels, then with edge surfaces their rows
+    /// of extra surfaces ([`EdgeRows`]).
+    pub receivers: u64,
+    /// Extra surfaces of the edge pixels when the frame has edge
+    /// surfaces (then `B_EDGE_PIXELS` holds a record per pixel).
+    pub edge_surfaces: Option<u64>,
     pub triangles: u64,
     pub bvh_nodes: u64,
     pub bvh_prims: u64,
@@ -31,7 +38,8 @@ const BINDINGS: usize = BINDING_COUNT as usize;
 /// Every device buffer of a frame, indexed by its binding
 /// (`shared::binding`), each with the pass it counts toward and its size.
 pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
-    let (p, t, vec3) = (z.pixels, z.triangles, 12u64);
+    let (p, r, t, vec3) = (z.pixels, z.receivers, z.triangles, 12u64);
+    let (edge_pixels, edge_surfaces) = z.edge_surfaces.map_or((0, 0), |e| (p, e));
     let d = BufferDesc::device;
     by_binding([
         (
@@ -47,10 +55,10 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
             binding::BVH_PRIMS,
             d("gbuffer", "bvh_prims", z.bvh_prims * 4),
         ),
-        (binding::G_POSITION, d("gbuffer", "g_position", p * vec3)),
-        (binding::G_AXIS_X, d("gbuffer", "g_axis_x", p * vec3)),
-        (binding::G_AXIS_Y, d("gbuffer", "g_axis_y", p * vec3)),
-        (binding::G_ID_FLAGS, d("gbuffer", "g_id_flags", p * 4)),
+        (binding::G_POSITION, d("gbuffer", "g_position", r * vec3)),
+        (binding::G_AXIS_X, d("gbuffer", "g_axis_x", r * vec3)),
+        (binding::G_AXIS_Y, d("gbuffer", "g_axis_y", r * vec3)),
+        (binding::G_ID_FLAGS, d("gbuffer", "g_id_flags", r * 4)),
         (
             binding::LIGHT,
             d("light_setup", "light_state", size_of::<LightState>() as u64),
@@ -77,7 +85,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
             binding::EDGE_LUT,
             d("evaluate", "edge_lut", z.lut_entries * 4),
         ),
-        (binding::MASKS, d("evaluate", "masks", p * 4)),
+        (binding::MASKS, d("evaluate", "masks", r * 4)),
         (
             binding::MASKS_HIGH,
             d("evaluate", "masks_high", p * 4 * (z.mask_halves - 1)),
@@ -100,7 +108,15 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         ),
         (
             binding::HEAVY_PIXELS,
-            d("evaluate", "heavy_pixels", heavy_capacity(p) * 8),
+            d("evaluate", "heavy_pixels", heavy_capacity(r) * 8),
+        ),
+        (
+            binding::EDGE_PIXELS,
+            d("gbuffer", "edge_pixels", edge_pixels * 16),
+        ),
+        (
+            binding::EDGE_COVERAGE,
+            d("gbuffer", "edge_coverage", edge_surfaces * 4),
         ),
     ])
 }
@@ -120,13 +136,20 @@ fn by_binding(keyed: [(u32, BufferDesc); BINDINGS]) -> [BufferDesc; BINDINGS] {
 
 /// The device memory a GPU frame of `scene` allocates before it runs (the
 /// cell list at its first guess), per pass, without a device: for budgets
-/// on machines that cannot run the frame.
-pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMemory>, GpuError> {
+/// on machines that cannot run the frame; with `edge_surfaces` extra
+/// surfaces, their G-buffer rows and tables too.
+pub fn planned_memory(
+    scene: &Scene,
+    settings: IzbSettings,
+    edge_surfaces: Option<u64>,
+) -> Result<Vec<PassMemory>, GpuError> {
     let triangles = SceneUpload::new(scene).triangles;
     let bvh = super::gbuffer::build_bvh(&triangles)?;
     let side = grid_budget_side(scene.pixel_count(), triangles.len(), settings.cells);
     let descs = frame_buffer_descs(&FrameSizes {
         pixels: scene.pixel_count() as u64,
+        receivers: receivers(scene.resolution, edge_surfaces.unwrap_or(0)),
+        edge_surfaces,
         triangles: triangles.len() as u64,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
@@ -139,6 +162,13 @@ pub fn planned_memory(scene: &Scene, settings: IzbSettings) -> Result<Vec<PassMe
     Ok(group_by_pass(descs.iter().map(|d| {
         (d.pass, d.name, d.size.max(4).next_multiple_of(4))
     })))
+}
+
+/// G-buffer entries of an image with `extra` edge surfaces: its pixels
+/// and whole rows of extra surfaces below it.
+pub fn receivers([w, h]: [u32; 2], extra: u64) -> u64 {
+    let w = u64::from(w).max(1);
+    (u64::from(h) + extra.div_ceil(w)) * w
 }
 
 /// Sums buffer sizes per owning pass, keeping each buffer's own size.
@@ -186,4 +216,28 @@ pub(super) fn initial_cell_capacity(triangles: usize) -> u64 {
 
 pub(super) fn memory_by_pass(buffers: &[GpuBuffer]) -> Vec<PassMemory> {
     group_by_pass(buffers.iter().map(|b| (b.desc.pass, b.desc.name, b.size())))
+}
+
+/// What the passes accumulate into, back to its starting state: counters
+/// 0, empty cell counts, no cover triangle, no receiver. (The light state
+/// is copied again from its upload; the shadow maps are cleared by their
+/// render pass.)
+pub(super) fn reset_pass_state(
+    device: &ash::Device,
+    cmd: vk::CommandBuffer,
+    buffer: impl Fn(u32) -> vk::Buffer,
+) {
+    let fills = [
+        (binding::COUNTERS, 0),
+        (binding::CELL_START, 0),
+        // Floor bits 0, !id 0.
+        (binding::CELL_COVER, 0),
+        // z = ~0, reach 0 stored as !0.
+        (binding::CELL_RECEIVERS, u32::MAX),
+    ];
+    for (b, word) in fills {
+        // SAFETY: `cmd` is recording; the buffer belongs to the frame and
+        // lives until after its fence wait; the fill covers the whole buffer.
+        unsafe { device.cmd_fill_buffer(cmd, buffer(b), 0, vk::WHOLE_SIZE, word) };
+    }
 }

@@ -65,6 +65,8 @@ pub struct GpuCounters {
     pub culled: u32,
     pub cell_entries: u32,
     pub pixels_tested: u32,
+    /// Edge pixels' extra surfaces tested (receivers beside the pixels).
+    pub extra_surfaces_tested: u32,
     /// Pixels never shadow-tested (sky, facing away from the light).
     pub pixels_skipped: u32,
     pub early_outs: u32,
@@ -236,6 +238,7 @@ impl GpuRenderer {
             culled: c[counter::CULLED],
             cell_entries: c[counter::CELL_ENTRIES],
             pixels_tested: c[counter::PIXELS_TESTED],
+            extra_surfaces_tested: c[counter::EXTRA_SURFACES_TESTED],
             pixels_skipped: (scene.pixel_count() as u32).saturating_sub(c[counter::PIXELS_TESTED]),
             early_outs: c[counter::EARLY_OUTS],
             shadow_map_early_outs: c[counter::SHADOW_MAP_EARLY_OUTS],
@@ -317,11 +320,17 @@ impl GpuRenderer {
             .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
             .collect();
         let samples = if out.masks_high.is_empty() { 32 } else { 64 };
-        let visibility = out
-            .shaded
-            .iter()
-            .map(|&p| shared::lit_fraction_of_alpha((p >> 24) as u8, samples))
-            .collect();
+        let alpha = |i: usize| (out.shaded[i] >> 24) as u8;
+        // With edge surfaces (uploaded, so the G-buffer has them) alpha
+        // counts the lit samples of those that count.
+        let visibility = match &gbuffer.edges {
+            Some(e) => (0..out.shaded.len())
+                .map(|i| super::edge_surfaces::lit_fraction_over_counted(alpha(i), e.counted[i]))
+                .collect(),
+            None => (0..out.shaded.len())
+                .map(|i| shared::lit_fraction_of_alpha(alpha(i), samples))
+                .collect(),
+        };
         GpuRender {
             masks: out.masks,
             masks_high: out.masks_high,

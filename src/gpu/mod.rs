@@ -24,6 +24,7 @@
 pub mod bin;
 pub mod context;
 mod device_candidates;
+mod edge_surfaces;
 pub mod evaluate;
 pub mod frame;
 pub mod frame_inputs;
@@ -91,12 +92,13 @@ pub enum GpuError {
     },
     #[error("{0}")]
     Unsupported(String),
-    /// Edge pixels' per-sample surfaces (`crate::gbuffer::edge_surfaces`)
-    /// have no GPU passes yet.
+    /// Edge pixels' per-sample surfaces (`crate::gbuffer::edge_surfaces`):
+    /// the GPU `gbuffer` pass does not cast the sample rays yet, so they
+    /// come only with an uploaded G-buffer that has them.
     #[error(
-        "edge surfaces (each edge pixel's samples on the surface its own ray sees) are not on \
-         the Vulkan backend yet: render them with --backend cpu, or the pixel centre's µQuad \
-         alone on Vulkan (--no-edge-surfaces, or an izb…-flat bench method)"
+        "edge surfaces (each edge pixel's samples on the surface its own ray sees) come from \
+         the CPU's G-buffer: upload it (izb render --backend vulkan does), or render the pixel \
+         centre's µQuad alone on Vulkan (--no-edge-surfaces, or an izb…-flat bench method)"
     )]
     EdgeSurfaces,
 }

@@ -1,0 +1,50 @@
+// edge_receivers.glsl — the edge pixels' extra surfaces as receivers
+// (`izb::gbuffer::edge_surfaces`): what `cpu::evaluate::evaluate_wanted`
+// and `LightSetup::receiver_boxes` know of them.
+//
+// A frame with edge surfaces keeps them as more rows of the G-buffer:
+// entry width × height + k is extra surface k, whose pixel's samples it
+// covers are B_EDGE_COVERAGE[k]; a pixel's own entry covers the samples
+// on its centre's surface (B_EDGE_PIXELS[i].x). Include after declaring
+// `FrameParams frame`; receiver_grid_box comes with light_view.glsl
+// included first.
+
+layout(scalar, binding = B_EDGE_PIXELS) readonly buffer EdgePixelBuf { uvec4 edge_pixels[]; };
+layout(scalar, binding = B_EDGE_COVERAGE) readonly buffer EdgeCoverageBuf { uint edge_coverage[]; };
+
+// The samples receiver i must test (evaluate's `wanted`): its coverage in
+// a frame with edge surfaces, every sample otherwise.
+uint receiver_wanted(uint i) {
+    if (frame.edge_surfaces == 0u) return FULL_MASK;
+    uint pixels = frame.width * frame.height;
+    return i < pixels ? edge_pixels[i].x : edge_coverage[i - pixels];
+}
+
+#ifdef LIGHT_VIEW_GLSL
+// LightSetup::receiver_boxes: the grid box of receiver i's µQuad (p, ex,
+// ey), or with `covered_boxes` of the part of it its covered samples span
+// (light_setup::covered_rectangle, grown by COVERED_MARGIN), in the CPU
+// twin's operation order.
+void receiver_grid_box(uint k, uint i, vec3 p, vec3 ex, vec3 ey, out vec2 lo, out vec2 hi) {
+    uint c = frame.covered_boxes != 0u ? receiver_wanted(i) : FULL_MASK;
+    if (c == FULL_MASK || c == 0u) {
+        microquad_grid_box(k, p, ex, ey, lo, hi);
+        return;
+    }
+    vec2 s_lo = vec2(1.0), s_hi = vec2(0.0);
+    [[unroll]] for (uint s = 0u; s < 32u; ++s) {
+        if ((c & (1u << s)) != 0u) {
+            s_lo = min(s_lo, frame.pattern[s]);
+            s_hi = max(s_hi, frame.pattern[s]);
+        }
+    }
+    s_lo = max(s_lo - COVERED_MARGIN, vec2(0.0));
+    s_hi = min(s_hi + COVERED_MARGIN, vec2(1.0));
+    precise vec2 centre = (s_lo + s_hi) * 0.5 - vec2(0.5);
+    precise vec2 size = s_hi - s_lo;
+    precise vec3 q = p + centre.x * ex + centre.y * ey;
+    precise vec3 qx = ex * size.x;
+    precise vec3 qy = ey * size.y;
+    microquad_grid_box(k, q, qx, qy, lo, hi);
+}
+#endif

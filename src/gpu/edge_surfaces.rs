@@ -1,0 +1,131 @@
+//! The edge pixels' extra surfaces on the GPU ([`crate::gbuffer::edge_surfaces`]):
+//! more receivers of the same bins, as on the CPU twin.
+//!
+//! Layout: the G-buffer buffers hold the pixels, then the extra surfaces
+//! in rows of `width` below the image (the last padded with misses), so
+//! every pass that runs over receivers — light setup's fit and extents,
+//! the bin's behind-receivers gather, evaluate's tiles — runs over
+//! `FrameParams::receiver_rows` rows and needs no other change; an extra
+//! surface's neighbours in its row are the next edge pixels' surfaces,
+//! near it on screen, so a tile's elected cells stay shared. Two tables
+//! carry what only the edges have (`shaders/edge_receivers.glsl`):
+//! `B_EDGE_PIXELS`, per pixel the samples on its centre's surface, the
+//! samples that count, those facing away and its extra surfaces; and
+//! `B_EDGE_COVERAGE`, per extra surface the samples it covers. Evaluate
+//! stops a receiver when its own samples are full (`evaluate_wanted`),
+//! and under a point-like light bins and evaluates a partial one over the
+//! part of its µQuad its samples span (`receiver_boxes`); resolve combines
+//! a pixel's surfaces (`EdgeSurfaces::combine`) and divides by the samples
+//! that count.
+//!
+//! The surfaces themselves come from the CPU twin's G-buffer
+//! ([`super::GBufferSource::Upload`]): the GPU `gbuffer` pass does not cast
+//! the 32 sample rays yet.
+
+use super::frame_inputs::SceneUpload;
+use super::shared::{self, ID_MASK};
+use super::GpuError;
+use crate::gbuffer::edge_surfaces::{EdgeSurfaces, MAX_SURFACES};
+use crate::gbuffer::GBuffer;
+use glam::Vec3;
+
+/// `B_EDGE_PIXELS`' fourth word: first extra surface below this bit,
+/// count above it.
+const COUNT_SHIFT: u32 = izb_contract::size::EDGE_COUNT_SHIFT;
+const _: () = assert!(MAX_SURFACES - 1 < 1 << (32 - COUNT_SHIFT));
+
+/// What a frame uploads for its edge surfaces.
+pub(super) struct EdgeUpload {
+    /// Rows of extra surfaces below the image.
+    pub(super) rows: u32,
+    /// `B_EDGE_PIXELS`: per pixel (centre coverage, counted, facing away,
+    /// first extra surface | count << `EDGE_COUNT_SHIFT`).
+    pub(super) pixels: Vec<[u32; 4]>,
+    /// `B_EDGE_COVERAGE`.
+    pub(super) coverage: Vec<u32>,
+    /// The G-buffer entries: the pixels', then the extra surfaces' rows.
+    pub(super) position: Vec<Vec3>,
+    pub(super) axis_x: Vec<Vec3>,
+    pub(super) axis_y: Vec<Vec3>,
+    pub(super) id_flags: Vec<u32>,
+}
+
+impl EdgeUpload {
+    /// The upload of `g`'s pixels and edge surfaces, `width` entries a row.
+    pub(super) fn new(
+        g: &GBuffer,
+        edges: &EdgeSurfaces,
+        upload: &SceneUpload,
+    ) -> Result<Self, GpuError> {
+        let width = g.width as usize;
+        let extra = edges.pixel.len();
+        if extra >= 1 << COUNT_SHIFT {
+            return Err(GpuError::Unsupported(format!(
+                "{extra} edge surfaces: the GPU's edge table indexes below 2^{COUNT_SHIFT}"
+            )));
+        }
+        let mut pixels: Vec<[u32; 4]> = (0..g.flags.len())
+            .map(|i| {
+                [
+                    edges.centre_coverage[i],
+                    edges.counted[i],
+                    edges.facing_away[i],
+                    0,
+                ]
+            })
+            .collect();
+        // A pixel's extra surfaces are consecutive entries (built in pixel
+        // order): its first and their count.
+        let mut previous = None;
+        for (k, &p) in edges.pixel.iter().enumerate() {
+            let record = &mut pixels[p as usize][3];
+            match previous {
+                Some(q) if q == p => *record += 1 << COUNT_SHIFT,
+                Some(q) if q > p => {
+                    return Err(GpuError::Unsupported(format!(
+                        "edge surface {k} (pixel {p}) follows pixel {q}'s: not in pixel order"
+                    )))
+                }
+                _ => *record = k as u32 | 1 << COUNT_SHIFT,
+            }
+            previous = Some(p);
+        }
+        let rows = extra.div_ceil(width.max(1));
+        let padding = rows * width - extra;
+        let s = &edges.surfaces;
+        let entries = |a: &[Vec3], b: &[Vec3]| -> Vec<Vec3> {
+            let pad = std::iter::repeat_n(Vec3::ZERO, padding);
+            a.iter().chain(b).copied().chain(pad).collect()
+        };
+        let mut id_flags = upload.gbuffer_words(g)?;
+        id_flags.extend(upload.gbuffer_words(s)?);
+        id_flags.extend(std::iter::repeat_n(ID_MASK, padding));
+        Ok(EdgeUpload {
+            rows: rows as u32,
+            pixels,
+            coverage: edges.coverage.clone(),
+            position: entries(&g.position, &s.position),
+            axis_x: entries(&g.axis_x, &s.axis_x),
+            axis_y: entries(&g.axis_y, &s.axis_y),
+            id_flags,
+        })
+    }
+
+    /// Extra surfaces.
+    pub(super) fn surfaces(&self) -> u64 {
+        self.coverage.len() as u64
+    }
+}
+
+/// The lit fraction of an edge-surface frame's pixel from its shaded
+/// alpha (lit samples of those that count) and its `counted` samples:
+/// 1 − hidden / counted, as [`crate::cpu::resolve_halves`] computes it;
+/// NaN where not shadow-tested.
+pub(super) fn lit_fraction_over_counted(alpha: u8, counted: u32) -> f32 {
+    if alpha == shared::ALPHA_NOT_TESTED {
+        return f32::NAN;
+    }
+    let samples = counted.count_ones();
+    let hidden = samples.saturating_sub(u32::from(alpha));
+    1.0 - hidden as f32 / samples as f32
+}
