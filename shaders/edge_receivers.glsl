@@ -23,6 +23,7 @@ uint receiver_wanted(uint i) {
 #ifdef LIGHT_VIEW_GLSL
 // LightSetup::receiver_boxes: the grid box of receiver i's µQuad (p, ex,
 // ey), or with `covered_boxes` of the part of it its covered samples span
+// (`pair_pattern` is the µQuad's sample pattern in every frame)
 // (light_setup::covered_rectangle, grown by COVERED_MARGIN), in the CPU
 // twin's operation order.
 void receiver_grid_box(uint k, uint i, vec3 p, vec3 ex, vec3 ey, out vec2 lo, out vec2 hi) {
@@ -34,8 +35,8 @@ void receiver_grid_box(uint k, uint i, vec3 p, vec3 ex, vec3 ey, out vec2 lo, ou
     vec2 s_lo = vec2(1.0), s_hi = vec2(0.0);
     [[unroll]] for (uint s = 0u; s < 32u; ++s) {
         if ((c & (1u << s)) != 0u) {
-            s_lo = min(s_lo, frame.pattern[s]);
-            s_hi = max(s_hi, frame.pattern[s]);
+            s_lo = min(s_lo, frame.pair_pattern[s]);
+            s_hi = max(s_hi, frame.pair_pattern[s]);
         }
     }
     s_lo = max(s_lo - COVERED_MARGIN, vec2(0.0));

@@ -26,20 +26,8 @@ layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 tr
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 #include "counters.glsl"
 
-#define STACK_SIZE 64
-
-// Slab test: entry distance of the ray into the box, or +inf on a miss.
-float box_entry(vec3 lo, vec3 hi, vec3 inv_dir, float t_max) {
-    vec3 t0 = lo * inv_dir;
-    vec3 t1 = hi * inv_dir;
-    vec3 tn = min(t0, t1);
-    vec3 tf = max(t0, t1);
-    float enter = max(max(tn.x, tn.y), max(tn.z, 0.0));
-    float leave = min(min(tf.x, tf.y), min(tf.z, t_max));
-    return enter <= leave ? enter : 1.0 / 0.0;
-}
-
-#include "watertight_ray.glsl"
+#include "bvh_closest_hit.glsl"
+#include "surface_hit.glsl"
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
@@ -47,47 +35,8 @@ void main() {
     uint i = pixel.y * frame.width + pixel.x;
     vec2 image_point = vec2(pixel) + 0.5;
     vec3 d = frame.cam_corner + image_point.x * frame.cam_dx + image_point.y * frame.cam_dy;
-    vec3 inv_dir = 1.0 / d;
-    ShearedRay ray = sheared_ray(d);
-
     float best_t = frame.far;
-    uint best = NO_HIT;
-    uint stack[STACK_SIZE];
-    uint top = 0u;
-    uint node = 0u;
-    bool traversing = frame.triangle_count > 0u;
-    while (traversing) {
-        BvhNode n = nodes[node];
-        if (n.prim_count > 0u) {
-            for (uint k = 0u; k < n.prim_count; ++k) {
-                uint id = prims[n.first + k];
-                float t = hit_triangle(triangles[id], vec3(0.0), ray);
-                if (t > frame.near && t < best_t) {
-                    best_t = t;
-                    best = id;
-                }
-            }
-        } else {
-            BvhNode l = nodes[n.first];
-            BvhNode r = nodes[n.first + 1u];
-            float tl = box_entry(l.lo, l.hi, inv_dir, best_t);
-            float tr = box_entry(r.lo, r.hi, inv_dir, best_t);
-            bool hit_l = !isinf(tl);
-            bool hit_r = !isinf(tr);
-            if (hit_l && hit_r) {
-                uint near_child = tl <= tr ? n.first : n.first + 1u;
-                uint far_child = tl <= tr ? n.first + 1u : n.first;
-                if (top < STACK_SIZE) stack[top++] = far_child;
-                node = near_child;
-                continue;
-            } else if (hit_l || hit_r) {
-                node = hit_l ? n.first : n.first + 1u;
-                continue;
-            }
-        }
-        if (top == 0u) break;
-        node = stack[--top];
-    }
+    uint best = closest_hit(d, best_t);
 
     if (best == NO_HIT) {
         g_id_flags[i] = ID_MASK;   // a miss
@@ -106,33 +55,11 @@ void main() {
         n = -n;
         flags |= FLAG_NORMAL_FLIPPED;
     }
-    // Refine the hit on the triangle's plane: the hit test's t comes out
-    // of a cancellation (the deckchair's slats: 1.3e-5 relative, several
-    // times the 2^-8 µQuad depth tolerance, so neighbours shadowed their
-    // receiver); t = (n·A)/(n·D) with the host's f64 normal is good to a
-    // few ulps, as the CPU twin's f64 hit is.
-    precise float t_plane = dot(n, triangles[best].a) / dot(n, d);
-    if (t_plane > 0.0 && !isinf(t_plane)) best_t = t_plane;
+    best_t = plane_t(best, n, d, best_t);
     vec3 p = d * best_t;
-    vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
-    if (dot(n, toward) > 0.0) flags |= FLAG_SHADOW_TESTED;
-
-    // µQuad axes: dP/dx = t (dD/dx − (n·dD/dx)/(n·D) D), likewise for y.
-    float n_dot_d = dot(n, d);
-    vec3 ex = best_t * (frame.cam_dx - d * (dot(n, frame.cam_dx) / n_dot_d));
-    vec3 ey = best_t * (frame.cam_dy - d * (dot(n, frame.cam_dy) / n_dot_d));
-    // Grazing clamp (paper-notes/reference-estimator.md), identical to the CPU twin's.
-    float limit = frame.max_stretch * best_t * length(frame.cam_dx) * length(d);
-    float lx = length(ex);
-    float ly = length(ey);
-    if (isnan(lx) || lx > limit) {
-        ex = isinf(lx) || isnan(lx) ? vec3(0.0) : ex * (limit / lx);
-        flags |= FLAG_AXES_CLAMPED;
-    }
-    if (isnan(ly) || ly > limit) {
-        ey = isinf(ly) || isnan(ly) ? vec3(0.0) : ey * (limit / ly);
-        flags |= FLAG_AXES_CLAMPED;
-    }
+    if (faces_light(p, n)) flags |= FLAG_SHADOW_TESTED;
+    vec3 ex, ey;
+    if (microquad_axes(d, best_t, n, ex, ey)) flags |= FLAG_AXES_CLAMPED;
 
     g_id_flags[i] = (flags << ID_BITS) | best;
     g_position[i] = p;

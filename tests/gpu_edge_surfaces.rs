@@ -162,8 +162,94 @@ fn gpu_edge_surfaces_match_cpu_under_an_area_light() {
     assert_eq!(compared, 2);
 }
 
-/// Settings that use edge surfaces with a G-buffer that has none — the
-/// GPU's own, or an uploaded flat one — are refused, never rendered flat.
+/// The GPU's own edge surfaces (the `edge_surfaces` pass, f32 rays)
+/// against the CPU twin's (f64): the same edge pixels, the same samples
+/// on each pixel's surfaces but for rays within rounding of a silhouette
+/// or of the plane tolerance, and masks as close as the GPU G-buffer's
+/// without edges (`gpu_backend`).
+#[test]
+fn gpu_cast_edge_surfaces_agree_with_the_cpus() {
+    let Some(r) = renderer() else { return };
+    let r = lock(r);
+    let settings = IzbSettings {
+        mode: SampleMode::Exact32,
+        edge_surfaces: true,
+        ..Default::default()
+    };
+    let mut compared = 0;
+    for name in scene::procedural::NAMES {
+        let scene = scene::load(name)
+            .unwrap()
+            .with_resolution(RESOLUTION)
+            .unwrap();
+        let bvh = SceneBvh::build(&scene);
+        let cpu = render_cpu(&scene, &bvh, settings);
+        let gpu = r
+            .render(&scene, settings, GBufferSource::Gpu)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_no_validation_messages(&r, name);
+        let (c, g) = (
+            cpu.gbuffer.edges.as_ref().unwrap(),
+            gpu.gbuffer.edges.as_ref().expect("the GPU's edge surfaces"),
+        );
+        // Pixels whose centre hit the same triangle on both.
+        let same: Vec<usize> = (0..cpu.masks.len())
+            .filter(|&i| cpu.gbuffer.triangle_id[i] == gpu.gbuffer.triangle_id[i])
+            .filter(|&i| cpu.gbuffer.flags[i] & flags::SHADOW_TESTED != 0)
+            .collect();
+        let edge: Vec<usize> = same
+            .iter()
+            .copied()
+            .filter(|&i| c.centre_coverage[i] != u32::MAX || g.centre_coverage[i] != u32::MAX)
+            .collect();
+        let differ = |a: &[u32], b: &[u32]| -> u64 {
+            edge.iter()
+                .map(|&i| (a[i] ^ b[i]).count_ones() as u64)
+                .sum()
+        };
+        let samples = 32 * edge.len() as u64;
+        let coverage_diff = differ(&c.centre_coverage, &g.centre_coverage);
+        let counted_diff = differ(&c.counted, &g.counted);
+        let tested = |i: usize| same.binary_search(&i).is_ok();
+        let (diff, total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
+        println!(
+            "{name}: edge pixels GPU {} CPU {}, extra surfaces GPU {} CPU {}; over {} edge \
+             pixels {coverage_diff} centre-coverage and {counted_diff} counted samples of \
+             {samples} differ; masks differ on {diff} of {total} samples",
+            g.stats.edge_pixels,
+            c.stats.edge_pixels,
+            g.pixel.len(),
+            c.pixel.len(),
+            edge.len()
+        );
+        let rate = |d: u64, n: u64| d as f64 / n.max(1) as f64;
+        // Hairball (thin random strands, a dozen planes per pixel) is an
+        // open disagreement: the GPU keeps other surfaces than the CPU on
+        // 6 % of its edge pixels' samples, and a brute-force f64 trace
+        // sides with the CPU (paper-notes/edge-surfaces.md). Its bound
+        // here only holds it where it was measured.
+        let (sample_bound, mask_bound) = match *name {
+            "hairball" => (0.15, 5e-3),
+            _ => (1e-3, 1e-4),
+        };
+        assert!(
+            rate(coverage_diff, samples) <= sample_bound,
+            "{name}: centre coverage"
+        );
+        assert!(
+            rate(counted_diff, samples) <= sample_bound,
+            "{name}: counted samples"
+        );
+        assert!(rate(diff, total) <= mask_bound, "{name}: masks");
+        let ratio = g.stats.edge_pixels as f64 / c.stats.edge_pixels.max(1) as f64;
+        assert!((0.99..=1.01).contains(&ratio), "{name}: edge pixels");
+        compared += 1;
+    }
+    assert_eq!(compared, scene::procedural::NAMES.len());
+}
+
+/// Settings that use edge surfaces with an uploaded G-buffer that has
+/// none are refused, never rendered flat; and the reverse.
 #[test]
 fn edge_surfaces_without_their_gbuffer_are_refused() {
     let Some(r) = renderer() else { return };
@@ -178,12 +264,10 @@ fn edge_surfaces_without_their_gbuffer_are_refused() {
         ..Default::default()
     };
     let flat = render_cpu(&scene, &bvh, IzbSettings::default());
-    for source in [GBufferSource::Gpu, GBufferSource::Upload(&flat.gbuffer)] {
-        match r.render(&scene, settings, source) {
-            Err(GpuError::EdgeSurfaces) => {}
-            Err(e) => panic!("refused for another reason: {e}"),
-            Ok(_) => panic!("edge surfaces rendered without them"),
-        }
+    match r.render(&scene, settings, GBufferSource::Upload(&flat.gbuffer)) {
+        Err(GpuError::EdgeSurfaces) => {}
+        Err(e) => panic!("refused for another reason: {e}"),
+        Ok(_) => panic!("edge surfaces rendered without them"),
     }
     // And an uploaded G-buffer with edge surfaces under settings without.
     let with_edges = render_cpu(&scene, &bvh, settings);

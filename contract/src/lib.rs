@@ -126,8 +126,19 @@ shared_constants! {
         /// Edge pixels' extra surfaces evaluate tested (receivers past the
         /// image's rows; `PIXELS_TESTED` counts the image's).
         EXTRA_SURFACES_TESTED = 34;
+        /// The `edge_surfaces` pass: extra surfaces it found (slots it
+        /// reserved; past `FrameParams::edge_capacity` the host reruns the
+        /// frame with room), edge candidates (32 sample rays each), edge
+        /// pixels, and the samples on surfaces facing away, past the kept
+        /// surfaces, and missing everything.
+        EDGE_SURFACES = 35;
+        EDGE_CANDIDATES = 36;
+        EDGE_PIXELS = 37;
+        EDGE_FACING_AWAY_SAMPLES = 38;
+        EDGE_DROPPED_SAMPLES = 39;
+        EDGE_MISSED_SAMPLES = 40;
         /// Words in the counters buffer.
-        WORDS = 35;
+        WORDS = 41;
     }
 }
 
@@ -232,6 +243,9 @@ shared_constants! {
         /// `B_EDGE_PIXELS`' fourth word: the first extra surface below
         /// this bit, their count (0..=3) above it.
         EDGE_COUNT_SHIFT = 30;
+        /// Surfaces an edge pixel keeps, the centre's included
+        /// (`edge_surfaces::MAX_SURFACES`).
+        EDGE_MAX_SURFACES = 4;
     }
 }
 
@@ -255,6 +269,9 @@ shared_constants! {
         /// µQuad, in µQuad units (1/64): its corners are not samples, so
         /// rounding at a corner cannot drop one.
         COVERED_MARGIN = 1.0 / 64.0;
+        /// A sample hit lies on a surface's plane within this fraction of
+        /// the surface's µQuad (`edge_surfaces::PLANE_TOLERANCE`, 10⁻³).
+        EDGE_PLANE_TOLERANCE = 1.0e-3;
         /// Rounding bound of the triangle–cell overlap test (2⁻¹⁸).
         TOUCH_ROUNDING = 1.0 / 262_144.0;
         /// A projection thinner than this share of its edge products keeps

@@ -111,6 +111,9 @@ shared_struct! {
         /// binned and evaluated over the part its samples span (edge
         /// surfaces under a point-like light).
         pub covered_boxes: u32 => "uint covered_boxes",
+        /// Extra surfaces the G-buffer rows below the image hold (the
+        /// `edge_surfaces` pass's slots).
+        pub edge_capacity: u32 => "uint edge_capacity",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area

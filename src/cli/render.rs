@@ -179,9 +179,10 @@ pub fn render_on_gpu(
         renderer.context.info().name,
         renderer.context.info().kind
     );
-    // Edge surfaces: the CPU twin's G-buffer with its sample rays goes up
-    // (the GPU gbuffer pass does not cast them yet); the passes after it
-    // run on the device.
+    // Edge surfaces: the CPU twin's G-buffer with its f64 sample rays goes
+    // up, the exact one (the GPU's edge_surfaces pass casts them in f32 and
+    // still disagrees on hairball, paper-notes/edge-surfaces.md); the
+    // passes after it run on the device.
     let cpu_gbuffer = settings.uses_edge_surfaces(scene).then(|| {
         eprintln!("gbuffer: cpu (edge surfaces' sample rays), uploaded");
         crate::gbuffer::gbuffer_with(scene, &SceneBvh::build(scene), true)

@@ -50,12 +50,13 @@ use glam::DVec3;
 
 /// Surfaces a pixel keeps, the centre's included (K of issue 27; K = 2
 /// and 4 were measured, paper-notes/edge-surfaces.md).
-pub const MAX_SURFACES: usize = 4;
+pub const MAX_SURFACES: usize = izb_contract::size::EDGE_MAX_SURFACES as usize;
 
 /// A sample hit lies on a surface's plane when its distance to the plane
 /// is at most this fraction of the surface's µQuad: the reference's rule
 /// for a smooth pixel (coplanar neighbours ~10⁻¹², any other surface in
 /// the footprint ~1).
+/// The GPU pass's is `EDGE_PLANE_TOLERANCE`, the same value in `f32`.
 pub const PLANE_TOLERANCE: f64 = 1e-3;
 
 /// A full 32-sample mask.
@@ -500,6 +501,14 @@ impl EdgeSurfaces {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_gpu_plane_tolerance_is_the_cpu_one() {
+        assert_eq!(
+            PLANE_TOLERANCE as f32,
+            izb_contract::tolerance::EDGE_PLANE_TOLERANCE
+        );
+    }
 
     /// One pixel's masks: the centre's on its samples, each extra
     /// surface's on its own, the facing-away samples dark; bits outside

@@ -203,6 +203,32 @@ impl GBuffer {
         }
     }
 
+    /// Keeps the first `n` entries.
+    pub fn truncate(&mut self, n: usize) {
+        self.triangle_id.truncate(n);
+        self.depth.truncate(n);
+        self.position.truncate(n);
+        self.normal.truncate(n);
+        self.axis_x.truncate(n);
+        self.axis_y.truncate(n);
+        self.flags.truncate(n);
+    }
+
+    /// Entries `order` of this G-buffer as a one-row G-buffer (no edges).
+    pub fn select(&self, order: &[usize]) -> GBuffer {
+        let mut g = GBuffer::with_capacity(order.len() as u32, 1);
+        for &k in order {
+            g.triangle_id.push(self.triangle_id[k]);
+            g.depth.push(self.depth[k]);
+            g.position.push(self.position[k]);
+            g.normal.push(self.normal[k]);
+            g.axis_x.push(self.axis_x[k]);
+            g.axis_y.push(self.axis_y[k]);
+            g.flags.push(self.flags[k]);
+        }
+        g
+    }
+
     /// Every receiver entry: the pixels' centre surfaces, then the edge
     /// pixels' extra surfaces (as a one-row G-buffer).
     pub fn layers(&self) -> impl Iterator<Item = &GBuffer> {

@@ -18,11 +18,14 @@
 //! a pixel's surfaces (`EdgeSurfaces::combine`) and divides by the samples
 //! that count.
 //!
-//! The surfaces themselves come from the CPU twin's G-buffer
-//! ([`super::GBufferSource::Upload`]): the GPU `gbuffer` pass does not cast
-//! the 32 sample rays yet.
+//! The surfaces come from the `edge_surfaces` pass (`shaders/edge_surfaces.comp`,
+//! after the `gbuffer` pass: the 32 sample rays of each edge candidate,
+//! into slots taken by an atomic counter, [`FrameEdges::Traced`]) or from
+//! the CPU twin's G-buffer ([`super::GBufferSource::Upload`], the twin
+//! tests' exact input, [`FrameEdges::Uploaded`]).
 
 use super::frame_inputs::SceneUpload;
+use super::frame_report::FramePasses;
 use super::shared::{self, ID_MASK};
 use super::GpuError;
 use crate::gbuffer::edge_surfaces::{EdgeSurfaces, MAX_SURFACES};
@@ -36,8 +39,6 @@ const _: () = assert!(MAX_SURFACES - 1 < 1 << (32 - COUNT_SHIFT));
 
 /// What a frame uploads for its edge surfaces.
 pub(super) struct EdgeUpload {
-    /// Rows of extra surfaces below the image.
-    pub(super) rows: u32,
     /// `B_EDGE_PIXELS`: per pixel (centre coverage, counted, facing away,
     /// first extra surface | count << `EDGE_COUNT_SHIFT`).
     pub(super) pixels: Vec<[u32; 4]>,
@@ -101,7 +102,6 @@ impl EdgeUpload {
         id_flags.extend(upload.gbuffer_words(s)?);
         id_flags.extend(std::iter::repeat_n(ID_MASK, padding));
         Ok(EdgeUpload {
-            rows: rows as u32,
             pixels,
             coverage: edges.coverage.clone(),
             position: entries(&g.position, &s.position),
@@ -128,4 +128,125 @@ pub(super) fn lit_fraction_over_counted(alpha: u8, counted: u32) -> f32 {
     let samples = counted.count_ones();
     let hidden = samples.saturating_sub(u32::from(alpha));
     1.0 - hidden as f32 / samples as f32
+}
+
+/// A frame's edge surfaces.
+pub(super) enum FrameEdges {
+    /// A frame without them.
+    None,
+    /// The CPU twin's, uploaded.
+    Uploaded(EdgeUpload),
+    /// Cast by the `edge_surfaces` pass into `capacity` slots.
+    Traced { capacity: u64 },
+}
+
+impl FrameEdges {
+    /// The edge surfaces of an IZB frame (`edge_capacity`: the traced
+    /// ones' slots) from `source`, whose agreement with the settings
+    /// `render` checked.
+    pub(super) fn new(
+        source: super::GBufferSource,
+        passes: FramePasses,
+        use_them: bool,
+        upload: &SceneUpload,
+    ) -> Result<Self, GpuError> {
+        Ok(match (passes, source) {
+            (FramePasses::Izb { .. }, super::GBufferSource::Upload(g)) => {
+                match g.edges.as_deref() {
+                    Some(e) => FrameEdges::Uploaded(EdgeUpload::new(g, e, upload)?),
+                    None => FrameEdges::None,
+                }
+            }
+            (FramePasses::Izb { edge_capacity }, super::GBufferSource::Gpu) if use_them => {
+                FrameEdges::Traced {
+                    capacity: edge_capacity,
+                }
+            }
+            _ => FrameEdges::None,
+        })
+    }
+
+    /// G-buffer slots of extra surfaces, if the frame has them.
+    pub(super) fn slots(&self) -> Option<u64> {
+        match self {
+            FrameEdges::None => None,
+            FrameEdges::Uploaded(e) => Some(e.surfaces()),
+            FrameEdges::Traced { capacity } => Some(*capacity),
+        }
+    }
+
+    /// Rows of extra surfaces below a `width`-wide image.
+    pub(super) fn rows(&self, width: u32) -> u32 {
+        self.slots()
+            .map_or(0, |n| n.div_ceil(u64::from(width.max(1))) as u32)
+    }
+
+    pub(super) fn traced(&self) -> bool {
+        matches!(self, FrameEdges::Traced { .. })
+    }
+
+    /// The slots a traced frame filled, and its tables (per-pixel records,
+    /// per-slot coverage) read back through `read` (binding → bytes).
+    #[allow(clippy::type_complexity)]
+    pub(super) fn read_back<'a>(
+        &self,
+        read: &impl Fn(u32) -> Result<&'a [u8], GpuError>,
+        counters: &[u32],
+        pixels: usize,
+    ) -> Result<(usize, Option<(Vec<[u32; 4]>, Vec<u32>)>), GpuError> {
+        let FrameEdges::Traced { capacity } = self else {
+            return Ok((0, None));
+        };
+        let found = u64::from(counters[shared::counter::EDGE_SURFACES]).min(*capacity) as usize;
+        let records =
+            bytemuck::pod_collect_to_vec(&read(shared::binding::EDGE_PIXELS)?[..pixels * 16]);
+        let coverage =
+            bytemuck::pod_collect_to_vec(&read(shared::binding::EDGE_COVERAGE)?[..found * 4]);
+        Ok((found, Some((records, coverage))))
+    }
+}
+
+/// What the `edge_surfaces` pass wrote, read back: per pixel its record,
+/// and the extra surfaces in the slots they took.
+pub(super) struct TracedEdges {
+    pub(super) pixels: Vec<[u32; 4]>,
+    pub(super) coverage: Vec<u32>,
+    pub(super) surfaces: GBuffer,
+}
+
+impl TracedEdges {
+    /// The [`EdgeSurfaces`] of the read-back tables, surfaces in pixel
+    /// order (as the CPU twin lists them); `stats` from the counters.
+    pub(super) fn into_edge_surfaces(self, counters: &[u32]) -> EdgeSurfaces {
+        use super::shared::counter;
+        let mut e = EdgeSurfaces {
+            surfaces: GBuffer::select(&self.surfaces, &[]),
+            pixel: Vec::with_capacity(self.coverage.len()),
+            coverage: Vec::with_capacity(self.coverage.len()),
+            centre_coverage: self.pixels.iter().map(|r| r[0]).collect(),
+            counted: self.pixels.iter().map(|r| r[1]).collect(),
+            facing_away: self.pixels.iter().map(|r| r[2]).collect(),
+            stats: crate::gbuffer::edge_surfaces::EdgeStats {
+                candidates: counters[counter::EDGE_CANDIDATES] as usize,
+                edge_pixels: counters[counter::EDGE_PIXELS] as usize,
+                extra_surfaces: self.coverage.len(),
+                sample_rays: 32 * u64::from(counters[counter::EDGE_CANDIDATES]),
+                sample_rays_unbounded: 32 * u64::from(counters[counter::EDGE_CANDIDATES]),
+                facing_away_samples: counters[counter::EDGE_FACING_AWAY_SAMPLES].into(),
+                dropped_samples: counters[counter::EDGE_DROPPED_SAMPLES].into(),
+                missed_samples: counters[counter::EDGE_MISSED_SAMPLES].into(),
+            },
+        };
+        let mut order = Vec::with_capacity(self.coverage.len());
+        for (i, r) in self.pixels.iter().enumerate() {
+            let first = (r[3] & ((1 << COUNT_SHIFT) - 1)) as usize;
+            for k in first..first + (r[3] >> COUNT_SHIFT) as usize {
+                order.push(k);
+                e.pixel.push(i as u32);
+                e.coverage.push(self.coverage[k]);
+            }
+        }
+        e.surfaces = self.surfaces.select(&order);
+        e
+    }
 }

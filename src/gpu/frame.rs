@@ -6,13 +6,15 @@
 //! in `shadow_map` and `shadow_rays`.
 
 use super::context::{DeviceShared, GpuContext, GpuOptions};
-use super::edge_surfaces::EdgeUpload;
+use super::edge_surfaces::FrameEdges;
 pub use super::frame_inputs::LLVMPIPE_LOOP_CAP;
 use super::frame_inputs::{
     check_workgroups, frame_params, grid_budget_side, heavy_entries, loop_budget, SceneUpload,
 };
 pub use super::frame_memory::{frame_buffer_descs, planned_memory, FrameSizes};
-use super::frame_memory::{initial_cell_capacity, memory_by_pass, reset_pass_state};
+use super::frame_memory::{
+    initial_cell_capacity, initial_edge_capacity, memory_by_pass, reset_pass_state,
+};
 use super::frame_report::{FrameOutput, FramePasses};
 pub use super::frame_report::{
     GpuCascadeSummary, GpuCounters, GpuLightSummary, GpuPassMillis, GpuRender, GpuRenderReport,
@@ -162,14 +164,18 @@ impl GpuRenderer {
         settings: IzbSettings,
         source: GBufferSource,
     ) -> Result<GpuRender, GpuError> {
-        let uploaded_edges = matches!(source, GBufferSource::Upload(g) if g.edges.is_some());
-        if settings.uses_edge_surfaces(scene) != uploaded_edges {
-            return Err(match source {
-                GBufferSource::Upload(_) if uploaded_edges => GpuError::Unsupported(
-                    "the uploaded G-buffer has edge surfaces the settings do not use".into(),
-                ),
-                _ => GpuError::EdgeSurfaces,
-            });
+        // An uploaded G-buffer brings edge surfaces exactly when the
+        // settings use them; the GPU's own casts them when they do.
+        if let GBufferSource::Upload(g) = source {
+            match (settings.uses_edge_surfaces(scene), g.edges.is_some()) {
+                (true, false) => return Err(GpuError::EdgeSurfaces),
+                (false, true) => {
+                    return Err(GpuError::Unsupported(
+                        "the uploaded G-buffer has edge surfaces the settings do not use".into(),
+                    ))
+                }
+                _ => {}
+            }
         }
         let pixels = scene.pixel_count();
         let upload = self.prepare_frame(scene, source)?;
@@ -186,28 +192,28 @@ impl GpuRenderer {
         }
         let max_cells = crate::cascades::max_total_cells(side);
         let mut capacity = initial_cell_capacity(triangles.len());
+        let mut edge_capacity = initial_edge_capacity(pixels as u64);
         let mut frames_run = 0;
         loop {
             frames_run += 1;
+            let passes = FramePasses::Izb { edge_capacity };
             let out = self.run_frame(
-                scene,
-                settings,
-                source,
-                &upload,
-                &bvh,
-                max_cells,
-                capacity,
-                FramePasses::Izb,
+                scene, settings, source, &upload, &bvh, max_cells, capacity, passes,
             )?;
             let needed = u64::from(out.counters[counter::CELL_ENTRIES]);
-            if out.counters[counter::CAPACITY_EXCEEDED] != 0 && frames_run == 1 {
-                capacity = needed;
+            let cells_over = out.counters[counter::CAPACITY_EXCEEDED] != 0;
+            let edges_needed = u64::from(out.counters[counter::EDGE_SURFACES]);
+            let edges_over = edges_needed > edge_capacity;
+            if (cells_over || edges_over) && frames_run == 1 {
+                capacity = if cells_over { needed } else { capacity };
+                edge_capacity = edge_capacity.max(edges_needed);
                 continue;
             }
             self.check_loop_budget(&out)?;
-            if out.counters[counter::CAPACITY_EXCEEDED] != 0 {
+            if cells_over || edges_over {
                 return Err(GpuError::Unsupported(format!(
-                    "the cell list still overflowed after growing to {capacity} entries"
+                    "the cell list ({capacity} entries) or the edge surfaces' slots \
+                     ({edge_capacity}) still overflowed after growing"
                 )));
             }
             return Ok(self.finish(
@@ -253,25 +259,19 @@ impl GpuRenderer {
         let pixels = scene.pixel_count() as u64;
         let t = triangles.len() as u64;
         // An IZB frame's edge surfaces: receivers in rows below the image.
-        let edges = match (source, passes) {
-            (GBufferSource::Upload(g), FramePasses::Izb) => match g.edges.as_deref() {
-                Some(e) => Some(EdgeUpload::new(g, e, upload)?),
-                None => None,
-            },
-            _ => None,
-        };
-        let receiver_rows = h + edges.as_ref().map_or(0, |e| e.rows);
+        let edges = FrameEdges::new(source, passes, settings.uses_edge_surfaces(scene), upload)?;
+        let receiver_rows = h + edges.rows(w);
         check_workgroups(&self.shared().limits, [w, receiver_rows])?;
         let receivers = u64::from(w) * u64::from(receiver_rows);
         let (lut, _) = crate::lut::tables_for(settings.light_samples(scene));
         let halves = match passes {
-            FramePasses::Izb => settings.mask_halves(scene),
+            FramePasses::Izb { .. } => settings.mask_halves(scene),
             _ => 1,
         };
         let descs = frame_buffer_descs(&FrameSizes {
             pixels,
             receivers,
-            edge_surfaces: edges.as_ref().map(EdgeUpload::surfaces),
+            edge_surfaces: edges.slots(),
             triangles: t,
             bvh_nodes: bvh.nodes.len() as u64,
             bvh_prims: bvh.prims.len() as u64,
@@ -311,9 +311,10 @@ impl GpuRenderer {
             self.heavy_entries,
         );
         params.mask_halves = halves as u32;
-        if edges.is_some() {
+        if let Some(slots) = edges.slots() {
             params.receiver_rows = receiver_rows;
             params.edge_surfaces = 1;
+            params.edge_capacity = slots as u32;
             // LightSetup::receiver_boxes' `covered_only`.
             params.covered_boxes = u32::from(!settings.light_samples(scene));
             params.heavy_capacity = super::frame_memory::heavy_capacity(receivers) as u32;
@@ -353,7 +354,7 @@ impl GpuRenderer {
         stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
         stage(binding::LIGHT, bytemuck::bytes_of(&LightState::reset()))?;
         stage(binding::EDGE_LUT, as_bytes(&lut.masks))?;
-        if let Some(e) = &edges {
+        if let FrameEdges::Uploaded(e) = &edges {
             stage(binding::G_POSITION, as_bytes(&e.position))?;
             stage(binding::G_AXIS_X, as_bytes(&e.axis_x))?;
             stage(binding::G_AXIS_Y, as_bytes(&e.axis_y))?;
@@ -380,6 +381,8 @@ impl GpuRenderer {
             Some(binding::G_AXIS_X),
             Some(binding::G_AXIS_Y),
             Some(binding::G_ID_FLAGS),
+            edges.traced().then_some(binding::EDGE_PIXELS),
+            edges.traced().then_some(binding::EDGE_COVERAGE),
         ];
         let readbacks: Vec<(GpuBuffer, u32)> = readback_of
             .iter()
@@ -438,7 +441,7 @@ impl GpuRenderer {
                         };
                     }
                 }
-                reset_pass_state(device, cmd, |b| fb.get(b).buffer);
+                reset_pass_state(device, cmd, |b| fb.get(b).buffer, edges.traced());
                 rec.barrier();
                 let mark = |j: u32| timestamps.write(cmd, rep * TIMESTAMPS_PER_FRAME + j);
                 mark(0);
@@ -447,13 +450,13 @@ impl GpuRenderer {
                     rec.steps = Some(&steps);
                 }
                 if let GBufferSource::Gpu = source {
-                    super::gbuffer::gbuffer(&rec, &self.kernels, [w, h]);
+                    super::gbuffer::gbuffer(&rec, &self.kernels, [w, h], edges.traced());
                 }
                 mark(1);
                 super::light_setup::light_setup(&rec, &self.kernels, [w, receiver_rows]);
                 mark(2);
                 match passes {
-                    FramePasses::Izb => {
+                    FramePasses::Izb { .. } => {
                         let gather = settings.skips.behind_receivers.then_some(receivers as u32);
                         let n = triangles.len() as u32;
                         super::bin::bin(&rec, &self.kernels, n, max_cells, gather);
@@ -535,17 +538,20 @@ impl GpuRenderer {
                 .expect("every read binding has a read-back buffer");
             rb.mapped()
         };
-        let words = |b: u32| -> Result<Vec<u32>, GpuError> {
-            Ok(bytemuck::pod_collect_to_vec(
-                &read(b)?[..pixels as usize * 4],
-            ))
-        };
-        let vec3s = |b: u32| -> Result<Vec<Vec3>, GpuError> {
-            let f: Vec<f32> = bytemuck::pod_collect_to_vec(&read(b)?[..pixels as usize * 12]);
-            Ok(f.chunks_exact(3).map(Vec3::from_slice).collect())
-        };
         let counters: Vec<u32> =
             bytemuck::pod_collect_to_vec(&read(binding::COUNTERS)?[..counter::WORDS * 4]);
+        // The G-buffer entries: the pixels, and the traced edge surfaces'
+        // slots after them.
+        let (found, edge_tables) = edges.read_back(&read, &counters, pixels as usize)?;
+        let entries = pixels as usize + found;
+        let words_of = |b: u32, n: usize| -> Result<Vec<u32>, GpuError> {
+            Ok(bytemuck::pod_collect_to_vec(&read(b)?[..n * 4]))
+        };
+        let words = |b: u32| words_of(b, pixels as usize);
+        let vec3s = |b: u32| -> Result<Vec<Vec3>, GpuError> {
+            let f: Vec<f32> = bytemuck::pod_collect_to_vec(&read(b)?[..entries * 12]);
+            Ok(f.chunks_exact(3).map(Vec3::from_slice).collect())
+        };
         let light: LightState =
             bytemuck::pod_read_unaligned(&read(binding::LIGHT)?[..size_of::<LightState>()]);
         let mut memory = memory_by_pass(&frame_buffers.buffers);
@@ -574,7 +580,8 @@ impl GpuRenderer {
             position: vec3s(binding::G_POSITION)?,
             axis_x: vec3s(binding::G_AXIS_X)?,
             axis_y: vec3s(binding::G_AXIS_Y)?,
-            id_flags: words(binding::G_ID_FLAGS)?,
+            id_flags: words_of(binding::G_ID_FLAGS, entries)?,
+            edge_tables,
             shadow_maps: match maps_back {
                 true => bytemuck::pod_collect_to_vec(read(binding::SHADOW_MAP)?),
                 false => Vec::new(),

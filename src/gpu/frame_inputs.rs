@@ -206,6 +206,7 @@ pub(super) fn frame_params(
         receiver_rows: scene.resolution[1],
         edge_surfaces: 0,
         covered_boxes: 0,
+        edge_capacity: 0,
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
         second_pattern: *crate::lut::paired_patterns(1).0,

@@ -14,7 +14,7 @@ use ash::vk;
 pub struct FrameSizes {
     pub pixels: u64,
     /// G-buffer entries: the pixels, then with edge surfaces their rows
-    /// of extra surfaces ([`EdgeRows`]).
+    /// of extra surfaces ([`receivers`]).
     pub receivers: u64,
     /// Extra surfaces of the edge pixels when the frame has edge
     /// surfaces (then `B_EDGE_PIXELS` holds a record per pixel).
@@ -209,6 +209,14 @@ pub(super) fn heavy_capacity(pixels: u64) -> u64 {
 /// all pixels) and 89 299 at 1080p, ficus 96 834 at 1080p (4.7 %).
 const HEAVY_QUEUE_FRACTION: u64 = 8;
 
+/// First guess of the edge surfaces' slots: one per 8 pixels, at least
+/// 1 024 (measured: courtyard 18 % of its pixels at 1080p, default 15 %
+/// and grazing 44 % at 240×135; a frame past it is rerun once with room,
+/// as for the cell list).
+pub(super) fn initial_edge_capacity(pixels: u64) -> u64 {
+    (pixels / 8).max(1024)
+}
+
 /// First guess of the cell list's entries: 4 per triangle, at least 2^16.
 pub(super) fn initial_cell_capacity(triangles: usize) -> u64 {
     (4 * triangles as u64).max(1 << 16)
@@ -222,10 +230,14 @@ pub(super) fn memory_by_pass(buffers: &[GpuBuffer]) -> Vec<PassMemory> {
 /// 0, empty cell counts, no cover triangle, no receiver. (The light state
 /// is copied again from its upload; the shadow maps are cleared by their
 /// render pass.)
+/// With `traced_edges` the G-buffer words become misses first: the
+/// `edge_surfaces` pass fills only the slots it takes, and every pass
+/// reads the rest as empty.
 pub(super) fn reset_pass_state(
     device: &ash::Device,
     cmd: vk::CommandBuffer,
     buffer: impl Fn(u32) -> vk::Buffer,
+    traced_edges: bool,
 ) {
     let fills = [
         (binding::COUNTERS, 0),
@@ -235,7 +247,8 @@ pub(super) fn reset_pass_state(
         // z = ~0, reach 0 stored as !0.
         (binding::CELL_RECEIVERS, u32::MAX),
     ];
-    for (b, word) in fills {
+    let misses = traced_edges.then_some((binding::G_ID_FLAGS, izb_contract::word::ID_MASK));
+    for (b, word) in fills.into_iter().chain(misses) {
         // SAFETY: `cmd` is recording; the buffer belongs to the frame and
         // lives until after its fence wait; the fill covers the whole buffer.
         unsafe { device.cmd_fill_buffer(cmd, buffer(b), 0, vk::WHOLE_SIZE, word) };

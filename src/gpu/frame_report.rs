@@ -2,6 +2,7 @@
 //! setup as the GPU fitted it, memory per pass; and the step that turns a
 //! frame's read-backs into that report.
 
+use super::edge_surfaces::TracedEdges;
 use super::frame::{GBufferSource, GpuRenderer};
 use super::frame_inputs::SceneUpload;
 use super::shared::LightState;
@@ -382,7 +383,7 @@ pub(super) fn read_back_gbuffer(
                     }
                 })
                 .collect();
-            GBuffer {
+            let mut g = GBuffer {
                 width: w,
                 height: h,
                 triangle_id,
@@ -399,7 +400,20 @@ pub(super) fn read_back_gbuffer(
                     clamped_microquads: out.counters[counter::CLAMPED] as usize,
                 },
                 edges: None,
+            };
+            // The `edge_surfaces` pass's slots follow the pixels.
+            if let Some((records, coverage)) = out.edge_tables.take() {
+                let pixels = scene.pixel_count();
+                let slots: Vec<usize> = (pixels..pixels + coverage.len()).collect();
+                let traced = TracedEdges {
+                    pixels: records,
+                    coverage,
+                    surfaces: g.select(&slots),
+                };
+                g.edges = Some(Box::new(traced.into_edge_surfaces(&out.counters)));
             }
+            g.truncate(scene.pixel_count());
+            g
         }
     }
 }
@@ -407,8 +421,9 @@ pub(super) fn read_back_gbuffer(
 /// Which passes follow the G-buffer and light setup in a frame.
 #[derive(Clone, Copy, Debug)]
 pub(super) enum FramePasses {
-    /// bin, evaluate, resolve.
-    Izb,
+    /// bin, evaluate, resolve; `edge_capacity`: the slots of edge surfaces
+    /// the `edge_surfaces` pass may cast (a frame with them).
+    Izb { edge_capacity: u64 },
     /// The shadow-map baseline: raster (and for `vsm`/`msm` the blur),
     /// lookup (and the contact march).
     ShadowMap(ShadowMapSettings),
@@ -425,7 +440,7 @@ impl FramePasses {
     /// depth per pixel and the stencil bytes behind them.
     pub(super) fn shadow_map_words(&self, pixels: u64) -> u64 {
         match self {
-            FramePasses::Izb | FramePasses::ShadowRays => 0,
+            FramePasses::Izb { .. } | FramePasses::ShadowRays => 0,
             FramePasses::ShadowVolumes => pixels + pixels.div_ceil(4),
             FramePasses::ShadowMap(s) => {
                 let texels = u64::from(s.cascades) * u64::from(s.side).pow(2);
@@ -448,6 +463,10 @@ pub(super) struct FrameOutput {
     pub(super) axis_x: Vec<Vec3>,
     pub(super) axis_y: Vec<Vec3>,
     pub(super) id_flags: Vec<u32>,
+    /// With traced edge surfaces: the per-pixel records and the coverage
+    /// of each slot taken (the G-buffer vectors above hold those slots
+    /// after the pixels).
+    pub(super) edge_tables: Option<(Vec<[u32; 4]>, Vec<u32>)>,
     /// The shadow maps' depths when asked for, else empty.
     pub(super) shadow_maps: Vec<f32>,
     pub(super) millis: Option<GpuPassMillis>,

@@ -98,10 +98,17 @@ pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
     })
 }
 
-/// Records the pass: one thread per pixel.
-pub fn gbuffer(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+/// Records the pass: one thread per pixel; with `edge_surfaces` then the
+/// edge pixels' sample rays (`shaders/edge_surfaces.comp`, the twin of
+/// [`crate::gbuffer::edge_surfaces`]), which read the neighbours' centre
+/// hits.
+pub fn gbuffer(rec: &Recorder, kernels: &Kernels, size: [u32; 2], edge_surfaces: bool) {
     rec.begin_label("gbuffer");
     rec.dispatch_pixels(&kernels.gbuffer, size);
     rec.barrier();
+    if edge_surfaces {
+        rec.dispatch_pixels(&kernels.edge_surfaces, size);
+        rec.barrier();
+    }
     rec.end_label();
 }

@@ -92,13 +92,14 @@ pub enum GpuError {
     },
     #[error("{0}")]
     Unsupported(String),
-    /// Edge pixels' per-sample surfaces (`crate::gbuffer::edge_surfaces`):
-    /// the GPU `gbuffer` pass does not cast the sample rays yet, so they
-    /// come only with an uploaded G-buffer that has them.
+    /// Settings with edge pixels' per-sample surfaces
+    /// (`crate::gbuffer::edge_surfaces`) and an uploaded G-buffer without
+    /// them.
     #[error(
-        "edge surfaces (each edge pixel's samples on the surface its own ray sees) come from \
-         the CPU's G-buffer: upload it (izb render --backend vulkan does), or render the pixel \
-         centre's µQuad alone on Vulkan (--no-edge-surfaces, or an izb…-flat bench method)"
+        "the settings use edge surfaces (each edge pixel's samples on the surface its own ray \
+         sees) but the uploaded G-buffer has none: build it with them (gbuffer_with), let the \
+         GPU cast them (GBufferSource::Gpu), or render the pixel centre's µQuad alone \
+         (--no-edge-surfaces, or an izb…-flat bench method)"
     )]
     EdgeSurfaces,
 }
@@ -121,8 +122,9 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 25] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 26] = [
     ("gbuffer", spirv!("gbuffer")),
+    ("edge_surfaces", spirv!("edge_surfaces")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
     ("light_setup_extent", spirv!("light_setup_extent")),
@@ -152,6 +154,7 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 25] = [
 /// The compiled pipelines of every pass.
 pub struct Kernels {
     pub gbuffer: ComputeKernel,
+    pub edge_surfaces: ComputeKernel,
     pub light_setup_receivers: ComputeKernel,
     pub light_setup_frame: ComputeKernel,
     pub light_setup_extent: ComputeKernel,
@@ -185,6 +188,7 @@ impl Kernels {
         let k = |name, spirv| ComputeKernel::new(shared, layout, name, spirv);
         Ok(Kernels {
             gbuffer: k("gbuffer", spirv!("gbuffer"))?,
+            edge_surfaces: k("edge_surfaces", spirv!("edge_surfaces"))?,
             light_setup_receivers: k("light_setup_receivers", spirv!("light_setup_receivers"))?,
             light_setup_frame: k("light_setup_frame", spirv!("light_setup_frame"))?,
             light_setup_extent: k("light_setup_extent", spirv!("light_setup_extent"))?,
