@@ -21,8 +21,10 @@
 // the rays and plane tests run in f32, so a sample within rounding of a
 // silhouette or of the plane tolerance can land on another surface
 // (tests/gpu_edge_surfaces.rs measures how often). Every loop counts
-// against lavapipe's loop cap (loop_budget.glsl): an uncounted one let
-// the cap end hairball's surface selection early without a word.
+// against lavapipe's loop cap (loop_budget.glsl), each pass twice
+// (LOOP_TRIP_COST): counted once, lavapipe's own count (which also takes
+// each loop's exit test) passed the cap first and cut hairball's surface
+// selection without a word.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -41,6 +43,7 @@ layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(scalar, binding = B_EDGE_PIXELS) writeonly buffer EdgePixelBuf { uvec4 edge_pixels[]; };
 layout(scalar, binding = B_EDGE_COVERAGE) writeonly buffer EdgeCoverageBuf { uint edge_coverage[]; };
 #define LOOP_BUDGET_SLOTS WORKGROUP_PIXELS
+#define LOOP_TRIP_COST 2u
 #include "loop_budget.glsl"
 #include "counters.glsl"
 #define BVH_TRIP() spend_trip()

@@ -18,6 +18,13 @@
 // a wrong one.
 #extension GL_KHR_shader_subgroup_basic : require
 
+// What one counted pass costs: 1, or more for a pass whose loops are
+// entered often with few iterations (lavapipe also counts each loop's
+// exit test, which a pass count misses).
+#ifndef LOOP_TRIP_COST
+#define LOOP_TRIP_COST 1u
+#endif
+
 shared uint sm_subgroup_trips[LOOP_BUDGET_SLOTS];
 // Loop trips of this invocation so far, and whether it ran out.
 uint trips = 0u;
@@ -34,7 +41,7 @@ void loop_budget_reset() {
 bool spend_trip() {
     trips += 1u;
     if (frame.loop_budget != 0xFFFFFFFFu) {
-        if (subgroupElect()) atomicAdd(sm_subgroup_trips[gl_SubgroupID], 1u);
+        if (subgroupElect()) atomicAdd(sm_subgroup_trips[gl_SubgroupID], LOOP_TRIP_COST);
         if (atomicAdd(sm_subgroup_trips[gl_SubgroupID], 0u) >= frame.loop_budget) over_budget = true;
     }
     return !over_budget;

@@ -166,7 +166,8 @@ fn gpu_edge_surfaces_match_cpu_under_an_area_light() {
 /// against the CPU twin's (f64): the same edge pixels, the same samples
 /// on each pixel's surfaces but for rays within rounding of a silhouette
 /// or of the plane tolerance, and masks as close as the GPU G-buffer's
-/// without edges (`gpu_backend`).
+/// without edges (`gpu_backend`). On lavapipe hairball's frame passes the
+/// loop cap and is refused by name.
 #[test]
 fn gpu_cast_edge_surfaces_agree_with_the_cpus() {
     let Some(r) = renderer() else { return };
@@ -176,7 +177,7 @@ fn gpu_cast_edge_surfaces_agree_with_the_cpus() {
         edge_surfaces: true,
         ..Default::default()
     };
-    let mut compared = 0;
+    let (mut compared, mut refused) = (0, 0);
     for name in scene::procedural::NAMES {
         let scene = scene::load(name)
             .unwrap()
@@ -184,9 +185,20 @@ fn gpu_cast_edge_surfaces_agree_with_the_cpus() {
             .unwrap();
         let bvh = SceneBvh::build(&scene);
         let cpu = render_cpu(&scene, &bvh, settings);
-        let gpu = r
-            .render(&scene, settings, GBufferSource::Gpu)
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let gpu = match r.render(&scene, settings, GBufferSource::Gpu) {
+            Ok(gpu) => gpu,
+            // Hairball's 32 sample rays through its strands pass lavapipe's
+            // loop cap (an uncounted cut once kept the wrong surfaces,
+            // silently): refused by name, and only there.
+            Err(e @ GpuError::LoopCap { .. })
+                if r.context.info().is_cpu() && *name == "hairball" =>
+            {
+                println!("{name}: refused on this CPU device: {e}");
+                refused += 1;
+                continue;
+            }
+            Err(e) => panic!("{name}: {e}"),
+        };
         assert_no_validation_messages(&r, name);
         let (c, g) = (
             cpu.gbuffer.edges.as_ref().unwrap(),
@@ -223,29 +235,21 @@ fn gpu_cast_edge_surfaces_agree_with_the_cpus() {
             edge.len()
         );
         let rate = |d: u64, n: u64| d as f64 / n.max(1) as f64;
-        // Hairball (thin random strands, a dozen planes per pixel) is an
-        // open disagreement: the GPU keeps other surfaces than the CPU on
-        // 6 % of its edge pixels' samples, and a brute-force f64 trace
-        // sides with the CPU (paper-notes/edge-surfaces.md). Its bound
-        // here only holds it where it was measured.
-        let (sample_bound, mask_bound) = match *name {
-            "hairball" => (0.15, 5e-3),
-            _ => (1e-3, 1e-4),
-        };
         assert!(
-            rate(coverage_diff, samples) <= sample_bound,
+            rate(coverage_diff, samples) <= 1e-3,
             "{name}: centre coverage"
         );
         assert!(
-            rate(counted_diff, samples) <= sample_bound,
+            rate(counted_diff, samples) <= 1e-3,
             "{name}: counted samples"
         );
-        assert!(rate(diff, total) <= mask_bound, "{name}: masks");
+        assert!(rate(diff, total) <= 1e-4, "{name}: masks");
         let ratio = g.stats.edge_pixels as f64 / c.stats.edge_pixels.max(1) as f64;
         assert!((0.99..=1.01).contains(&ratio), "{name}: edge pixels");
         compared += 1;
     }
-    assert_eq!(compared, scene::procedural::NAMES.len());
+    assert_eq!(compared + refused, scene::procedural::NAMES.len());
+    assert!(refused <= 1, "{refused} scenes refused");
 }
 
 /// Settings that use edge surfaces with an uploaded G-buffer that has

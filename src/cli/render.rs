@@ -180,9 +180,10 @@ pub fn render_on_gpu(
         renderer.context.info().kind
     );
     // Edge surfaces: the CPU twin's G-buffer with its f64 sample rays goes
-    // up, the exact one (the GPU's edge_surfaces pass casts them in f32 and
-    // still disagrees on hairball, paper-notes/edge-surfaces.md); the
-    // passes after it run on the device.
+    // up, the one the same-sample reference checks (the GPU's
+    // edge_surfaces pass casts them in f32, and on lavapipe passes its loop
+    // cap on dense scenes, paper-notes/edge-surfaces.md); the passes after
+    // it run on the device.
     let cpu_gbuffer = settings.uses_edge_surfaces(scene).then(|| {
         eprintln!("gbuffer: cpu (edge surfaces' sample rays), uploaded");
         crate::gbuffer::gbuffer_with(scene, &SceneBvh::build(scene), true)
