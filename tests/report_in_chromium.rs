@@ -88,7 +88,7 @@ fn bench_smoke_run_and_report_render_in_chromium() {
         "--repeat",
         "1",
         "--methods",
-        "izb1,izb32,rt32,sm-256,pcf3-256,csm2-pcf3-128",
+        "izb1,izb32,izb32-flat,rt32,sm-256,pcf3-256,csm2-pcf3-128",
         "--flicker",
         "--flicker-frames",
         "3",
@@ -99,7 +99,7 @@ fn bench_smoke_run_and_report_render_in_chromium() {
     // type): a renamed field is a named error, not a chart of NaNs.
     let text = std::fs::read_to_string(&bench).unwrap();
     let typed = izb::bench::document::BenchDocument::read(&bench).unwrap();
-    assert_eq!(typed.results.len(), 6);
+    assert_eq!(typed.results.len(), 7);
     let renamed = dir.join("renamed.json");
     std::fs::write(
         &renamed,
@@ -121,7 +121,7 @@ fn bench_smoke_run_and_report_render_in_chromium() {
     );
     let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
     let results = doc["results"].as_array().unwrap();
-    assert_eq!(results.len(), 6, "one row per method");
+    assert_eq!(results.len(), 7, "one row per method");
     for r in results {
         assert!(r["shadow_seconds"].as_f64().unwrap() > 0.0, "{r}");
         assert!(r["metrics"]["pixels"].as_u64().unwrap() > 1000, "{r}");
@@ -134,7 +134,7 @@ fn bench_smoke_run_and_report_render_in_chromium() {
     assert_eq!(rt32["sample_mismatch_rate"].as_f64(), Some(0.0));
     assert!(doc["logical_cores"].as_u64().unwrap() >= 1);
     let flicker = doc["flicker"][0]["rows"].as_array().unwrap();
-    assert_eq!(flicker.len(), 7, "the truth and every method");
+    assert_eq!(flicker.len(), 8, "the truth and every method");
     assert!(flicker
         .iter()
         .all(|r| r["mean_abs_delta"].as_f64().unwrap().is_finite()));
@@ -151,6 +151,8 @@ fn bench_smoke_run_and_report_render_in_chromium() {
         "default-cpu-pareto.svg",
         "default-crop-0.png",
         "default-crop-3-error.png",
+        "default-edge-crop-0.png",
+        "default-edge-crop-2-error.png",
     ] {
         assert!(report.join(f).is_file(), "{f} missing");
     }
@@ -175,6 +177,10 @@ fn bench_smoke_run_and_report_render_in_chromium() {
     assert!(
         dom.contains("best shadow map: "),
         "crops of the best shadow map"
+    );
+    assert!(
+        dom.contains("Crops at edge pixels") && dom.contains("default-edge-crop-2.png"),
+        "crops of the edge pixels, izb32-flat among them"
     );
     assert!(dom.contains("Temporal stability"));
     // The check can fail: a deleted crop is reported.

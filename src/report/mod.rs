@@ -9,19 +9,17 @@
 //! all with the numbers. Nothing here is committed: the command makes it.
 
 mod chart;
+mod crops;
+
+pub use crops::{edge_window, penumbra_window, CROP_SIDE, CROP_ZOOM};
 
 use crate::bench::document::{BenchDocument, ResultRow};
-use crate::metrics::error_heat_map;
 use crate::metrics::Metrics;
-use crate::output::{read_exr_channel, write_atomically, write_png, UNTESTED_RGB};
+use crate::output::{read_exr_channel, write_atomically};
 use anyhow::{Context, Result};
 use chart::write_chart;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-/// Side of a crop window in image pixels, and its magnification.
-pub const CROP_SIDE: u32 = 64;
-pub const CROP_ZOOM: u32 = 4;
 
 /// One plotted method.
 #[derive(Clone, Debug)]
@@ -81,56 +79,6 @@ pub struct ReportFiles {
     pub verdicts: Vec<Verdict>,
     pub charts: Vec<PathBuf>,
     pub crops: Vec<PathBuf>,
-}
-
-/// The top-left corner of the `side`² window holding the most penumbra
-/// pixels of `truth` (0 < t < 1): a shadow edge.
-pub fn penumbra_window(truth: &[f32], width: u32, height: u32, side: u32) -> (u32, u32) {
-    let (w, h) = (width as usize, height as usize);
-    let s = (side as usize).min(w).min(h);
-    // Summed-area table of penumbra pixels.
-    let mut sat = vec![0u32; (w + 1) * (h + 1)];
-    for y in 0..h {
-        for x in 0..w {
-            let t = truth[y * w + x];
-            let p = (t > 0.0 && t < 1.0) as u32;
-            sat[(y + 1) * (w + 1) + x + 1] =
-                p + sat[y * (w + 1) + x + 1] + sat[(y + 1) * (w + 1) + x] - sat[y * (w + 1) + x];
-        }
-    }
-    let count = |x: usize, y: usize| {
-        sat[(y + s) * (w + 1) + x + s] + sat[y * (w + 1) + x]
-            - sat[y * (w + 1) + x + s]
-            - sat[(y + s) * (w + 1) + x]
-    };
-    let mut best = (0, 0, 0);
-    for y in (0..=h - s).step_by(4) {
-        for x in (0..=w - s).step_by(4) {
-            let c = count(x, y);
-            if c > best.2 {
-                best = (x, y, c);
-            }
-        }
-    }
-    (best.0 as u32, best.1 as u32)
-}
-
-/// A magnified crop of a lit-fraction image (grey; untested pixels blue).
-fn crop_visibility(v: &[f32], width: u32, (x0, y0): (u32, u32), side: u32) -> image::RgbImage {
-    image::RgbImage::from_fn(side * CROP_ZOOM, side * CROP_ZOOM, |x, y| {
-        let t = v[((y0 + y / CROP_ZOOM) * width + x0 + x / CROP_ZOOM) as usize];
-        if t.is_nan() {
-            image::Rgb(UNTESTED_RGB)
-        } else {
-            image::Rgb([(t.clamp(0.0, 1.0) * 255.0).round() as u8; 3])
-        }
-    })
-}
-
-fn crop_image(img: &image::RgbImage, (x0, y0): (u32, u32), side: u32) -> image::RgbImage {
-    image::RgbImage::from_fn(side * CROP_ZOOM, side * CROP_ZOOM, |x, y| {
-        *img.get_pixel(x0 + x / CROP_ZOOM, y0 + y / CROP_ZOOM)
-    })
 }
 
 fn html_escape(s: &str) -> String {
@@ -294,55 +242,43 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
         if let Some(volumes) = pick("volumes") {
             shown.insert(3, ("volumes".to_string(), Some(volumes)));
         }
-        let _ = writeln!(
-            html,
-            "<h3>Crops at the shadow edge ({side}×{side} pixels from ({}, {}), ×{CROP_ZOOM})</h3><div>",
+        let crops = crops::CropSet {
+            truth: &truth,
+            size: (w, h),
+            side,
+            base,
+            out,
+            stem: &stem,
+        };
+        let title = format!(
+            "Crops at the shadow edge ({side}×{side} pixels from ({}, {}), ×{CROP_ZOOM})",
             corner.0, corner.1
         );
-        let mut heat_row = String::new();
-        for (k, (label, row)) in shown.iter().enumerate() {
-            let visibility = match row {
-                None => truth.clone(),
-                Some(r) => {
-                    let rel = r.image.as_deref().unwrap_or_default();
-                    read_exr_channel(&base.join(rel), "visibility")?.2
-                }
-            };
-            if row.is_none() && k > 0 {
-                continue; // a method the bench did not run
-            }
-            let crop_name = format!("{stem}-crop-{k}.png");
-            let path = out.join(&crop_name);
-            write_png(&path, &crop_visibility(&visibility, w, corner, side))?;
-            files.crops.push(path);
-            let _ = writeln!(
-                html,
-                "<figure><img src=\"{crop_name}\" width=\"{0}\" height=\"{0}\" alt=\"{1}\" onerror=\"console.error('missing image: ' + this.src)\"><figcaption>{1}</figcaption></figure>",
-                side * CROP_ZOOM,
-                html_escape(label)
-            );
-            if row.is_none() {
-                // The truth has no error: a blank cell keeps the columns.
-                let _ = writeln!(
-                    heat_row,
-                    "<figure style=\"width:{}px\"></figure>",
-                    side * CROP_ZOOM
-                );
-            } else {
-                let heat = error_heat_map(&visibility, &truth, w, h, 0.5);
-                let heat_name = format!("{stem}-crop-{k}-error.png");
-                let path = out.join(&heat_name);
-                write_png(&path, &crop_image(&heat, corner, side))?;
-                files.crops.push(path);
-                let _ = writeln!(
-                    heat_row,
-                    "<figure><img src=\"{heat_name}\" width=\"{0}\" height=\"{0}\" alt=\"error of {1}\" onerror=\"console.error('missing image: ' + this.src)\"><figcaption>|error| of {1} (white = 0.5)</figcaption></figure>",
-                    side * CROP_ZOOM,
-                    html_escape(label)
-                );
+        crops.write_row(&mut html, &mut files.crops, &title, "crop", corner, &shown)?;
+        // Where a pixel's footprint covers several surfaces: the edge
+        // surfaces (izb32, izb32-paired) against every sample on the
+        // centre's µQuad (izb32-flat) and one sample.
+        let (_, _, smooth) = read_exr_channel(&base.join(truth_rel), "smooth")?;
+        let edge_corner = edge_window(&truth, &smooth, w, h, side);
+        let mut edge_shown = vec![("ground truth".to_string(), None)];
+        for name in ["izb32", "izb32-paired", "izb32-flat", "izb1"] {
+            if let Some(r) = pick(name) {
+                edge_shown.push((name.to_string(), Some(r)));
             }
         }
-        let _ = writeln!(html, "</div><div>{heat_row}</div>");
+        let title = format!(
+            "Crops at edge pixels: partly lit pixels that see several surfaces \
+             ({side}×{side} pixels from ({}, {}), ×{CROP_ZOOM})",
+            edge_corner.0, edge_corner.1
+        );
+        crops.write_row(
+            &mut html,
+            &mut files.crops,
+            &title,
+            "edge-crop",
+            edge_corner,
+            &edge_shown,
+        )?;
     }
     // Flicker.
     if let (false, Some(settings)) = (doc.flicker.is_empty(), doc.flicker_settings) {
@@ -379,25 +315,4 @@ pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
     files.index = index;
     files.verdicts = verdicts(results);
     Ok(files)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn penumbra_window_finds_the_edge() {
-        let (w, h) = (100u32, 80u32);
-        let truth: Vec<f32> = (0..w * h)
-            .map(|i| {
-                if (60..64).contains(&(i % w)) && i / w >= 40 {
-                    0.5
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        let (x, y) = penumbra_window(&truth, w, h, 16);
-        assert!((48..=60).contains(&x) && y >= 40, "window at ({x}, {y})");
-    }
 }
