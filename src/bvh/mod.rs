@@ -12,6 +12,10 @@
 //! most ~5 ε₃₂ R inside the scene, and the `f32` traversal can never cull a
 //! box that the `f64` test would hit.
 
+mod packet;
+
+pub use packet::PACKET_RAYS;
+
 use crate::scene::{Scene, Triangle};
 use glam::{DVec3, Vec3A};
 use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray, Boundable, BvhBuildParams};
@@ -88,7 +92,7 @@ impl SceneBvh {
     }
 
     /// Closest hit with `t` in `(t_min, t_max)`, ignoring triangle `skip`
-    /// (`u32::MAX` to skip none). Eye-relative origin.
+    /// ([`NO_SKIP`] to skip none). Eye-relative origin.
     pub fn closest_hit(
         &self,
         origin: DVec3,
@@ -178,20 +182,27 @@ fn padded_bounds(tri: &Triangle, pad: f64) -> PaddedBounds {
     ))
 }
 
+/// The id `closest_hit` skips to skip no triangle.
+pub const NO_SKIP: u32 = u32::MAX;
+
 fn f32_ray(origin: DVec3, direction: DVec3, t_max: f64) -> Ray {
     // Rounded to f32 for culling only; the padding of the bounds absorbs
     // the rounding (module docs).
-    let t_max = if t_max.is_finite() {
-        (t_max as f32).next_up()
-    } else {
-        f32::INFINITY
-    };
     Ray::new(
         Vec3A::from(origin.as_vec3()),
         Vec3A::from(direction.as_vec3()),
         0.0,
-        t_max,
+        f32_t_max(t_max),
     )
+}
+
+/// A ray's `f64` end as the `f32` traversal culls with it: rounded up.
+fn f32_t_max(t_max: f64) -> f32 {
+    if t_max.is_finite() {
+        (t_max as f32).next_up()
+    } else {
+        f32::INFINITY
+    }
 }
 
 /// Watertight ray/triangle intersection (Woop, Benthin, Wald, "Watertight

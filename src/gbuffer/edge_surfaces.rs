@@ -41,9 +41,7 @@
 //! the same-sample reference, which therefore test the same samples on
 //! the same surfaces.
 
-use super::{
-    faces_light, facing_normal, microquad_axes, GBuffer, PixelSurface, SurfaceHit, NO_HIT,
-};
+use super::{faces_light, facing_normal, microquad_axes, GBuffer, PixelSurface, SurfaceHit};
 use crate::bvh::SceneBvh;
 use crate::scene::{CameraFrame, Light, Scene};
 use glam::DVec3;
@@ -211,8 +209,9 @@ impl ProbedTriangle {
     }
 }
 
-/// The most triangles a pixel's sample rays test before the BVH.
-const MAX_PROBED: usize = 16;
+/// The most triangles a pixel's sample rays test before the BVH: the
+/// centre's and its eight neighbours'.
+const MAX_PROBED: usize = 9;
 
 /// The triangles tested before the BVH.
 struct Probed {
@@ -245,18 +244,9 @@ impl Probed {
     }
 }
 
-/// The primary hit of the ray through image point (`px`, `py`): the BVH's
-/// closest hit within [near, far], the query bounded by the nearest of the
-/// probed triangles' hits (every box behind it pruned). Returns the hit
-/// and whether no probed triangle bounded the query.
-fn sample_hit(
-    bvh: &SceneBvh,
-    frame: &CameraFrame,
-    (near, far): (f64, f64),
-    probed: &[ProbedTriangle],
-    (px, py): (f64, f64),
-) -> (Option<SurfaceHit>, bool) {
-    let d = frame.direction(px, py);
+/// The nearest hit of direction `d` among the probed triangles within
+/// (near, far), as (t, triangle).
+fn probed_hit(probed: &[ProbedTriangle], d: DVec3, (near, far): (f64, f64)) -> Option<(f64, u32)> {
     let mut best: Option<(f64, u32)> = None;
     for tri in probed {
         if let Some(t) = tri.hit(d) {
@@ -265,20 +255,43 @@ fn sample_hit(
             }
         }
     }
+    best
+}
+
+/// The primary hits of the rays through the image points `points`: the
+/// BVH's closest hits within [near, far], found by one packet walk
+/// ([`SceneBvh::closest_hits`]) whose rays are each bounded by the nearest
+/// probed triangle they meet (every box behind it pruned). Also returns
+/// the rays no probed triangle bounded.
+fn sample_hits(
+    bvh: &SceneBvh,
+    frame: &CameraFrame,
+    (near, far): (f64, f64),
+    probed: &[ProbedTriangle],
+    points: &[(f64, f64); 32],
+) -> ([Option<SurfaceHit>; 32], u32) {
+    let directions = points.map(|(px, py)| frame.direction(px, py));
+    let probed_hits = directions.map(|d| probed_hit(probed, d, (near, far)));
     // A nearer triangle that no probe saw (a slat in front of the ground)
     // is still found; the probed hit itself is the fallback the bound's
     // rounding could drop.
-    let bound = best.map_or(far, |(t, _)| (t * (1.0 + 1e-9)).min(far));
-    let traced = bvh
-        .closest_hit(DVec3::ZERO, d, near, bound, NO_HIT)
-        .map(|h| (h.t, h.triangle));
-    let hit = traced.or(best).map(|(t, triangle)| SurfaceHit {
-        triangle,
-        t,
-        position: d * t,
-        normal: facing_normal(bvh.triangle(triangle), d),
+    let bounds = probed_hits.map(|best| best.map_or(far, |(t, _)| (t * (1.0 + 1e-9)).min(far)));
+    let mut traced = [None; 32];
+    bvh.closest_hits(DVec3::ZERO, &directions, near, &bounds, &mut traced);
+    let unbounded = probed_hits.iter().filter(|b| b.is_none()).count() as u32;
+    let hits = std::array::from_fn(|i| {
+        let d = directions[i];
+        traced[i]
+            .map(|h| (h.t, h.triangle))
+            .or(probed_hits[i])
+            .map(|(t, triangle)| SurfaceHit {
+                triangle,
+                t,
+                position: d * t,
+                normal: facing_normal(bvh.triangle(triangle), d),
+            })
     });
-    (hit, best.is_none())
+    (hits, unbounded)
 }
 
 /// A group of sample hits on one plane.
@@ -306,9 +319,12 @@ pub fn sample_surfaces(
     let light = scene.light.relative_to(scene.camera.eye);
     let depth_range = (scene.camera.near, scene.camera.far);
     let centre_plane = Plane::of(&centre.hit, centre.axis_x, centre.axis_y);
-    // Then the triangles the BVH finds for earlier samples: later samples
-    // are likely to hit them too.
-    let mut probed = Probed::new(bvh, centre.hit.triangle, probes);
+    let probed = Probed::new(bvh, centre.hit.triangle, probes);
+    let points = std::array::from_fn(|i| {
+        let s = pattern[i];
+        (x as f64 + s[0] as f64, y as f64 + s[1] as f64)
+    });
+    let (hits, unbounded_rays) = sample_hits(bvh, frame, depth_range, probed.slice(), &points);
     let mut out = PixelSamples {
         centre_coverage: 0,
         counted: 0,
@@ -316,19 +332,15 @@ pub fn sample_surfaces(
         extra: Vec::new(),
         dropped: 0,
         missed: 0,
-        unbounded_rays: 0,
+        unbounded_rays,
     };
     let mut groups: Vec<PlaneGroup> = Vec::new();
-    for (i, s) in pattern.iter().enumerate() {
+    for (i, (hit, &(px, py))) in hits.iter().zip(&points).enumerate() {
         let bit = 1u32 << i;
-        let (px, py) = (x as f64 + s[0] as f64, y as f64 + s[1] as f64);
-        let (hit, unbounded) = sample_hit(bvh, frame, depth_range, probed.slice(), (px, py));
-        out.unbounded_rays += unbounded as u32;
-        let Some(hit) = hit else {
+        let Some(hit) = *hit else {
             out.missed |= bit;
             continue;
         };
-        probed.add(hit.triangle, bvh);
         if centre_plane.holds(hit.position) {
             out.centre_coverage |= bit;
             continue;
