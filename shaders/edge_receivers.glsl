@@ -5,19 +5,31 @@
 // A frame with edge surfaces keeps them as more rows of the G-buffer:
 // entry width × height + k is extra surface k, whose pixel's samples it
 // covers are B_EDGE_COVERAGE[k]; a pixel's own entry covers the samples
-// on its centre's surface (B_EDGE_PIXELS[i].x). Include after declaring
+// on its centre's surface (its record's x, edge_pixel_record). Include after declaring
 // `FrameParams frame`; receiver_grid_box comes with light_view.glsl
 // included first.
 
-layout(scalar, binding = B_EDGE_PIXELS) readonly buffer EdgePixelBuf { uvec4 edge_pixels[]; };
+layout(scalar, binding = B_EDGE_PIXELS) readonly buffer EdgePixelBuf { uint edge_pixel_words[]; };
 layout(scalar, binding = B_EDGE_COVERAGE) readonly buffer EdgeCoverageBuf { uint edge_coverage[]; };
+
+// Pixel i's record (centre coverage, counted, facing away, first extra
+// surface | count << EDGE_COUNT_SHIFT): only edge pixels keep one, behind
+// a per-pixel word (B_EDGE_PIXELS); the rest see all their samples on
+// their centre's surface.
+uvec4 edge_pixel_record(uint i) {
+    uint r = edge_pixel_words[i];
+    if (r == 0u) return uvec4(FULL_MASK, FULL_MASK, 0u, 0u);
+    uint at = frame.width * frame.height + 4u * (r - 1u);
+    return uvec4(edge_pixel_words[at], edge_pixel_words[at + 1u],
+                 edge_pixel_words[at + 2u], edge_pixel_words[at + 3u]);
+}
 
 // The samples receiver i must test (evaluate's `wanted`): its coverage in
 // a frame with edge surfaces, every sample otherwise.
 uint receiver_wanted(uint i) {
     if (frame.edge_surfaces == 0u) return FULL_MASK;
     uint pixels = frame.width * frame.height;
-    return i < pixels ? edge_pixels[i].x : edge_coverage[i - pixels];
+    return i < pixels ? edge_pixel_record(i).x : edge_coverage[i - pixels];
 }
 
 #ifdef LIGHT_VIEW_GLSL

@@ -40,7 +40,8 @@ layout(scalar, binding = B_G_AXIS_Y) buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
-layout(scalar, binding = B_EDGE_PIXELS) writeonly buffer EdgePixelBuf { uvec4 edge_pixels[]; };
+// Per pixel 0 or 1 + its record's index, then the records (edge_receivers.glsl).
+layout(scalar, binding = B_EDGE_PIXELS) writeonly buffer EdgePixelBuf { uint edge_pixel_words[]; };
 layout(scalar, binding = B_EDGE_COVERAGE) writeonly buffer EdgeCoverageBuf { uint edge_coverage[]; };
 #define LOOP_BUDGET_SLOTS WORKGROUP_PIXELS
 #define LOOP_TRIP_COST 2u
@@ -86,16 +87,14 @@ vec3 ray_direction(vec2 image_point) {
     return frame.cam_corner + image_point.x * frame.cam_dx + image_point.y * frame.cam_dy;
 }
 
-// The pixel's record when all its samples stand on the centre's surface.
-const uvec4 SMOOTH = uvec4(FULL_MASK, FULL_MASK, 0u, 0u);
-
 void main() {
     loop_budget_reset();
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (pixel.x >= frame.width || pixel.y >= frame.height) return;
     uint i = pixel.y * frame.width + pixel.x;
     uint word = g_id_flags[i];
-    edge_pixels[i] = SMOOTH;
+    // No record: all samples on the centre's surface.
+    edge_pixel_words[i] = 0u;
     if ((gbuffer_flags(word) & FLAG_SHADOW_TESTED) == 0u) return;
 
     // 1. Edge candidate: a neighbour's centre hit off the centre's plane.
@@ -251,9 +250,19 @@ void main() {
         g_id_flags[base + k] = e_word[k];
         edge_coverage[first + k] = e_coverage[k];
     }
-    edge_pixels[i] = uvec4(centre_coverage, counted, facing_away,
-                           first | (extra << EDGE_COUNT_SHIFT));
-    count_add(C_EDGE_PIXELS, centre_coverage != FULL_MASK ? 1u : 0u);
+    // An edge pixel's record, in a slot of its own (the same capacity;
+    // past it the host reruns).
+    if (centre_coverage != FULL_MASK) {
+        uint r = atomicAdd(counters[C_EDGE_PIXELS], 1u);
+        if (r < frame.edge_capacity) {
+            uint at = frame.width * frame.height + 4u * r;
+            edge_pixel_words[at] = centre_coverage;
+            edge_pixel_words[at + 1u] = counted;
+            edge_pixel_words[at + 2u] = facing_away;
+            edge_pixel_words[at + 3u] = first | (extra << EDGE_COUNT_SHIFT);
+            edge_pixel_words[i] = r + 1u;
+        }
+    }
     count_add(C_EDGE_FACING_AWAY_SAMPLES, uint(bitCount(facing_away)));
     count_add(C_EDGE_DROPPED_SAMPLES, uint(bitCount(dropped)));
     count_add(C_EDGE_MISSED_SAMPLES, uint(bitCount(missed)));

@@ -52,7 +52,7 @@ void main() {
     if (frame.edge_surfaces != 0u) {
         // Over the samples that count (resolve_halves): the host divides
         // alpha by their number.
-        uvec4 e = edge_pixels[i];
+        uvec4 e = edge_pixel_record(i);
         uint mask = combined_mask(i, e);
         masks[i] = mask;
         samples = uint(bitCount(e.y));

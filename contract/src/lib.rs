@@ -60,10 +60,13 @@ shared_constants! {
         /// Bits 32–63 of a `MODE_PAIRED64` frame's masks under an area
         /// light (evaluate's second half writes them); 4 bytes otherwise.
         MASKS_HIGH = 21;
-        /// Edge surfaces, per pixel (`uvec4`): the samples on the centre's
-        /// surface, the samples that count, the samples on a surface facing
-        /// away, and its extra surfaces (first entry, count above
-        /// `EDGE_COUNT_SHIFT`); 4 bytes in a frame without them.
+        /// Edge surfaces, per pixel a word: 0 when all its samples stand
+        /// on its centre's surface, else 1 + the index r of its record;
+        /// then the edge pixels' records (`uvec4` at word `pixels + 4r`):
+        /// the samples on the centre's surface, the samples that count,
+        /// the samples on a surface facing away, and its extra surfaces
+        /// (first entry, count above `EDGE_COUNT_SHIFT`). 4 bytes in a
+        /// frame without them.
         EDGE_PIXELS = 22;
         /// Edge surfaces, per extra surface: the samples of its pixel it
         /// covers. Its receiver is G-buffer entry `width × height + k` (the
@@ -240,7 +243,7 @@ shared_constants! {
         /// Cells per block of the bin's prefix sum (a workgroup each; the
         /// block sums follow `cell_start`'s cells and total).
         SCAN_BLOCK_CELLS = 4096;
-        /// `B_EDGE_PIXELS`' fourth word: the first extra surface below
+        /// An edge pixel record's fourth word: the first extra surface below
         /// this bit, their count (0..=3) above it.
         EDGE_COUNT_SHIFT = 30;
         /// Surfaces an edge pixel keeps, the centre's included

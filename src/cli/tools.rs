@@ -93,6 +93,8 @@ pub fn run_lut(args: LutArgs) -> Result<()> {
     Ok(())
 }
 
+use crate::gpu::frame::EdgeSlots;
+
 pub fn run_info(args: InfoArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
     let (lo, hi) = scene.bounds();
@@ -102,7 +104,16 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
         let extra = args.edge_surfaces.then(|| {
             let bvh = crate::bvh::SceneBvh::build(&scene);
             let g = crate::gbuffer::gbuffer_with(&scene, &bvh, true);
-            g.edges.map_or(0, |e| e.pixel.len() as u64)
+            g.edges.map_or(
+                EdgeSlots {
+                    surfaces: 0,
+                    pixels: 0,
+                },
+                |e| EdgeSlots {
+                    surfaces: e.pixel.len() as u64,
+                    pixels: e.stats.edge_pixels as u64,
+                },
+            )
         });
         let plan = crate::gpu::frame::planned_memory(&scene, IzbSettings::default(), extra)?;
         let total: u64 = plan.iter().map(|m| m.bytes).sum();
@@ -113,7 +124,8 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
             "total_mib": total as f64 / (1024.0 * 1024.0),
             "budget_bytes_64_per_pixel_plus_64_per_triangle": 64 * (p + t),
             "bytes_per_pixel_plus_triangle": total as f64 / (p + t).max(1) as f64,
-            "edge_surfaces": extra,
+            "edge_surfaces": extra.map(|e| e.surfaces),
+            "edge_pixels": extra.map(|e| e.pixels),
         });
     }
     println!("{}", serde_json::to_string_pretty(&summary)?);

@@ -9,8 +9,10 @@
 //! surface's neighbours in its row are the next edge pixels' surfaces,
 //! near it on screen, so a tile's elected cells stay shared. Two tables
 //! carry what only the edges have (`shaders/edge_receivers.glsl`):
-//! `B_EDGE_PIXELS`, per pixel the samples on its centre's surface, the
-//! samples that count, those facing away and its extra surfaces; and
+//! `B_EDGE_PIXELS`, a word per pixel (0, or 1 + the index of its record)
+//! and per edge pixel a record of the samples on its centre's surface,
+//! the samples that count, those facing away and its extra surfaces
+//! (sparse: courtyard's 224 k edge pixels of 2 M at 1080p); and
 //! `B_EDGE_COVERAGE`, per extra surface the samples it covers. Evaluate
 //! stops a receiver when its own samples are full (`evaluate_wanted`),
 //! and under a point-like light bins and evaluates a partial one over the
@@ -25,6 +27,7 @@
 //! tests' exact input, [`FrameEdges::Uploaded`]).
 
 use super::frame_inputs::SceneUpload;
+use super::frame_memory::EdgeSlots;
 use super::frame_report::FramePasses;
 use super::shared::{self, ID_MASK};
 use super::GpuError;
@@ -32,16 +35,19 @@ use crate::gbuffer::edge_surfaces::{EdgeSurfaces, MAX_SURFACES};
 use crate::gbuffer::GBuffer;
 use glam::Vec3;
 
-/// `B_EDGE_PIXELS`' fourth word: first extra surface below this bit,
-/// count above it.
+/// An edge pixel record's fourth word: first extra surface below this
+/// bit, count above it.
 const COUNT_SHIFT: u32 = izb_contract::size::EDGE_COUNT_SHIFT;
 const _: () = assert!(MAX_SURFACES - 1 < 1 << (32 - COUNT_SHIFT));
 
 /// What a frame uploads for its edge surfaces.
 pub(super) struct EdgeUpload {
-    /// `B_EDGE_PIXELS`: per pixel (centre coverage, counted, facing away,
-    /// first extra surface | count << `EDGE_COUNT_SHIFT`).
-    pub(super) pixels: Vec<[u32; 4]>,
+    /// `B_EDGE_PIXELS`: per pixel 0 or 1 + its record's index, then the
+    /// edge pixels' records (centre coverage, counted, facing away, first
+    /// extra surface | count << `EDGE_COUNT_SHIFT`).
+    pub(super) pixel_words: Vec<u32>,
+    /// Records (edge pixels).
+    pub(super) records: u64,
     /// `B_EDGE_COVERAGE`.
     pub(super) coverage: Vec<u32>,
     /// The G-buffer entries: the pixels', then the extra surfaces' rows.
@@ -101,8 +107,10 @@ impl EdgeUpload {
         let mut id_flags = upload.gbuffer_words(g)?;
         id_flags.extend(upload.gbuffer_words(s)?);
         id_flags.extend(std::iter::repeat_n(ID_MASK, padding));
+        let (pixel_words, records) = sparse_records(&pixels);
         Ok(EdgeUpload {
-            pixels,
+            pixel_words,
+            records,
             coverage: edges.coverage.clone(),
             position: entries(&g.position, &s.position),
             axis_x: entries(&g.axis_x, &s.axis_x),
@@ -111,10 +119,55 @@ impl EdgeUpload {
         })
     }
 
-    /// Extra surfaces.
-    pub(super) fn surfaces(&self) -> u64 {
-        self.coverage.len() as u64
+    /// Its slots: as many as it has extra surfaces and edge pixels.
+    pub(super) fn slots(&self) -> EdgeSlots {
+        EdgeSlots {
+            surfaces: self.coverage.len() as u64,
+            pixels: self.records,
+        }
     }
+}
+
+/// A pixel all of whose samples stand on its centre's surface.
+const SMOOTH: [u32; 4] = [u32::MAX, u32::MAX, 0, 0];
+
+/// `B_EDGE_PIXELS` of per-pixel records: a word per pixel (0 for a smooth
+/// pixel, else 1 + its record's index), then the edge pixels' records in
+/// pixel order; and their number.
+fn sparse_records(pixels: &[[u32; 4]]) -> (Vec<u32>, u64) {
+    let mut words = vec![0u32; pixels.len()];
+    let mut records = Vec::new();
+    for (i, r) in pixels.iter().enumerate() {
+        if r[0] != SMOOTH[0] {
+            records.extend_from_slice(r);
+            words[i] = (records.len() / 4) as u32;
+        }
+    }
+    let n = records.len() as u64 / 4;
+    words.extend(records);
+    (words, n)
+}
+
+/// The per-pixel records of `B_EDGE_PIXELS` (`words`, at least a word per
+/// pixel and the `records` after them): [`sparse_records`] undone.
+fn dense_records(words: &[u32], pixels: usize, records: usize) -> Vec<[u32; 4]> {
+    let table = &words[pixels..pixels + 4 * records];
+    words[..pixels]
+        .iter()
+        .map(|&w| match w as usize {
+            0 => SMOOTH,
+            r if r <= records => table[4 * (r - 1)..4 * r].try_into().unwrap(),
+            // Past the slots (the frame is rerun with room): not read.
+            _ => SMOOTH,
+        })
+        .collect()
+}
+
+/// The slots a traced frame asked for: extra surfaces and edge pixels'
+/// records (both in `edge_capacity` slots).
+pub(super) fn slots_needed(counters: &[u32]) -> u64 {
+    use shared::counter;
+    u64::from(counters[counter::EDGE_SURFACES].max(counters[counter::EDGE_PIXELS]))
 }
 
 /// The lit fraction of an edge-surface frame's pixel from its shaded
@@ -166,19 +219,22 @@ impl FrameEdges {
         })
     }
 
-    /// G-buffer slots of extra surfaces, if the frame has them.
-    pub(super) fn slots(&self) -> Option<u64> {
+    /// Slots of extra surfaces and edge pixels, if the frame has them.
+    pub(super) fn slots(&self) -> Option<EdgeSlots> {
         match self {
             FrameEdges::None => None,
-            FrameEdges::Uploaded(e) => Some(e.surfaces()),
-            FrameEdges::Traced { capacity } => Some(*capacity),
+            FrameEdges::Uploaded(e) => Some(e.slots()),
+            FrameEdges::Traced { capacity } => Some(EdgeSlots {
+                surfaces: *capacity,
+                pixels: *capacity,
+            }),
         }
     }
 
     /// Rows of extra surfaces below a `width`-wide image.
     pub(super) fn rows(&self, width: u32) -> u32 {
         self.slots()
-            .map_or(0, |n| n.div_ceil(u64::from(width.max(1))) as u32)
+            .map_or(0, |n| n.surfaces.div_ceil(u64::from(width.max(1))) as u32)
     }
 
     pub(super) fn traced(&self) -> bool {
@@ -198,8 +254,11 @@ impl FrameEdges {
             return Ok((0, None));
         };
         let found = u64::from(counters[shared::counter::EDGE_SURFACES]).min(*capacity) as usize;
-        let records =
-            bytemuck::pod_collect_to_vec(&read(shared::binding::EDGE_PIXELS)?[..pixels * 16]);
+        let records = u64::from(counters[shared::counter::EDGE_PIXELS]).min(*capacity) as usize;
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(
+            &read(shared::binding::EDGE_PIXELS)?[..(pixels + 4 * records) * 4],
+        );
+        let records = dense_records(&words, pixels, records);
         let coverage =
             bytemuck::pod_collect_to_vec(&read(shared::binding::EDGE_COVERAGE)?[..found * 4]);
         Ok((found, Some((records, coverage))))
@@ -248,5 +307,25 @@ impl TracedEdges {
         }
         e.surfaces = self.surfaces.select(&order);
         e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Only edge pixels keep a record, behind their pixel's word, and the
+    /// read-back undoes it; a word past the records read back is smooth.
+    #[test]
+    fn sparse_edge_records_round_trip() {
+        let edge = [0x0f0f_0f0f, 0xffff_0fff, 0x0000_0f00, 7 | 2 << COUNT_SHIFT];
+        let pixels = vec![SMOOTH, edge, SMOOTH, [1, 3, 2, 9], SMOOTH];
+        let (words, records) = sparse_records(&pixels);
+        assert_eq!(records, 2);
+        assert_eq!(words.len(), 5 + 8);
+        assert_eq!(&words[..5], &[0, 1, 0, 2, 0]);
+        assert_eq!(dense_records(&words, 5, 2), pixels);
+        // A traced frame whose second record fell past its slots.
+        assert_eq!(dense_records(&words, 5, 1)[3], SMOOTH);
     }
 }

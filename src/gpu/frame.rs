@@ -11,7 +11,7 @@ pub use super::frame_inputs::LLVMPIPE_LOOP_CAP;
 use super::frame_inputs::{
     check_workgroups, frame_params, grid_budget_side, heavy_entries, loop_budget, SceneUpload,
 };
-pub use super::frame_memory::{frame_buffer_descs, planned_memory, FrameSizes};
+pub use super::frame_memory::{frame_buffer_descs, planned_memory, EdgeSlots, FrameSizes};
 use super::frame_memory::{
     initial_cell_capacity, initial_edge_capacity, memory_by_pass, reset_pass_state,
 };
@@ -202,7 +202,7 @@ impl GpuRenderer {
             )?;
             let needed = u64::from(out.counters[counter::CELL_ENTRIES]);
             let cells_over = out.counters[counter::CAPACITY_EXCEEDED] != 0;
-            let edges_needed = u64::from(out.counters[counter::EDGE_SURFACES]);
+            let edges_needed = super::edge_surfaces::slots_needed(&out.counters);
             let edges_over = edges_needed > edge_capacity;
             if (cells_over || edges_over) && frames_run == 1 {
                 capacity = if cells_over { needed } else { capacity };
@@ -314,7 +314,7 @@ impl GpuRenderer {
         if let Some(slots) = edges.slots() {
             params.receiver_rows = receiver_rows;
             params.edge_surfaces = 1;
-            params.edge_capacity = slots as u32;
+            params.edge_capacity = slots.surfaces.max(slots.pixels) as u32;
             // LightSetup::receiver_boxes' `covered_only`.
             params.covered_boxes = u32::from(!settings.light_samples(scene));
             params.heavy_capacity = super::frame_memory::heavy_capacity(receivers) as u32;
@@ -359,7 +359,7 @@ impl GpuRenderer {
             stage(binding::G_AXIS_X, as_bytes(&e.axis_x))?;
             stage(binding::G_AXIS_Y, as_bytes(&e.axis_y))?;
             stage(binding::G_ID_FLAGS, as_bytes(&e.id_flags))?;
-            stage(binding::EDGE_PIXELS, as_bytes(&e.pixels))?;
+            stage(binding::EDGE_PIXELS, as_bytes(&e.pixel_words))?;
             stage(binding::EDGE_COVERAGE, as_bytes(&e.coverage))?;
         } else if let GBufferSource::Upload(g) = source {
             let words = upload.gbuffer_words(g)?;

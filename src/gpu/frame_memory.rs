@@ -16,9 +16,9 @@ pub struct FrameSizes {
     /// G-buffer entries: the pixels, then with edge surfaces their rows
     /// of extra surfaces ([`receivers`]).
     pub receivers: u64,
-    /// Extra surfaces of the edge pixels when the frame has edge
-    /// surfaces (then `B_EDGE_PIXELS` holds a record per pixel).
-    pub edge_surfaces: Option<u64>,
+    /// Slots for the edge pixels' extra surfaces and records when the
+    /// frame has edge surfaces.
+    pub edge_surfaces: Option<EdgeSlots>,
     pub triangles: u64,
     pub bvh_nodes: u64,
     pub bvh_prims: u64,
@@ -32,6 +32,15 @@ pub struct FrameSizes {
     pub mask_halves: u64,
 }
 
+/// A frame's room for edge surfaces: extra surfaces (G-buffer rows and
+/// `B_EDGE_COVERAGE`) and edge pixels' records (`B_EDGE_PIXELS`, after a
+/// word per pixel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EdgeSlots {
+    pub surfaces: u64,
+    pub pixels: u64,
+}
+
 /// Bindings of the frame's descriptor set.
 const BINDINGS: usize = BINDING_COUNT as usize;
 
@@ -39,7 +48,10 @@ const BINDINGS: usize = BINDING_COUNT as usize;
 /// (`shared::binding`), each with the pass it counts toward and its size.
 pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
     let (p, r, t, vec3) = (z.pixels, z.receivers, z.triangles, 12u64);
-    let (edge_pixels, edge_surfaces) = z.edge_surfaces.map_or((0, 0), |e| (p, e));
+    // A word per pixel, then 4 per edge pixel's record.
+    let (edge_pixel_words, edge_surfaces) = z
+        .edge_surfaces
+        .map_or((0, 0), |e| (p + 4 * e.pixels, e.surfaces));
     let d = BufferDesc::device;
     by_binding([
         (
@@ -112,7 +124,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         ),
         (
             binding::EDGE_PIXELS,
-            d("gbuffer", "edge_pixels", edge_pixels * 16),
+            d("gbuffer", "edge_pixels", edge_pixel_words * 4),
         ),
         (
             binding::EDGE_COVERAGE,
@@ -137,18 +149,18 @@ fn by_binding(keyed: [(u32, BufferDesc); BINDINGS]) -> [BufferDesc; BINDINGS] {
 /// The device memory a GPU frame of `scene` allocates before it runs (the
 /// cell list at its first guess), per pass, without a device: for budgets
 /// on machines that cannot run the frame; with `edge_surfaces` extra
-/// surfaces, their G-buffer rows and tables too.
+/// surfaces and edge pixels, their G-buffer rows and tables too.
 pub fn planned_memory(
     scene: &Scene,
     settings: IzbSettings,
-    edge_surfaces: Option<u64>,
+    edge_surfaces: Option<EdgeSlots>,
 ) -> Result<Vec<PassMemory>, GpuError> {
     let triangles = SceneUpload::new(scene).triangles;
     let bvh = super::gbuffer::build_bvh(&triangles)?;
     let side = grid_budget_side(scene.pixel_count(), triangles.len(), settings.cells);
     let descs = frame_buffer_descs(&FrameSizes {
         pixels: scene.pixel_count() as u64,
-        receivers: receivers(scene.resolution, edge_surfaces.unwrap_or(0)),
+        receivers: receivers(scene.resolution, edge_surfaces.map_or(0, |e| e.surfaces)),
         edge_surfaces,
         triangles: triangles.len() as u64,
         bvh_nodes: bvh.nodes.len() as u64,
