@@ -162,6 +162,26 @@ pub fn neighbour_probes(
     (probes, n)
 }
 
+/// Whether every neighbour of pixel (`x`, `y`) inside the `w × h` image
+/// hits `triangle` (`triangle_at`: a pixel's centre triangle, `None` for
+/// a miss): then every probe lies on the centre's plane (to rounding,
+/// ~10⁻¹⁶ of the distance against the 10⁻³-of-a-µQuad tolerance) and the
+/// pixel is no candidate, decided on ids alone — most pixels of an image
+/// are, and copying their eight probes cost more than their sample rays.
+pub fn neighbours_on_triangle(
+    x: u32,
+    y: u32,
+    [w, h]: [u32; 2],
+    triangle: u32,
+    triangle_at: impl Fn(u32, u32) -> Option<u32>,
+) -> bool {
+    NEIGHBOURS.iter().all(|&(dx, dy)| {
+        let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+        let inside = nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64;
+        !inside || triangle_at(nx as u32, ny as u32) == Some(triangle)
+    })
+}
+
 /// The eight neighbours' offsets.
 const NEIGHBOURS: [(i64, i64); 8] = [
     (-1, -1),

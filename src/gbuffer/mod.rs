@@ -313,6 +313,10 @@ fn edge_surfaces_of(
         .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
         .filter_map(|(x, y)| {
             let centre = rows[y as usize][x as usize].filter(|c| c.shadow_tested)?;
+            let at = |nx: u32, ny: u32| rows[ny as usize][nx as usize].map(|s| s.hit.triangle);
+            if edge_surfaces::neighbours_on_triangle(x, y, [w, h], centre.hit.triangle, at) {
+                return None;
+            }
             let (probes, n) = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
                 rows[ny as usize][nx as usize].map(|s| s.hit)
             });
