@@ -92,15 +92,26 @@ impl IzbSettings {
     /// place: measured with surfaces weighted by coverage, the light seen
     /// from a surface's re-centred P, off the part of the plane the pixel
     /// shows, darkened the deckchair's slats (edge MAE 0.044 against 0.026
-    /// without). `Paired64`'s second half samples another µQuad pattern,
-    /// whose coverage is not traced yet.
+    /// without). `Paired64`'s second half has its own µQuad pattern and
+    /// its own edge surfaces ([`Self::edge_halves`]).
     pub fn uses_edge_surfaces(&self, scene: &crate::scene::Scene) -> bool {
         let mode_ok = if self.light_samples(scene) {
-            self.mode == SampleMode::Paired32
+            self.mode.is_paired()
         } else {
             self.mode != SampleMode::One
         };
         self.edge_surfaces && mode_ok
+    }
+
+    /// The mask halves whose samples a render of `scene` places on their
+    /// own surfaces at edge pixels: each half's µQuad pattern is traced
+    /// apart (0 without edge surfaces).
+    pub fn edge_halves(&self, scene: &crate::scene::Scene) -> usize {
+        if self.uses_edge_surfaces(scene) {
+            self.mask_halves(scene)
+        } else {
+            0
+        }
     }
 
     /// The 32-bit mask halves per pixel a render of `scene` forms: 2 for

@@ -204,33 +204,41 @@ fn paired_rays_with_edge_surfaces_under_an_area_light() {
             ReferenceSettings::from_spp(64, 1).unwrap(),
             &|_| {},
         );
-        let paired = render_cpu(&scene, &bvh, edge_settings(SampleMode::Paired32));
-        assert!(paired.gbuffer.edges.is_some(), "{name}: no edge surfaces");
-        let flat = render_cpu(
-            &scene,
-            &bvh,
-            IzbSettings {
-                mode: SampleMode::Paired32,
-                ..Default::default()
-            },
-        );
         let one = render_cpu(&scene, &bvh, edge_settings(SampleMode::One));
         let all = |_: usize| true;
         let edge = |i: usize| truth.smooth[i] == 0.0;
-        let (m, _) = mae(&paired.visibility, &truth.visibility, all);
-        let (mflat, _) = mae(&flat.visibility, &truth.visibility, all);
-        let (e, n) = mae(&paired.visibility, &truth.visibility, edge);
         let (e1, _) = mae(&one.visibility, &truth.visibility, edge);
-        println!(
-            "{name}~{size}: MAE paired {mflat:.5} -> with edge surfaces {m:.5}; {n} edge \
-             pixels {e:.4} against 1 spp {e1:.4}"
-        );
-        assert!(m < mflat, "{name}: {m:.5} not below {mflat:.5}");
-        assert!(
-            e <= 0.5 * e1,
-            "{name}: edge MAE {e:.4} above half of 1 spp's {e1:.4}"
-        );
-        checked += 1;
+        // Paired64's second half has its own µQuad pattern and surfaces.
+        for mode in [SampleMode::Paired32, SampleMode::Paired64] {
+            let paired = render_cpu(&scene, &bvh, edge_settings(mode));
+            assert!(paired.gbuffer.edges.is_some(), "{name}: no edge surfaces");
+            assert_eq!(
+                paired.gbuffer.edges_high.is_some(),
+                mode == SampleMode::Paired64,
+                "{name} {mode:?}: the second half's surfaces"
+            );
+            let flat = render_cpu(
+                &scene,
+                &bvh,
+                IzbSettings {
+                    mode,
+                    ..Default::default()
+                },
+            );
+            let (m, _) = mae(&paired.visibility, &truth.visibility, all);
+            let (mflat, _) = mae(&flat.visibility, &truth.visibility, all);
+            let (e, n) = mae(&paired.visibility, &truth.visibility, edge);
+            println!(
+                "{name}~{size} {mode:?}: MAE {mflat:.5} -> with edge surfaces {m:.5}; {n} edge \
+                 pixels {e:.4} against 1 spp {e1:.4}"
+            );
+            assert!(m < mflat, "{name} {mode:?}: {m:.5} not below {mflat:.5}");
+            assert!(
+                e <= 0.5 * e1,
+                "{name} {mode:?}: edge MAE {e:.4} above half of 1 spp's {e1:.4}"
+            );
+            checked += 1;
+        }
     }
-    assert_eq!(checked, 2);
+    assert_eq!(checked, 4);
 }

@@ -284,4 +284,22 @@ fn edge_surfaces_without_their_gbuffer_are_refused() {
         .err()
         .expect("refused");
     assert!(e.to_string().contains("edge surfaces"), "{e}");
+    // Paired64's second half has edge surfaces of its own, formed on the
+    // CPU only so far: refused by name from either source, never run
+    // with half 0's surfaces alone.
+    let area = scene.with_light_size(1.0).unwrap();
+    let paired64 = IzbSettings {
+        mode: SampleMode::Paired64,
+        edge_surfaces: true,
+        ..Default::default()
+    };
+    let cpu64 = render_cpu(&area, &SceneBvh::build(&area), paired64);
+    assert!(
+        cpu64.gbuffer.edges_high.is_some(),
+        "no second-half surfaces"
+    );
+    for source in [GBufferSource::Upload(&cpu64.gbuffer), GBufferSource::Gpu] {
+        let e = r.render(&area, paired64, source).err().expect("refused");
+        assert!(e.to_string().contains("Paired64"), "{e}");
+    }
 }

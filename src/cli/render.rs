@@ -186,7 +186,7 @@ pub fn render_on_gpu(
     // it run on the device.
     let cpu_gbuffer = settings.uses_edge_surfaces(scene).then(|| {
         eprintln!("gbuffer: cpu (edge surfaces' sample rays), uploaded");
-        crate::gbuffer::gbuffer_with(scene, &SceneBvh::build(scene), true)
+        crate::gbuffer::gbuffer_with(scene, &SceneBvh::build(scene), settings.edge_halves(scene))
     });
     let source = cpu_gbuffer
         .as_ref()

@@ -103,7 +103,7 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
     if args.gpu_memory {
         let extra = args.edge_surfaces.then(|| {
             let bvh = crate::bvh::SceneBvh::build(&scene);
-            let g = crate::gbuffer::gbuffer_with(&scene, &bvh, true);
+            let g = crate::gbuffer::gbuffer_with(&scene, &bvh, 1);
             g.edges.map_or(
                 EdgeSlots {
                     surfaces: 0,

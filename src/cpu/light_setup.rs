@@ -303,10 +303,24 @@ impl LightSetup {
         skips: super::Skips,
         covered_only: bool,
     ) -> MicroquadBoxes {
+        // Covered boxes are those of half 0's samples, the only half under
+        // a point-like light.
         let edges = g.edges.as_deref().filter(|_| covered_only);
-        self.boxes_of(g, skips, edges.map(|e| &e.centre_coverage[..]), |layer| {
-            Some(self.boxes_of(layer, skips, edges.map(|e| &e.coverage[..]), |_| None))
-        })
+        let layer = |e: &crate::gbuffer::edge_surfaces::EdgeSurfaces, coverage| {
+            Box::new(MicroquadBoxes {
+                ndc: self.boxes_of(&e.surfaces, skips, coverage),
+                edges: None,
+                edges_high: None,
+            })
+        };
+        MicroquadBoxes {
+            ndc: self.boxes_of(g, skips, edges.map(|e| &e.centre_coverage[..])),
+            edges: g
+                .edges
+                .as_deref()
+                .map(|e| layer(e, edges.map(|e| &e.coverage[..]))),
+            edges_high: g.edges_high.as_deref().map(|e| layer(e, None)),
+        }
     }
 
     fn boxes_of(
@@ -314,8 +328,7 @@ impl LightSetup {
         g: &GBuffer,
         skips: super::Skips,
         coverage: Option<&[u32]>,
-        edge_layer: impl Fn(&GBuffer) -> Option<MicroquadBoxes>,
-    ) -> MicroquadBoxes {
+    ) -> Vec<(Vec2, Vec2)> {
         let pattern = crate::lut::sample_pattern();
         let boxes: Vec<(Vec2, Vec2)> = (0..g.flags.len())
             .into_par_iter()
@@ -341,14 +354,7 @@ impl LightSetup {
                 }
             })
             .collect();
-        MicroquadBoxes {
-            ndc: boxes,
-            edges: g
-                .edges
-                .as_ref()
-                .and_then(|e| edge_layer(&e.surfaces))
-                .map(Box::new),
-        }
+        boxes
     }
 
     /// Where the light is, seen from the eye-relative point `p`, in eye
@@ -383,14 +389,18 @@ impl LightSetup {
 /// four corners are projected once per frame, not once per pass.
 pub struct MicroquadBoxes {
     pub ndc: Vec<(Vec2, Vec2)>,
-    /// The boxes of the G-buffer's edge surfaces ([`GBuffer::edges`]).
+    /// The boxes of the G-buffer's edge surfaces ([`GBuffer::edges`],
+    /// [`GBuffer::edges_high`]).
     pub edges: Option<Box<MicroquadBoxes>>,
+    pub edges_high: Option<Box<MicroquadBoxes>>,
 }
 
 impl MicroquadBoxes {
     /// The boxes of each of [`GBuffer::layers`], in its order.
     pub fn layers(&self) -> impl Iterator<Item = &MicroquadBoxes> {
-        std::iter::once(self).chain(self.edges.as_deref())
+        std::iter::once(self)
+            .chain(self.edges.as_deref())
+            .chain(self.edges_high.as_deref())
     }
 
     /// Pixel `i`'s box in `grid`'s coordinates

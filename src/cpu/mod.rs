@@ -28,9 +28,11 @@ pub use evaluate::{MaskRule, FULL};
 pub use light_setup::{light_setup, GridRequest, LightSetup};
 
 use crate::bvh::SceneBvh;
-use crate::gbuffer::edge_surfaces::EdgeStats;
+use crate::gbuffer::edge_surfaces::{EdgeStats, EdgeSurfaces};
 use crate::gbuffer::{flags, gbuffer, gbuffer_with, GBuffer, GBufferStats};
 use crate::scene::Scene;
+use glam::Vec3;
+use light_setup::MicroquadBoxes;
 use std::time::Instant;
 
 /// Whether `evaluate` tests a pixel with G-buffer `flags`: shadow-tested
@@ -50,6 +52,9 @@ pub struct RenderReport {
     pub gbuffer: GBufferStats,
     /// The edge pixels' surfaces, when the render placed samples on them.
     pub edge_surfaces: Option<EdgeStats>,
+    /// `Paired64`'s second half's (its own µQuad pattern's sample rays).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub edge_surfaces_high: Option<EdgeStats>,
     pub light: LightSetup,
     pub bin: bin::BinStats,
     pub evaluate: evaluate::EvaluateStats,
@@ -82,17 +87,23 @@ pub fn resolve(masks: &[u32], g: &GBuffer) -> Vec<f32> {
 /// With edge surfaces ([`GBuffer::edges`]) over the counted samples only:
 /// 1 − popcount(mask) / popcount(counted).
 pub fn resolve_halves(masks: &[u32], high: &[u32], g: &GBuffer) -> Vec<f32> {
-    let counted = g.edges.as_ref().map(|e| &e.counted);
+    // The samples that count in each half: all 32, or with edge surfaces
+    // those on a kept surface.
+    let counted_in = |edges: &Option<Box<EdgeSurfaces>>, i: usize| {
+        edges.as_ref().map_or(32, |e| e.counted[i].count_ones())
+    };
     (0..masks.len())
         .map(|i| {
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 return f32::NAN;
             }
             let hidden = masks[i].count_ones() + high.get(i).map_or(0, |h| h.count_ones());
-            let samples = match counted {
-                Some(c) => c[i].count_ones(),
-                None => 32 * (1 + !high.is_empty() as u32),
-            };
+            let samples = counted_in(&g.edges, i)
+                + if high.is_empty() {
+                    0
+                } else {
+                    counted_in(&g.edges_high, i)
+                };
             1.0 - hidden as f32 / samples as f32
         })
         .collect()
@@ -122,6 +133,42 @@ pub fn eye_relative_f32(scene: &Scene) -> Vec<[glam::Vec3; 3]> {
         .collect()
 }
 
+/// One mask half of every pixel under `rule`: the pixels' centre
+/// surfaces, then the half's edge surfaces (`edges`, with their boxes) —
+/// more receivers of the same bins — combined into the pixels' masks.
+fn evaluate_half(
+    (setup, bins, triangles): (&LightSetup, &bin::Bins, &[[Vec3; 3]]),
+    g: &GBuffer,
+    (edges, edge_boxes): (Option<&EdgeSurfaces>, Option<&MicroquadBoxes>),
+    boxes: &MicroquadBoxes,
+    rule: &MaskRule,
+    stats: &mut evaluate::EvaluateStats,
+) -> Vec<u32> {
+    let centre_wanted = edges.map(|e| &e.centre_coverage[..]);
+    let (mut masks, pass) =
+        evaluate::evaluate_wanted(setup, bins, triangles, g, boxes, rule, centre_wanted);
+    // The pixels count once, in the first half.
+    match stats.pixels_tested {
+        0 => stats.add(&pass),
+        _ => stats.add_pass(&pass),
+    }
+    if let (Some(e), Some(b)) = (edges, edge_boxes) {
+        let (extra, pass) = evaluate::evaluate_wanted(
+            setup,
+            bins,
+            triangles,
+            &e.surfaces,
+            b,
+            rule,
+            Some(&e.coverage[..]),
+        );
+        stats.add_pass(&pass);
+        stats.extra_surfaces_tested += pass.pixels_tested;
+        e.combine(&mut masks, &extra);
+    }
+    masks
+}
+
 /// Renders the shadow mask of `scene` on the CPU.
 pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> ShadowRender {
     let start = Instant::now();
@@ -135,8 +182,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
             s
         }
     };
-    let edge_surfaces = settings.uses_edge_surfaces(scene);
-    let g = gbuffer_with(scene, bvh, edge_surfaces);
+    let g = gbuffer_with(scene, bvh, settings.edge_halves(scene));
     seconds.gbuffer = lap();
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     seconds.light_setup = lap();
@@ -151,39 +197,29 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
-    let centre_wanted = g.edges.as_ref().map(|e| &e.centre_coverage[..]);
-    let (mut masks, mut eval_stats) =
-        evaluate::evaluate_wanted(&setup, &bins, &triangles, &g, &boxes, &rule, centre_wanted);
-    // The edge pixels' extra surfaces: more receivers of the same bins.
-    let extra_masks = match (&g.edges, &boxes.edges) {
-        (Some(e), Some(b)) => {
-            let (m, stats) = evaluate::evaluate_wanted(
-                &setup,
-                &bins,
-                &triangles,
-                &e.surfaces,
-                b,
-                &rule,
-                Some(&e.coverage[..]),
-            );
-            eval_stats.add_pass(&stats);
-            eval_stats.extra_surfaces_tested = stats.pixels_tested;
-            m
-        }
-        _ => Vec::new(),
-    };
-    // Paired64: the second half, the same pass with the turned patterns.
+    let mut eval_stats = evaluate::EvaluateStats::default();
+    let masks = evaluate_half(
+        (&setup, &bins, &triangles),
+        &g,
+        (g.edges.as_deref(), boxes.edges.as_deref()),
+        &boxes,
+        &rule,
+        &mut eval_stats,
+    );
+    // Paired64: the second half, the same passes with the turned patterns
+    // (and that half's own edge surfaces).
     let masks_high = if settings.mask_halves(scene) == 2 {
-        let (high, stats) =
-            evaluate::evaluate(&setup, &bins, &triangles, &g, &boxes, &rule.half(1));
-        eval_stats.add_pass(&stats);
-        high
+        evaluate_half(
+            (&setup, &bins, &triangles),
+            &g,
+            (g.edges_high.as_deref(), boxes.edges_high.as_deref()),
+            &boxes,
+            &rule.half(1),
+            &mut eval_stats,
+        )
     } else {
         Vec::new()
     };
-    if let Some(e) = &g.edges {
-        e.combine(&mut masks, &extra_masks);
-    }
     seconds.evaluate = lap();
     let visibility = resolve_halves(&masks, &masks_high, &g);
     seconds.resolve = lap();
@@ -197,6 +233,7 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
             seconds,
             gbuffer: g.stats.clone(),
             edge_surfaces: g.edges.as_ref().map(|e| e.stats.clone()),
+            edge_surfaces_high: g.edges_high.as_ref().map(|e| e.stats.clone()),
             light: setup,
             bin: bins.stats,
             work_per_pixel: eval_stats.per_pixel(),

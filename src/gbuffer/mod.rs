@@ -145,6 +145,9 @@ pub struct GBuffer {
     /// The edge pixels' per-sample surfaces ([`gbuffer_with`]), `None`
     /// when every sample stands on its pixel's centre surface.
     pub edges: Option<Box<EdgeSurfaces>>,
+    /// `Paired64`'s second half's: the surfaces its own µQuad pattern's
+    /// samples see (samples 32–63), when the G-buffer has two halves.
+    pub edges_high: Option<Box<EdgeSurfaces>>,
 }
 
 impl GBuffer {
@@ -166,6 +169,7 @@ impl GBuffer {
                 ..Default::default()
             },
             edges: None,
+            edges_high: None,
         }
     }
 
@@ -230,9 +234,11 @@ impl GBuffer {
     }
 
     /// Every receiver entry: the pixels' centre surfaces, then the edge
-    /// pixels' extra surfaces (as a one-row G-buffer).
+    /// pixels' extra surfaces of each half (each as a one-row G-buffer).
     pub fn layers(&self) -> impl Iterator<Item = &GBuffer> {
-        std::iter::once(self).chain(self.edges.as_deref().map(|e| &e.surfaces))
+        std::iter::once(self)
+            .chain(self.edges.as_deref().map(|e| &e.surfaces))
+            .chain(self.edges_high.as_deref().map(|e| &e.surfaces))
     }
 }
 
@@ -270,12 +276,14 @@ pub fn pixel_surface(
 /// Primary visibility for the whole image (rayon over rows): one surface
 /// per pixel, the one its centre ray hits.
 pub fn gbuffer(scene: &Scene, bvh: &SceneBvh) -> GBuffer {
-    gbuffer_with(scene, bvh, false)
+    gbuffer_with(scene, bvh, 0)
 }
 
-/// [`gbuffer`], and with `edge_surfaces` the edge pixels' per-sample
-/// surfaces ([`edge_surfaces`]) for the µQuad pattern.
-pub fn gbuffer_with(scene: &Scene, bvh: &SceneBvh, edge_surfaces: bool) -> GBuffer {
+/// [`gbuffer`], and with `edge_halves` of 1 or 2 the edge pixels'
+/// per-sample surfaces ([`edge_surfaces`]) for the µQuad pattern of each
+/// mask half ([`crate::lut::paired_patterns`]; half 0's is the µQuad
+/// pattern of every 32-sample mode).
+pub fn gbuffer_with(scene: &Scene, bvh: &SceneBvh, edge_halves: usize) -> GBuffer {
     let [w, h] = scene.resolution;
     let frame = scene.camera.frame(scene.resolution);
     let rows: Vec<Vec<Option<PixelSurface>>> = (0..h)
@@ -290,9 +298,12 @@ pub fn gbuffer_with(scene: &Scene, bvh: &SceneBvh, edge_surfaces: bool) -> GBuff
     for s in rows.iter().flatten() {
         g.push(s.as_ref());
     }
-    if edge_surfaces {
-        g.edges = Some(Box::new(edge_surfaces_of(scene, bvh, &frame, &rows)));
-    }
+    let edges_of = |half| {
+        let pattern = crate::lut::paired_patterns(half).1;
+        Box::new(edge_surfaces_of(scene, bvh, &frame, &rows, pattern))
+    };
+    g.edges = (edge_halves >= 1).then(|| edges_of(0));
+    g.edges_high = (edge_halves >= 2).then(|| edges_of(1));
     g
 }
 
@@ -303,9 +314,9 @@ fn edge_surfaces_of(
     bvh: &SceneBvh,
     frame: &CameraFrame,
     rows: &[Vec<Option<PixelSurface>>],
+    pattern: &[[f32; 2]; 32],
 ) -> EdgeSurfaces {
     let [w, h] = scene.resolution;
-    let pattern = crate::lut::sample_pattern();
     // Only the candidates' results are kept: a smooth pixel's entries are
     // the defaults below.
     let samples: Vec<(usize, PixelSamples)> = (0..h)

@@ -128,6 +128,37 @@ impl EdgeUpload {
     }
 }
 
+/// Whether a frame of `scene` under `settings` can take its edge surfaces
+/// from `source`: an uploaded G-buffer brings them exactly when the
+/// settings use them, and the GPU's own casts them when they do. Paired64's
+/// second half has edge surfaces of its own (`GBuffer::edges_high`) that
+/// only the CPU twin forms so far: refused by name, never run with half 0's.
+pub(super) fn check_source(
+    scene: &crate::scene::Scene,
+    settings: crate::settings::IzbSettings,
+    source: super::GBufferSource,
+) -> Result<(), GpuError> {
+    if settings.edge_halves(scene) == 2 {
+        return Err(GpuError::Unsupported(
+            "Paired64's edge surfaces (its second half's own) are not on the GPU yet: \
+             --no-edge-surfaces renders every sample on the centre's µQuad"
+                .into(),
+        ));
+    }
+    if let super::GBufferSource::Upload(g) = source {
+        match (settings.uses_edge_surfaces(scene), g.edges.is_some()) {
+            (true, false) => return Err(GpuError::EdgeSurfaces),
+            (false, true) => {
+                return Err(GpuError::Unsupported(
+                    "the uploaded G-buffer has edge surfaces the settings do not use".into(),
+                ))
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// A pixel all of whose samples stand on its centre's surface.
 const SMOOTH: [u32; 4] = [u32::MAX, u32::MAX, 0, 0];
 

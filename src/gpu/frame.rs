@@ -164,19 +164,7 @@ impl GpuRenderer {
         settings: IzbSettings,
         source: GBufferSource,
     ) -> Result<GpuRender, GpuError> {
-        // An uploaded G-buffer brings edge surfaces exactly when the
-        // settings use them; the GPU's own casts them when they do.
-        if let GBufferSource::Upload(g) = source {
-            match (settings.uses_edge_surfaces(scene), g.edges.is_some()) {
-                (true, false) => return Err(GpuError::EdgeSurfaces),
-                (false, true) => {
-                    return Err(GpuError::Unsupported(
-                        "the uploaded G-buffer has edge surfaces the settings do not use".into(),
-                    ))
-                }
-                _ => {}
-            }
-        }
+        super::edge_surfaces::check_source(scene, settings, source)?;
         let pixels = scene.pixel_count();
         let upload = self.prepare_frame(scene, source)?;
         let triangles = &upload.triangles;

@@ -400,6 +400,7 @@ pub(super) fn read_back_gbuffer(
                     clamped_microquads: out.counters[counter::CLAMPED] as usize,
                 },
                 edges: None,
+                edges_high: None,
             };
             // The `edge_surfaces` pass's slots follow the pixels.
             if let Some((records, coverage)) = out.edge_tables.take() {
