@@ -12,7 +12,10 @@ use crate::frustum::LightRel;
 use crate::gbuffer::{flags, GBuffer};
 use crate::scene::{light_disk_f32, Light, LightDisk, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
-use rayon::prelude::*;
+
+mod boxes;
+
+pub use boxes::{microquad_corners, MicroquadBoxes};
 
 /// How light view maps to the 2-D grid plane.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -251,112 +254,6 @@ impl LightSetup {
         self.cascades.iter().map(|c| c.cell_count() as usize).sum()
     }
 
-    /// Light-NDC bounding box of the µQuad (centre `p`, axes `ex`, `ey`,
-    /// eye-relative): the box of its projected corners, which holds the
-    /// projection of every point of the µQuad, its centre included. A
-    /// corner not in front of a point light is left out (`f32::min`
-    /// ignores NaN); then the grid is disabled and the box unused.
-    #[inline]
-    pub fn microquad_ndc_box(&self, p: Vec3, ex: Vec3, ey: Vec3) -> (Vec2, Vec2) {
-        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for c in microquad_corners(p, ex, ey) {
-            let n = self.ndc(self.to_light_view(c)).unwrap_or(Vec2::NAN);
-            lo = lo.min(n);
-            hi = hi.max(n);
-        }
-        (lo, hi)
-    }
-
-    /// Grid-space bounding box, in `grid`, of the µQuad: the grid
-    /// coordinates of [`Self::microquad_ndc_box`]. Bit for bit the box of
-    /// the four corners' grid coordinates (what `light_view.glsl`
-    /// computes): [`CascadeGrid::grid_coords`] subtracts, divides and
-    /// multiplies by positive numbers, each rounded monotonically, so it
-    /// commutes with min and max.
-    pub fn microquad_grid_box(
-        &self,
-        grid: &CascadeGrid,
-        p: Vec3,
-        ex: Vec3,
-        ey: Vec3,
-    ) -> (Vec2, Vec2) {
-        let (lo, hi) = self.microquad_ndc_box(p, ex, ey);
-        (grid.grid_coords(lo), grid.grid_coords(hi))
-    }
-
-    /// [`Self::microquad_ndc_box`] of every receiver of `g` (`skips`
-    /// decides which pixels are: [`super::is_receiver`]), computed once
-    /// per frame for the bin's receiver registration and evaluate.
-    pub fn microquad_boxes(&self, g: &GBuffer, skips: super::Skips) -> MicroquadBoxes {
-        self.receiver_boxes(g, skips, false)
-    }
-
-    /// [`Self::microquad_boxes`] where an edge pixel's surface covers only
-    /// some of the µQuad samples ([`GBuffer::edges`]): its box is that of
-    /// the part of the µQuad its own samples span (`covered_only`, under a
-    /// point-like light, where each bit is a µQuad sample's line toward
-    /// the light). Every triangle able to shadow one of them projects over
-    /// that part, so the candidates stay complete; fewer cells are visited.
-    pub fn receiver_boxes(
-        &self,
-        g: &GBuffer,
-        skips: super::Skips,
-        covered_only: bool,
-    ) -> MicroquadBoxes {
-        // Covered boxes are those of half 0's samples, the only half under
-        // a point-like light.
-        let edges = g.edges.as_deref().filter(|_| covered_only);
-        let layer = |e: &crate::gbuffer::edge_surfaces::EdgeSurfaces, coverage| {
-            Box::new(MicroquadBoxes {
-                ndc: self.boxes_of(&e.surfaces, skips, coverage),
-                edges: None,
-                edges_high: None,
-            })
-        };
-        MicroquadBoxes {
-            ndc: self.boxes_of(g, skips, edges.map(|e| &e.centre_coverage[..])),
-            edges: g
-                .edges
-                .as_deref()
-                .map(|e| layer(e, edges.map(|e| &e.coverage[..]))),
-            edges_high: g.edges_high.as_deref().map(|e| layer(e, None)),
-        }
-    }
-
-    fn boxes_of(
-        &self,
-        g: &GBuffer,
-        skips: super::Skips,
-        coverage: Option<&[u32]>,
-    ) -> Vec<(Vec2, Vec2)> {
-        let pattern = crate::lut::sample_pattern();
-        let boxes: Vec<(Vec2, Vec2)> = (0..g.flags.len())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|i| {
-                if !super::is_receiver(g.flags[i], skips) {
-                    return (Vec2::NAN, Vec2::NAN);
-                }
-                let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
-                match coverage.map(|c| c[i]).filter(|&c| c != u32::MAX && c != 0) {
-                    None => self.microquad_ndc_box(p, ex, ey),
-                    Some(c) => {
-                        let (lo, hi) = covered_rectangle(pattern, c);
-                        // The sub-rectangle as a µQuad of its own.
-                        let centre = (lo + hi) * 0.5 - Vec2::splat(0.5);
-                        let size = hi - lo;
-                        self.microquad_ndc_box(
-                            p + centre.x * ex + centre.y * ey,
-                            ex * size.x,
-                            ey * size.y,
-                        )
-                    }
-                }
-            })
-            .collect();
-        boxes
-    }
-
     /// Where the light is, seen from the eye-relative point `p`, in eye
     /// space: a point light at the light-view origin, or a directional
     /// light along the light view's +z row (the frustum test runs in eye
@@ -383,35 +280,6 @@ impl LightSetup {
     }
 }
 
-/// Per pixel, the light-NDC box of its µQuad
-/// ([`LightSetup::microquad_ndc_box`]; NaN for pixels that are not
-/// receivers): the µQuad projection the bin and evaluate both need, so the
-/// four corners are projected once per frame, not once per pass.
-pub struct MicroquadBoxes {
-    pub ndc: Vec<(Vec2, Vec2)>,
-    /// The boxes of the G-buffer's edge surfaces ([`GBuffer::edges`],
-    /// [`GBuffer::edges_high`]).
-    pub edges: Option<Box<MicroquadBoxes>>,
-    pub edges_high: Option<Box<MicroquadBoxes>>,
-}
-
-impl MicroquadBoxes {
-    /// The boxes of each of [`GBuffer::layers`], in its order.
-    pub fn layers(&self) -> impl Iterator<Item = &MicroquadBoxes> {
-        std::iter::once(self)
-            .chain(self.edges.as_deref())
-            .chain(self.edges_high.as_deref())
-    }
-
-    /// Pixel `i`'s box in `grid`'s coordinates
-    /// ([`LightSetup::microquad_grid_box`]).
-    #[inline]
-    pub fn grid_box(&self, grid: &CascadeGrid, i: usize) -> (Vec2, Vec2) {
-        let (lo, hi) = self.ndc[i];
-        (grid.grid_coords(lo), grid.grid_coords(hi))
-    }
-}
-
 /// The light-view rotation of a directional light travelling along
 /// `direction` (unit): rows x, y, z with z pointing toward the light. The
 /// GPU `light_setup` receives exactly this matrix.
@@ -425,33 +293,6 @@ fn basis_with_z(z: DVec3) -> DMat3 {
     let x = helper.cross(z).normalize();
     let y = z.cross(x);
     DMat3::from_cols(x, y, z).transpose()
-}
-
-/// Sample offsets' margin around a covered sub-rectangle, in µQuad units:
-/// its corners are not samples, so rounding at a corner cannot drop one.
-/// The GPU's `receiver_grid_box` grows it by the same margin.
-const COVERED_MARGIN: f32 = izb_contract::tolerance::COVERED_MARGIN;
-
-/// The rectangle of µQuad offsets (in [0, 1]²) spanned by the samples of
-/// `pattern` that `coverage` marks, grown by [`COVERED_MARGIN`].
-fn covered_rectangle(pattern: &[[f32; 2]; 32], coverage: u32) -> (Vec2, Vec2) {
-    let (mut lo, mut hi) = (Vec2::ONE, Vec2::ZERO);
-    for (i, s) in pattern.iter().enumerate() {
-        if coverage & (1 << i) != 0 {
-            lo = lo.min(Vec2::from(*s));
-            hi = hi.max(Vec2::from(*s));
-        }
-    }
-    (
-        (lo - COVERED_MARGIN).max(Vec2::ZERO),
-        (hi + COVERED_MARGIN).min(Vec2::ONE),
-    )
-}
-
-/// The four corners of a pixel's µQuad, eye-relative.
-pub fn microquad_corners(p: Vec3, ex: Vec3, ey: Vec3) -> [Vec3; 4] {
-    let (hx, hy) = (ex * 0.5, ey * 0.5);
-    [p - hx - hy, p + hx - hy, p + hx + hy, p - hx + hy]
 }
 
 /// Receivers per level-0 cell the default grid aims at.
