@@ -12,16 +12,31 @@
 layout(scalar, binding = B_EDGE_PIXELS) readonly buffer EdgePixelBuf { uint edge_pixel_words[]; };
 layout(scalar, binding = B_EDGE_COVERAGE) readonly buffer EdgeCoverageBuf { uint edge_coverage[]; };
 
-// Pixel i's record (centre coverage, counted, facing away, first extra
-// surface | count << EDGE_COUNT_SHIFT): only edge pixels keep one, behind
-// a per-pixel word (B_EDGE_PIXELS); the rest see all their samples on
-// their centre's surface.
-uvec4 edge_pixel_record(uint i) {
+// The mask half this shader forms (evaluate.comp's MASK_HALF_HIGH: MODE_PAIRED64's
+// samples 32–63, whose µQuad pattern has edge surfaces of its own).
+#ifdef MASK_HALF_HIGH
+#define EDGE_HALF 1u
+#else
+#define EDGE_HALF 0u
+#endif
+
+// Pixel i's record for mask half `mask_half` (centre coverage, counted, facing
+// away, first extra surface | count << EDGE_COUNT_SHIFT): only edge pixels
+// keep one, behind a per-pixel word (B_EDGE_PIXELS), 4 words per half;
+// the rest see all their samples on their centre's surface. A pixel's
+// extra surfaces of both halves are consecutive, each covering samples of
+// its own half only (edge_coverage: a word per surface and half).
+uvec4 edge_pixel_record(uint i, uint mask_half) {
     uint r = edge_pixel_words[i];
     if (r == 0u) return uvec4(FULL_MASK, FULL_MASK, 0u, 0u);
-    uint at = frame.width * frame.height + 4u * (r - 1u);
+    uint at = frame.width * frame.height + 4u * (frame.mask_halves * (r - 1u) + mask_half);
     return uvec4(edge_pixel_words[at], edge_pixel_words[at + 1u],
                  edge_pixel_words[at + 2u], edge_pixel_words[at + 3u]);
+}
+
+// The samples of half `mask_half` extra surface k covers.
+uint surface_coverage(uint k, uint mask_half) {
+    return edge_coverage[k * frame.mask_halves + mask_half];
 }
 
 // The samples receiver i must test (evaluate's `wanted`): its coverage in
@@ -29,7 +44,7 @@ uvec4 edge_pixel_record(uint i) {
 uint receiver_wanted(uint i) {
     if (frame.edge_surfaces == 0u) return FULL_MASK;
     uint pixels = frame.width * frame.height;
-    return i < pixels ? edge_pixel_record(i).x : edge_coverage[i - pixels];
+    return i < pixels ? edge_pixel_record(i, EDGE_HALF).x : surface_coverage(i - pixels, EDGE_HALF);
 }
 
 #ifdef LIGHT_VIEW_GLSL

@@ -18,7 +18,7 @@ layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 // With edge surfaces the pixel's combined mask is written back to its word.
 layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
-layout(scalar, binding = B_MASKS_HIGH) readonly buffer MaskHighBuf { uint masks_high[]; };
+layout(scalar, binding = B_MASKS_HIGH) buffer MaskHighBuf { uint masks_high[]; };
 layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; };
 
 // output::AMBIENT, output::DIFFUSE and output::SKY_RGB.
@@ -28,14 +28,22 @@ const vec3 SKY = vec3(0.55, 0.7, 0.9);
 
 #include "edge_receivers.glsl"
 
-// EdgeSurfaces::combine for pixel i: the centre's mask on its samples,
-// each extra surface's on its own, every sample on a surface facing away.
-uint combined_mask(uint i, uvec4 e) {
-    uint mask = (masks[i] & e.x) | e.z;
+// The receivers' masks of half `mask_half`.
+uint half_mask(uint mask_half, uint i) {
+    return mask_half == 0u ? masks[i] : masks_high[i];
+}
+
+// EdgeSurfaces::combine for pixel i's half `mask_half` (record e): the
+// centre's mask on its samples, each extra surface's on its own, every
+// sample on a surface facing away.
+uint combined_mask(uint i, uvec4 e, uint mask_half) {
+    uint mask = (half_mask(mask_half, i) & e.x) | e.z;
     uint first = e.w & ((1u << EDGE_COUNT_SHIFT) - 1u);
     uint count = e.w >> EDGE_COUNT_SHIFT;
     uint extra = frame.width * frame.height + first;
-    for (uint k = 0u; k < count; ++k) mask |= masks[extra + k] & edge_coverage[first + k];
+    for (uint k = 0u; k < count; ++k) {
+        mask |= half_mask(mask_half, extra + k) & surface_coverage(first + k, mask_half);
+    }
     return mask;
 }
 
@@ -52,11 +60,16 @@ void main() {
     if (frame.edge_surfaces != 0u) {
         // Over the samples that count (resolve_halves): the host divides
         // alpha by their number.
-        uvec4 e = edge_pixel_record(i);
-        uint mask = combined_mask(i, e);
-        masks[i] = mask;
-        samples = uint(bitCount(e.y));
-        hidden = uint(bitCount(mask));
+        samples = 0u;
+        hidden = 0u;
+        for (uint mask_half = 0u; mask_half < frame.mask_halves; ++mask_half) {
+            uvec4 e = edge_pixel_record(i, mask_half);
+            uint mask = combined_mask(i, e, mask_half);
+            if (mask_half == 0u) masks[i] = mask;
+            else masks_high[i] = mask;
+            samples += uint(bitCount(e.y));
+            hidden += uint(bitCount(mask));
+        }
     }
     uint lit_samples = samples - hidden;
     vec3 rgb = SKY;

@@ -51,7 +51,17 @@ fn check(r: &GpuRenderer, name: &str, scene: &Scene, mode: SampleMode) -> usize 
         .unwrap_or_else(|e| panic!("{name} {mode:?}: {e}"));
     assert_no_validation_messages(r, name);
     let tested = |i: usize| cpu.gbuffer.flags[i] & flags::SHADOW_TESTED != 0;
-    let (diff, total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
+    let (mut diff, mut total) = izb::metrics::sample_mismatches(&gpu.masks, &cpu.masks, tested);
+    // Paired64's samples 32–63, on the second half's own surfaces.
+    assert_eq!(
+        gpu.masks_high.len(),
+        cpu.masks_high.len(),
+        "{name} {mode:?}"
+    );
+    if !cpu.masks_high.is_empty() {
+        let (d, t) = izb::metrics::sample_mismatches(&gpu.masks_high, &cpu.masks_high, tested);
+        (diff, total) = (diff + d, total + t);
+    }
     let edge_pixels = edges.stats.edge_pixels;
     let (gpu_tests, cpu_tests) = (
         gpu.report.counters.tests_spawned,
@@ -69,7 +79,7 @@ fn check(r: &GpuRenderer, name: &str, scene: &Scene, mode: SampleMode) -> usize 
     );
     // The lit fraction over the samples that count, bit for bit from the
     // GPU's own masks.
-    let cpu_visibility = resolve_halves(&gpu.masks, &[], &cpu.gbuffer);
+    let cpu_visibility = resolve_halves(&gpu.masks, &gpu.masks_high, &cpu.gbuffer);
     for (i, (g, c)) in gpu.visibility.iter().zip(&cpu_visibility).enumerate() {
         assert!(
             g.to_bits() == c.to_bits() || (g.is_nan() && c.is_nan()),
@@ -143,7 +153,8 @@ fn gpu_edge_surfaces_match_cpu_on_shared_scenes() {
 }
 
 /// Paired rays under an area light: the soft modes' receivers are the
-/// same extra surfaces, over the whole µQuad (no covered sub-box).
+/// same extra surfaces, over the whole µQuad (no covered sub-box); with
+/// Paired64 each half's own.
 #[test]
 fn gpu_edge_surfaces_match_cpu_under_an_area_light() {
     let Some(r) = renderer() else { return };
@@ -156,10 +167,12 @@ fn gpu_edge_surfaces_match_cpu_under_an_area_light() {
             .unwrap()
             .with_light_size(size)
             .unwrap();
-        check(&r, name, &scene, SampleMode::Paired32);
-        compared += 1;
+        for mode in [SampleMode::Paired32, SampleMode::Paired64] {
+            check(&r, name, &scene, mode);
+            compared += 1;
+        }
     }
-    assert_eq!(compared, 2);
+    assert_eq!(compared, 4);
 }
 
 /// The GPU's own edge surfaces (the `edge_surfaces` pass, f32 rays)
@@ -284,9 +297,10 @@ fn edge_surfaces_without_their_gbuffer_are_refused() {
         .err()
         .expect("refused");
     assert!(e.to_string().contains("edge surfaces"), "{e}");
-    // Paired64's second half has edge surfaces of its own, formed on the
-    // CPU only so far: refused by name from either source, never run
-    // with half 0's surfaces alone.
+    // Paired64's second half has edge surfaces of its own, which the
+    // GPU's edge_surfaces pass does not trace: from the GPU's own
+    // G-buffer refused by name, never run with half 0's surfaces alone;
+    // uploaded, both halves' are taken (gpu_edge_surfaces_match_cpu_under_an_area_light).
     let area = scene.with_light_size(1.0).unwrap();
     let paired64 = IzbSettings {
         mode: SampleMode::Paired64,
@@ -298,8 +312,17 @@ fn edge_surfaces_without_their_gbuffer_are_refused() {
         cpu64.gbuffer.edges_high.is_some(),
         "no second-half surfaces"
     );
-    for source in [GBufferSource::Upload(&cpu64.gbuffer), GBufferSource::Gpu] {
-        let e = r.render(&area, paired64, source).err().expect("refused");
-        assert!(e.to_string().contains("Paired64"), "{e}");
-    }
+    let e = r
+        .render(&area, paired64, GBufferSource::Gpu)
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("Paired64"), "{e}");
+    // And a G-buffer with one half's surfaces under settings with two.
+    let mut one_half = cpu64.gbuffer.clone();
+    one_half.edges_high = None;
+    let e = r
+        .render(&area, paired64, GBufferSource::Upload(&one_half))
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("mask half"), "{e}");
 }

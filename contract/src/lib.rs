@@ -244,8 +244,8 @@ shared_constants! {
         /// block sums follow `cell_start`'s cells and total).
         SCAN_BLOCK_CELLS = 4096;
         /// An edge pixel record's fourth word: the first extra surface below
-        /// this bit, their count (0..=3) above it.
-        EDGE_COUNT_SHIFT = 30;
+        /// this bit, their count (0..=6: up to 3 per mask half) above it.
+        EDGE_COUNT_SHIFT = 29;
         /// Surfaces an edge pixel keeps, the centre's included
         /// (`edge_surfaces::MAX_SURFACES`).
         EDGE_MAX_SURFACES = 4;

@@ -38,18 +38,22 @@ use glam::Vec3;
 /// An edge pixel record's fourth word: first extra surface below this
 /// bit, count above it.
 const COUNT_SHIFT: u32 = izb_contract::size::EDGE_COUNT_SHIFT;
-const _: () = assert!(MAX_SURFACES - 1 < 1 << (32 - COUNT_SHIFT));
+// Up to MAX_SURFACES − 1 extra surfaces per mask half, two halves.
+const _: () = assert!(2 * (MAX_SURFACES - 1) < 1 << (32 - COUNT_SHIFT));
 
 /// What a frame uploads for its edge surfaces.
 pub(super) struct EdgeUpload {
     /// `B_EDGE_PIXELS`: per pixel 0 or 1 + its record's index, then the
-    /// edge pixels' records (centre coverage, counted, facing away, first
-    /// extra surface | count << `EDGE_COUNT_SHIFT`).
+    /// edge pixels' records, per mask half (centre coverage, counted,
+    /// facing away, first extra surface | count << `EDGE_COUNT_SHIFT`).
     pub(super) pixel_words: Vec<u32>,
     /// Records (edge pixels).
     pub(super) records: u64,
-    /// `B_EDGE_COVERAGE`.
+    /// `B_EDGE_COVERAGE`: per extra surface a word per mask half (the
+    /// samples of that half it covers: 0 in the other half's).
     pub(super) coverage: Vec<u32>,
+    /// Extra surfaces (of both halves).
+    pub(super) surfaces: u64,
     /// The G-buffer entries: the pixels', then the extra surfaces' rows.
     pub(super) position: Vec<Vec3>,
     pub(super) axis_x: Vec<Vec3>,
@@ -58,63 +62,71 @@ pub(super) struct EdgeUpload {
 }
 
 impl EdgeUpload {
-    /// The upload of `g`'s pixels and edge surfaces, `width` entries a row.
-    pub(super) fn new(
-        g: &GBuffer,
-        edges: &EdgeSurfaces,
-        upload: &SceneUpload,
-    ) -> Result<Self, GpuError> {
-        let width = g.width as usize;
-        let extra = edges.pixel.len();
+    /// The upload of `g`'s pixels and the edge surfaces of its mask halves
+    /// (`g.edges`, and `g.edges_high` for `Paired64`), `width` entries a
+    /// row: a pixel's surfaces of both halves consecutive, in pixel order.
+    pub(super) fn new(g: &GBuffer, upload: &SceneUpload) -> Result<Self, GpuError> {
+        let halves: Vec<&EdgeSurfaces> =
+            g.edges.iter().chain(&g.edges_high).map(|e| &**e).collect();
+        let h = halves.len();
+        let order = merged_order(&halves)?;
+        let extra = order.len();
         if extra >= 1 << COUNT_SHIFT {
             return Err(GpuError::Unsupported(format!(
                 "{extra} edge surfaces: the GPU's edge table indexes below 2^{COUNT_SHIFT}"
             )));
         }
-        let mut pixels: Vec<[u32; 4]> = (0..g.flags.len())
-            .map(|i| {
-                [
-                    edges.centre_coverage[i],
-                    edges.counted[i],
-                    edges.facing_away[i],
-                    0,
-                ]
-            })
-            .collect();
-        // A pixel's extra surfaces are consecutive entries (built in pixel
-        // order): its first and their count.
+        let stride = 4 * h;
+        let mut records = vec![0u32; g.flags.len() * stride];
+        for (i, r) in records.chunks_exact_mut(stride).enumerate() {
+            for (half, e) in halves.iter().enumerate() {
+                r[4 * half..4 * half + 3].copy_from_slice(&[
+                    e.centre_coverage[i],
+                    e.counted[i],
+                    e.facing_away[i],
+                ]);
+            }
+        }
+        let mut coverage = vec![0u32; extra * h];
         let mut previous = None;
-        for (k, &p) in edges.pixel.iter().enumerate() {
-            let record = &mut pixels[p as usize][3];
-            match previous {
-                Some(q) if q == p => *record += 1 << COUNT_SHIFT,
-                Some(q) if q > p => {
-                    return Err(GpuError::Unsupported(format!(
-                        "edge surface {k} (pixel {p}) follows pixel {q}'s: not in pixel order"
-                    )))
-                }
-                _ => *record = k as u32 | 1 << COUNT_SHIFT,
+        for (j, &(p, half, k)) in order.iter().enumerate() {
+            coverage[j * h + half] = halves[half].coverage[k];
+            let r = &mut records[p as usize * stride..][..stride];
+            let range = if previous == Some(p) {
+                r[3] + (1 << COUNT_SHIFT)
+            } else {
+                j as u32 | 1 << COUNT_SHIFT
+            };
+            for half in 0..h {
+                r[4 * half + 3] = range;
             }
             previous = Some(p);
         }
-        let rows = extra.div_ceil(width.max(1));
-        let padding = rows * width - extra;
-        let s = &edges.surfaces;
-        let entries = |a: &[Vec3], b: &[Vec3]| -> Vec<Vec3> {
+        let width = g.width as usize;
+        let padding = extra.div_ceil(width.max(1)) * width - extra;
+        let words: Vec<Vec<u32>> = halves
+            .iter()
+            .map(|e| upload.gbuffer_words(&e.surfaces))
+            .collect::<Result<_, _>>()?;
+        let entries = |pixels: &[Vec3], of: fn(&GBuffer) -> &[Vec3]| -> Vec<Vec3> {
+            let surfaces = order
+                .iter()
+                .map(|&(_, half, k)| of(&halves[half].surfaces)[k]);
             let pad = std::iter::repeat_n(Vec3::ZERO, padding);
-            a.iter().chain(b).copied().chain(pad).collect()
+            pixels.iter().copied().chain(surfaces).chain(pad).collect()
         };
         let mut id_flags = upload.gbuffer_words(g)?;
-        id_flags.extend(upload.gbuffer_words(s)?);
+        id_flags.extend(order.iter().map(|&(_, half, k)| words[half][k]));
         id_flags.extend(std::iter::repeat_n(ID_MASK, padding));
-        let (pixel_words, records) = sparse_records(&pixels);
+        let (pixel_words, records) = sparse_records(&records, stride);
         Ok(EdgeUpload {
             pixel_words,
             records,
-            coverage: edges.coverage.clone(),
-            position: entries(&g.position, &s.position),
-            axis_x: entries(&g.axis_x, &s.axis_x),
-            axis_y: entries(&g.axis_y, &s.axis_y),
+            coverage,
+            surfaces: extra as u64,
+            position: entries(&g.position, |s| &s.position),
+            axis_x: entries(&g.axis_x, |s| &s.axis_x),
+            axis_y: entries(&g.axis_y, |s| &s.axis_y),
             id_flags,
         })
     }
@@ -122,30 +134,62 @@ impl EdgeUpload {
     /// Its slots: as many as it has extra surfaces and edge pixels.
     pub(super) fn slots(&self) -> EdgeSlots {
         EdgeSlots {
-            surfaces: self.coverage.len() as u64,
+            surfaces: self.surfaces,
             pixels: self.records,
         }
     }
 }
 
+/// The extra surfaces of every mask half in upload order, as (pixel,
+/// half, index in that half): by pixel, a pixel's half-0 surfaces first
+/// (each half lists its own in pixel order, as the CPU twin builds them).
+fn merged_order(halves: &[&EdgeSurfaces]) -> Result<Vec<(u32, usize, usize)>, GpuError> {
+    let mut order: Vec<(u32, usize, usize)> = Vec::new();
+    for (half, e) in halves.iter().enumerate() {
+        if let Some(k) = e.pixel.windows(2).position(|w| w[0] > w[1]) {
+            return Err(GpuError::Unsupported(format!(
+                "edge surface {} of half {half} (pixel {}) follows pixel {}'s: not in pixel order",
+                k + 1,
+                e.pixel[k + 1],
+                e.pixel[k]
+            )));
+        }
+        order.extend(e.pixel.iter().enumerate().map(|(k, &p)| (p, half, k)));
+    }
+    // Stable: within a pixel and half the surfaces keep their order.
+    order.sort_by_key(|&(p, half, _)| (p, half));
+    Ok(order)
+}
+
 /// Whether a frame of `scene` under `settings` can take its edge surfaces
 /// from `source`: an uploaded G-buffer brings them exactly when the
 /// settings use them, and the GPU's own casts them when they do. Paired64's
-/// second half has edge surfaces of its own (`GBuffer::edges_high`) that
-/// only the CPU twin forms so far: refused by name, never run with half 0's.
+/// second half has edge surfaces of its own (`GBuffer::edges_high`): the
+/// GPU takes them uploaded, but its `edge_surfaces` pass traces half 0's
+/// pattern only, so a GPU-cast Paired64 frame with them is refused by
+/// name, never run with half 0's surfaces alone.
 pub(super) fn check_source(
     scene: &crate::scene::Scene,
     settings: crate::settings::IzbSettings,
     source: super::GBufferSource,
 ) -> Result<(), GpuError> {
-    if settings.edge_halves(scene) == 2 {
+    let cast = matches!(source, super::GBufferSource::Gpu);
+    if cast && settings.edge_halves(scene) == 2 {
         return Err(GpuError::Unsupported(
-            "Paired64's edge surfaces (its second half's own) are not on the GPU yet: \
-             --no-edge-surfaces renders every sample on the centre's µQuad"
+            "Paired64's edge surfaces from the GPU's own G-buffer: its edge_surfaces pass \
+             traces the first half's µQuad pattern only (upload the CPU's G-buffer, as \
+             izb render --backend vulkan does, or --no-edge-surfaces)"
                 .into(),
         ));
     }
     if let super::GBufferSource::Upload(g) = source {
+        let halves = usize::from(g.edges.is_some()) + usize::from(g.edges_high.is_some());
+        if halves > 0 && halves != settings.edge_halves(scene) {
+            return Err(GpuError::Unsupported(format!(
+                "the uploaded G-buffer has edge surfaces for {halves} mask half(s), the settings {}",
+                settings.edge_halves(scene)
+            )));
+        }
         match (settings.uses_edge_surfaces(scene), g.edges.is_some()) {
             (true, false) => return Err(GpuError::EdgeSurfaces),
             (false, true) => {
@@ -162,19 +206,21 @@ pub(super) fn check_source(
 /// A pixel all of whose samples stand on its centre's surface.
 const SMOOTH: [u32; 4] = [u32::MAX, u32::MAX, 0, 0];
 
-/// `B_EDGE_PIXELS` of per-pixel records: a word per pixel (0 for a smooth
-/// pixel, else 1 + its record's index), then the edge pixels' records in
-/// pixel order; and their number.
-fn sparse_records(pixels: &[[u32; 4]]) -> (Vec<u32>, u64) {
-    let mut words = vec![0u32; pixels.len()];
+/// `B_EDGE_PIXELS` of per-pixel records (`stride` words each, 4 per mask
+/// half): a word per pixel (0 for a smooth pixel, all of whose halves
+/// have every sample on the centre's surface, else 1 + its record's
+/// index), then the edge pixels' records in pixel order; and their number.
+fn sparse_records(dense: &[u32], stride: usize) -> (Vec<u32>, u64) {
+    let pixels = dense.len() / stride;
+    let mut words = vec![0u32; pixels];
     let mut records = Vec::new();
-    for (i, r) in pixels.iter().enumerate() {
-        if r[0] != SMOOTH[0] {
+    for (i, r) in dense.chunks_exact(stride).enumerate() {
+        if r.iter().step_by(4).any(|&centre| centre != SMOOTH[0]) {
             records.extend_from_slice(r);
-            words[i] = (records.len() / 4) as u32;
+            words[i] = (records.len() / stride) as u32;
         }
     }
-    let n = records.len() as u64 / 4;
+    let n = (records.len() / stride) as u64;
     words.extend(records);
     (words, n)
 }
@@ -202,14 +248,13 @@ pub(super) fn slots_needed(counters: &[u32]) -> u64 {
 }
 
 /// The lit fraction of an edge-surface frame's pixel from its shaded
-/// alpha (lit samples of those that count) and its `counted` samples:
-/// 1 − hidden / counted, as [`crate::cpu::resolve_halves`] computes it;
-/// NaN where not shadow-tested.
-pub(super) fn lit_fraction_over_counted(alpha: u8, counted: u32) -> f32 {
+/// alpha (lit samples of those that count) and the number of `samples`
+/// that count (in every mask half): 1 − hidden / samples, as
+/// [`crate::cpu::resolve_halves`] computes it; NaN where not shadow-tested.
+pub(super) fn lit_fraction_over_counted(alpha: u8, samples: u32) -> f32 {
     if alpha == shared::ALPHA_NOT_TESTED {
         return f32::NAN;
     }
-    let samples = counted.count_ones();
     let hidden = samples.saturating_sub(u32::from(alpha));
     1.0 - hidden as f32 / samples as f32
 }
@@ -237,7 +282,7 @@ impl FrameEdges {
         Ok(match (passes, source) {
             (FramePasses::Izb { .. }, super::GBufferSource::Upload(g)) => {
                 match g.edges.as_deref() {
-                    Some(e) => FrameEdges::Uploaded(EdgeUpload::new(g, e, upload)?),
+                    Some(_) => FrameEdges::Uploaded(EdgeUpload::new(g, upload)?),
                     None => FrameEdges::None,
                 }
             }
@@ -351,7 +396,7 @@ mod tests {
     fn sparse_edge_records_round_trip() {
         let edge = [0x0f0f_0f0f, 0xffff_0fff, 0x0000_0f00, 7 | 2 << COUNT_SHIFT];
         let pixels = vec![SMOOTH, edge, SMOOTH, [1, 3, 2, 9], SMOOTH];
-        let (words, records) = sparse_records(&pixels);
+        let (words, records) = sparse_records(pixels.as_flattened(), 4);
         assert_eq!(records, 2);
         assert_eq!(words.len(), 5 + 8);
         assert_eq!(&words[..5], &[0, 1, 0, 2, 0]);

@@ -48,10 +48,12 @@ const BINDINGS: usize = BINDING_COUNT as usize;
 /// (`shared::binding`), each with the pass it counts toward and its size.
 pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
     let (p, r, t, vec3) = (z.pixels, z.receivers, z.triangles, 12u64);
-    // A word per pixel, then 4 per edge pixel's record.
-    let (edge_pixel_words, edge_surfaces) = z
+    // A word per pixel, then 4 per edge pixel's record and mask half; a
+    // coverage word per extra surface and half.
+    let h = z.mask_halves;
+    let (edge_pixel_words, edge_coverage_words) = z
         .edge_surfaces
-        .map_or((0, 0), |e| (p + 4 * e.pixels, e.surfaces));
+        .map_or((0, 0), |e| (p + 4 * h * e.pixels, h * e.surfaces));
     let d = BufferDesc::device;
     by_binding([
         (
@@ -100,7 +102,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         (binding::MASKS, d("evaluate", "masks", r * 4)),
         (
             binding::MASKS_HIGH,
-            d("evaluate", "masks_high", p * 4 * (z.mask_halves - 1)),
+            d("evaluate", "masks_high", r * 4 * (z.mask_halves - 1)),
         ),
         (
             binding::SHADED,
@@ -128,7 +130,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         ),
         (
             binding::EDGE_COVERAGE,
-            d("gbuffer", "edge_coverage", edge_surfaces * 4),
+            d("gbuffer", "edge_coverage", edge_coverage_words * 4),
         ),
     ])
 }
