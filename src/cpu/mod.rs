@@ -87,23 +87,14 @@ pub fn resolve(masks: &[u32], g: &GBuffer) -> Vec<f32> {
 /// With edge surfaces ([`GBuffer::edges`]) over the counted samples only:
 /// 1 − popcount(mask) / popcount(counted).
 pub fn resolve_halves(masks: &[u32], high: &[u32], g: &GBuffer) -> Vec<f32> {
-    // The samples that count in each half: all 32, or with edge surfaces
-    // those on a kept surface.
-    let counted_in = |edges: &Option<Box<EdgeSurfaces>>, i: usize| {
-        edges.as_ref().map_or(32, |e| e.counted[i].count_ones())
-    };
+    let halves = 1 + usize::from(!high.is_empty());
     (0..masks.len())
         .map(|i| {
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 return f32::NAN;
             }
             let hidden = masks[i].count_ones() + high.get(i).map_or(0, |h| h.count_ones());
-            let samples = counted_in(&g.edges, i)
-                + if high.is_empty() {
-                    0
-                } else {
-                    counted_in(&g.edges_high, i)
-                };
+            let samples = g.counted_samples(i, halves);
             1.0 - hidden as f32 / samples as f32
         })
         .collect()

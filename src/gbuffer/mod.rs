@@ -233,6 +233,17 @@ impl GBuffer {
         g
     }
 
+    /// The samples that count at pixel `i` over `halves` mask halves: 32 a
+    /// half, or with that half's edge surfaces those on a kept surface
+    /// (the lit fraction's denominator on both backends).
+    pub fn counted_samples(&self, i: usize, halves: usize) -> u32 {
+        [&self.edges, &self.edges_high]
+            .iter()
+            .take(halves)
+            .map(|e| e.as_ref().map_or(32, |e| e.counted[i].count_ones()))
+            .sum()
+    }
+
     /// Every receiver entry: the pixels' centre surfaces, then the edge
     /// pixels' extra surfaces of each half (each as a one-row G-buffer).
     pub fn layers(&self) -> impl Iterator<Item = &GBuffer> {

@@ -183,21 +183,16 @@ pub(super) fn check_source(
         ));
     }
     if let super::GBufferSource::Upload(g) = source {
-        let halves = usize::from(g.edges.is_some()) + usize::from(g.edges_high.is_some());
-        if halves > 0 && halves != settings.edge_halves(scene) {
-            return Err(GpuError::Unsupported(format!(
-                "the uploaded G-buffer has edge surfaces for {halves} mask half(s), the settings {}",
-                settings.edge_halves(scene)
-            )));
-        }
-        match (settings.uses_edge_surfaces(scene), g.edges.is_some()) {
-            (true, false) => return Err(GpuError::EdgeSurfaces),
-            (false, true) => {
-                return Err(GpuError::Unsupported(
-                    "the uploaded G-buffer has edge surfaces the settings do not use".into(),
-                ))
+        let have = usize::from(g.edges.is_some()) + usize::from(g.edges_high.is_some());
+        match (settings.edge_halves(scene), have) {
+            (want, have) if want == have => {}
+            (_, 0) => return Err(GpuError::EdgeSurfaces),
+            (want, have) => {
+                return Err(GpuError::Unsupported(format!(
+                    "the uploaded G-buffer has edge surfaces for {have} mask half(s), \
+                     the settings for {want}"
+                )))
             }
-            _ => {}
         }
     }
     Ok(())

@@ -324,13 +324,10 @@ impl GpuRenderer {
         let alpha = |i: usize| (out.shaded[i] >> 24) as u8;
         // With edge surfaces (uploaded, so the G-buffer has them) alpha
         // counts the lit samples of those that count.
-        let counted = |e: &Option<Box<crate::gbuffer::edge_surfaces::EdgeSurfaces>>, i: usize| {
-            e.as_ref().map_or(0, |e| e.counted[i].count_ones())
-        };
         let visibility = match &gbuffer.edges {
             Some(_) => (0..out.shaded.len())
                 .map(|i| {
-                    let samples = counted(&gbuffer.edges, i) + counted(&gbuffer.edges_high, i);
+                    let samples = gbuffer.counted_samples(i, samples as usize / 32);
                     super::edge_surfaces::lit_fraction_over_counted(alpha(i), samples)
                 })
                 .collect(),
