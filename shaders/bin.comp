@@ -33,7 +33,7 @@
 layout(local_size_x = WORKGROUP_LINEAR) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 // Per cell, the conservative shadow map: .x = ordered bits of the best
@@ -65,7 +65,7 @@ layout(scalar, binding = B_CELL_RECEIVERS) buffer CellRecvBuf { uvec2 cell_recei
 // Triangle `id` in light view (to_light_view is `precise`): the placement
 // input of STEP_COUNT and STEP_SCATTER, as the CPU twin's `light_view`.
 Triangle light_view_triangle(uint id) {
-    Triangle w = triangles[id];
+    Triangle w = scene_triangle(id);
     return Triangle(to_light_view(w.a), to_light_view(w.b), to_light_view(w.c));
 }
 

@@ -39,7 +39,7 @@ uint closest_hit(vec3 d, inout float best_t) {
         if (n.prim_count > 0u) {
             for (uint k = 0u; k < n.prim_count && BVH_TRIP(); ++k) {
                 uint id = prims[n.first + k];
-                float t = hit_triangle(triangles[id], vec3(0.0), ray);
+                float t = hit_triangle(scene_triangle(id), vec3(0.0), ray);
                 if (t > frame.near && t < best_t) {
                     best_t = t;
                     best = id;

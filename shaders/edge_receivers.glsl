@@ -20,16 +20,45 @@ layout(scalar, binding = B_EDGE_COVERAGE) readonly buffer EdgeCoverageBuf { uint
 #define EDGE_HALF 0u
 #endif
 
+// Words of B_EDGE_PIXELS' tile table, before the records.
+uint edge_table_words() {
+    uint tiles_x = (frame.width + WORKGROUP_PIXELS_X - 1u) / WORKGROUP_PIXELS_X;
+    uint tiles_y = (frame.height + WORKGROUP_PIXELS_Y - 1u) / WORKGROUP_PIXELS_Y;
+    return EDGE_TILE_WORDS * tiles_x * tiles_y;
+}
+
+// Pixel i's tile in the table and its bit there (8y + x within the tile).
+uvec2 edge_tile_bit(uint i) {
+    uint x = i % frame.width, y = i / frame.width;
+    uint tiles_x = (frame.width + WORKGROUP_PIXELS_X - 1u) / WORKGROUP_PIXELS_X;
+    uint tile = (y / WORKGROUP_PIXELS_Y) * tiles_x + x / WORKGROUP_PIXELS_X;
+    return uvec2(tile, (y % WORKGROUP_PIXELS_Y) * WORKGROUP_PIXELS_X + x % WORKGROUP_PIXELS_X);
+}
+
+// Pixel i's record index r + 1, or 0 for a pixel without one: its tile's
+// first record plus the tile's records before its bit.
+uint edge_record_link(uint i) {
+    uvec2 tb = edge_tile_bit(i);
+    uint at = EDGE_TILE_WORDS * tb.x;
+    uint lo = edge_pixel_words[at], hi = edge_pixel_words[at + 1u];
+    uint bit = tb.y;
+    uint word = bit < 32u ? lo : hi;
+    uint below = (1u << (bit & 31u)) - 1u;
+    if (((word >> (bit & 31u)) & 1u) == 0u) return 0u;
+    uint before = bit < 32u ? uint(bitCount(lo & below)) : uint(bitCount(lo) + bitCount(hi & below));
+    return 1u + edge_pixel_words[at + 2u] + before;
+}
+
 // Pixel i's record for mask half `mask_half` (centre coverage, counted, facing
 // away, first extra surface | count << EDGE_COUNT_SHIFT): only edge pixels
-// keep one, behind a per-pixel word (B_EDGE_PIXELS), 4 words per half;
+// keep one, found through their tile (B_EDGE_PIXELS), 4 words per half;
 // the rest see all their samples on their centre's surface. A pixel's
 // extra surfaces of both halves are consecutive, each covering samples of
 // its own half only (edge_coverage: a word per surface and half).
 uvec4 edge_pixel_record(uint i, uint mask_half) {
-    uint r = edge_pixel_words[i];
+    uint r = edge_record_link(i);
     if (r == 0u) return uvec4(FULL_MASK, FULL_MASK, 0u, 0u);
-    uint at = frame.width * frame.height + 4u * (frame.mask_halves * (r - 1u) + mask_half);
+    uint at = edge_table_words() + 4u * (frame.mask_halves * (r - 1u) + mask_half);
     return uvec4(edge_pixel_words[at], edge_pixel_words[at + 1u],
                  edge_pixel_words[at + 2u], edge_pixel_words[at + 3u]);
 }

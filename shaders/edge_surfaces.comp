@@ -31,7 +31,7 @@
 layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_BVH_NODES) readonly buffer NodeBuf { BvhNode nodes[]; };
 layout(scalar, binding = B_BVH_PRIMS) readonly buffer PrimBuf { uint prims[]; };
 layout(scalar, binding = B_G_POSITION) buffer PosBuf { vec3 g_position[]; };
@@ -40,7 +40,8 @@ layout(scalar, binding = B_G_AXIS_Y) buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
-// Per pixel 0 or 1 + its record's index, then the records (edge_receivers.glsl).
+// Per 8×8 tile its pixels with records and first record, then the records
+// (edge_receivers.glsl).
 layout(scalar, binding = B_EDGE_PIXELS) writeonly buffer EdgePixelBuf { uint edge_pixel_words[]; };
 layout(scalar, binding = B_EDGE_COVERAGE) writeonly buffer EdgeCoverageBuf { uint edge_coverage[]; };
 #define LOOP_BUDGET_SLOTS WORKGROUP_PIXELS
@@ -87,15 +88,12 @@ vec3 ray_direction(vec2 image_point) {
     return frame.cam_corner + image_point.x * frame.cam_dx + image_point.y * frame.cam_dy;
 }
 
-void main() {
-    loop_budget_reset();
-    uvec2 pixel = gl_GlobalInvocationID.xy;
-    if (pixel.x >= frame.width || pixel.y >= frame.height) return;
-    uint i = pixel.y * frame.width + pixel.x;
+// Pixel i's extra surfaces, written to their slots; whether it keeps an
+// edge record (not every sample on its centre's surface), and the record.
+bool trace_edge_pixel(uvec2 pixel, uint i, out uvec4 record) {
+    record = uvec4(0u);
     uint word = g_id_flags[i];
-    // No record: all samples on the centre's surface.
-    edge_pixel_words[i] = 0u;
-    if ((gbuffer_flags(word) & FLAG_SHADOW_TESTED) == 0u) return;
+    if ((gbuffer_flags(word) & FLAG_SHADOW_TESTED) == 0u) return false;
 
     // 1. Edge candidate: a neighbour's centre hit off the centre's plane.
     Plane centre = plane_of(g_position[i],
@@ -112,10 +110,7 @@ void main() {
             candidate = candidate || !hit || !holds(centre, g_position[j]);
         }
     }
-    if (!candidate) {
-        loop_budget_report();
-        return;
-    }
+    if (!candidate) return false;
     count_add(C_EDGE_CANDIDATES, 1u);
 
     // 2. The sample rays: each hit on the centre's plane or a group's.
@@ -158,12 +153,11 @@ void main() {
         group_count += 1u;
     }
     if (centre_coverage == 0u && group_count == 0u) {
-        loop_budget_report();
         // Every sample ray slipped past a sub-pixel sliver the centre ray
         // hit (or missed everything): the centre's surface stands for the
         // whole pixel.
         count_add(C_EDGE_MISSED_SAMPLES, uint(bitCount(missed)));
-        return;
+        return false;
     }
 
     // 3. The kept surfaces, most samples first (ties by the first sample).
@@ -250,21 +244,59 @@ void main() {
         g_id_flags[base + k] = e_word[k];
         edge_coverage[first + k] = e_coverage[k];
     }
-    // An edge pixel's record, in a slot of its own (the same capacity;
-    // past it the host reruns).
-    if (centre_coverage != FULL_MASK) {
-        uint r = atomicAdd(counters[C_EDGE_PIXELS], 1u);
-        if (r < frame.edge_capacity) {
-            uint at = frame.width * frame.height + 4u * r;
-            edge_pixel_words[at] = centre_coverage;
-            edge_pixel_words[at + 1u] = counted;
-            edge_pixel_words[at + 2u] = facing_away;
-            edge_pixel_words[at + 3u] = first | (extra << EDGE_COUNT_SHIFT);
-            edge_pixel_words[i] = r + 1u;
-        }
-    }
     count_add(C_EDGE_FACING_AWAY_SAMPLES, uint(bitCount(facing_away)));
     count_add(C_EDGE_DROPPED_SAMPLES, uint(bitCount(dropped)));
     count_add(C_EDGE_MISSED_SAMPLES, uint(bitCount(missed)));
+    record = uvec4(centre_coverage, counted, facing_away, first | (extra << EDGE_COUNT_SHIFT));
+    return centre_coverage != FULL_MASK;
+}
+
+// The tile's pixels with records (bit 8y + x) and its first record.
+shared uint sm_tile_edges[2];
+shared uint sm_tile_first;
+
+void main() {
+    loop_budget_reset();
+    uint lid = gl_LocalInvocationIndex;
+    if (lid == 0u) {
+        sm_tile_edges[0] = 0u;
+        sm_tile_edges[1] = 0u;
+    }
+    barrier();
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    bool inside = pixel.x < frame.width && pixel.y < frame.height;
+    uint i = pixel.y * frame.width + pixel.x;
+    uvec4 record = uvec4(0u);
+    bool edge = inside && trace_edge_pixel(pixel, i, record);
     loop_budget_report();
+    // lid = 8y + x within the tile (edge_tile_bit).
+    if (edge) atomicOr(sm_tile_edges[lid >> 5u], 1u << (lid & 31u));
+    barrier();
+    uint lo = sm_tile_edges[0], hi = sm_tile_edges[1];
+    uint count = uint(bitCount(lo) + bitCount(hi));
+    if (lid == 0u) {
+        // The tile's records, consecutive, in a slot range of its own;
+        // past the capacity the tile keeps none and the host reruns.
+        uint first = count > 0u ? atomicAdd(counters[C_EDGE_PIXELS], count) : 0u;
+        bool fits = first + count <= frame.edge_capacity;
+        uint tiles_x = gl_NumWorkGroups.x;
+        uint at = EDGE_TILE_WORDS * (gl_WorkGroupID.y * tiles_x + gl_WorkGroupID.x);
+        edge_pixel_words[at] = fits ? lo : 0u;
+        edge_pixel_words[at + 1u] = fits ? hi : 0u;
+        edge_pixel_words[at + 2u] = first;
+        sm_tile_first = fits ? first : frame.edge_capacity;
+    }
+    barrier();
+    uint below = (1u << (lid & 31u)) - 1u;
+    uint before = lid < 32u ? uint(bitCount(lo & below)) : uint(bitCount(lo) + bitCount(hi & below));
+    uint r = sm_tile_first + before;
+    if (edge && r < frame.edge_capacity) {
+        // After the table: a word triple per workgroup (edge_table_words).
+        uint table = EDGE_TILE_WORDS * gl_NumWorkGroups.x * gl_NumWorkGroups.y;
+        uint at = table + 4u * r;
+        edge_pixel_words[at] = record.x;
+        edge_pixel_words[at + 1u] = record.y;
+        edge_pixel_words[at + 2u] = record.z;
+        edge_pixel_words[at + 3u] = record.w;
+    }
 }

@@ -55,7 +55,7 @@ layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_CELL_COVER) readonly buffer CellCoverBuf { uvec2 cell_cover[]; };
 layout(scalar, binding = B_CELL_START) readonly buffer StartBuf { uint cell_start[]; };
 layout(scalar, binding = B_CELL_TRIANGLES) readonly buffer CellTriBuf { uint cell_triangles[]; };
@@ -154,7 +154,7 @@ void main() {
         // testing it again leaves the mask as it was.
         if (px_cover != NO_COVER && px_cover != px_receiver) {
             tests_spawned += 1u;
-            mask |= triangle_mask(triangles[px_cover]);
+            mask |= triangle_mask(scene_triangle(px_cover));
         }
         covered = (mask & px_wanted) == px_wanted;
         if (!done(mask) && px_has_cells && grid_usable && frame.heavy_entries != 0u
@@ -175,7 +175,7 @@ void main() {
         if (lid < count) {
             uint entry = overflow_list[base + lid];
             sm_id[lid] = entry;
-            sm_tri[lid] = triangles[entry & ID_MASK];
+            sm_tri[lid] = scene_triangle(entry & ID_MASK);
         }
         barrier();
         if (live && !done(mask)) {
@@ -233,7 +233,7 @@ void main() {
                 if (lid < count) {
                     uint entry = cell_triangles[base + lid];
                     sm_id[lid] = entry;
-                    sm_tri[lid] = triangles[entry & ID_MASK];
+                    sm_tri[lid] = scene_triangle(entry & ID_MASK);
                 }
                 barrier();
                 if (in_elected && !done(mask)) {
@@ -258,7 +258,7 @@ void main() {
                         uint entry = cell_triangles[k];
                         if (!tests_in_cell(entry, x, y, r)) continue;
                         tests_spawned += 1u;
-                        mask |= triangle_mask(triangles[entry & ID_MASK]);
+                        mask |= triangle_mask(scene_triangle(entry & ID_MASK));
                     }
                 }
             }
@@ -362,7 +362,7 @@ void main() {
                             uint entry = cell_triangles[k];
                             if (!tests_in_cell(entry, x, y, r)) continue;
                             tests_spawned += 1u;
-                            uint m = triangle_mask(triangles[entry & ID_MASK]);
+                            uint m = triangle_mask(scene_triangle(entry & ID_MASK));
                             mask |= m;
                             if (stop_when_full) mask |= atomicOr(sm_mask, m);
                         }

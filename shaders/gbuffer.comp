@@ -15,7 +15,7 @@
 layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_BVH_NODES) readonly buffer NodeBuf { BvhNode nodes[]; };
 layout(scalar, binding = B_BVH_PRIMS) readonly buffer PrimBuf { uint prims[]; };
 layout(scalar, binding = B_G_POSITION) writeonly buffer PosBuf { vec3 g_position[]; };

@@ -16,7 +16,7 @@ layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; 
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 // The depth attachments, copied cascade after cascade (shadow_raster).
@@ -126,7 +126,7 @@ bool contact_shadowed(vec3 p, float len) {
         if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(frame.width) && f.y < float(frame.height))) return false;
         uint j = uint(f.y) * frame.width + uint(f.x);
         if ((gbuffer_flags(g_id_flags[j]) & FLAG_HIT) == 0u) continue;
-        float lambda = eye_ray_hit(triangles[gbuffer_triangle(g_id_flags[j])], q);
+        float lambda = eye_ray_hit(scene_triangle(gbuffer_triangle(g_id_flags[j])), q);
         if (lambda <= 0.0) continue;
         precise float behind = s - s * lambda;
         if (behind > s * tolerance && behind < thickness) return true;

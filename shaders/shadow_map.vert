@@ -14,7 +14,7 @@
 #include "common.glsl"
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 
 #include "light_view.glsl"
@@ -22,7 +22,7 @@ layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; }
 
 void main() {
     uint k = uint(gl_InstanceIndex);
-    Triangle tri = triangles[uint(gl_VertexIndex) / 3u];
+    Triangle tri = scene_triangle(uint(gl_VertexIndex) / 3u);
     uint corner = uint(gl_VertexIndex) % 3u;
     vec3 q = to_light_view(corner == 0u ? tri.a : (corner == 1u ? tri.b : tri.c));
     vec2 origin, texel;

@@ -14,7 +14,7 @@
 layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_BVH_NODES) readonly buffer NodeBuf { BvhNode nodes[]; };
 layout(scalar, binding = B_BVH_PRIMS) readonly buffer PrimBuf { uint prims[]; };
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
@@ -60,7 +60,7 @@ bool occluded(vec3 org, vec3 d, float t_near, float t_far) {
         BvhNode n = nodes[node];
         if (n.prim_count > 0u) {
             for (uint k = 0u; k < n.prim_count; ++k) {
-                float t = hit_triangle(triangles[prims[n.first + k]], org, ray);
+                float t = hit_triangle(scene_triangle(prims[n.first + k]), org, ray);
                 if (t > t_near && t < t_far) return true;
             }
         } else {

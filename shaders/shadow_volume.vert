@@ -11,7 +11,7 @@
 #include "common.glsl"
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
-layout(scalar, binding = B_TRIANGLES) readonly buffer TriBuf { Triangle triangles[]; };
+#include "scene_triangles.glsl"
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 
 #include "light_view.glsl"
@@ -19,7 +19,7 @@ layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; }
 #include "camera.glsl"
 
 void main() {
-    Triangle t = triangles[uint(gl_VertexIndex) / 24u];
+    Triangle t = scene_triangle(uint(gl_VertexIndex) / 24u);
     uint corner = VOLUME_CORNERS[uint(gl_VertexIndex) % 24u];
     vec3 a = t.a, b = t.b, c = t.c;
     vec3 n = cross3(b - a, c - a);

@@ -10,7 +10,7 @@
 // t = (n·A)/(n·D) with the host's f64 normal is good to a few ulps, as the
 // CPU twin's f64 hit is. Keeps t where the plane's is not usable.
 float plane_t(uint id, vec3 n, vec3 d, float t) {
-    precise float t_plane = dot(n, triangles[id].a) / dot(n, d);
+    precise float t_plane = dot(n, scene_triangle(id).a) / dot(n, d);
     return t_plane > 0.0 && !isinf(t_plane) ? t_plane : t;
 }
 

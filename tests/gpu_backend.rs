@@ -387,3 +387,45 @@ fn a_lost_device_is_reported_as_such() {
     assert!(matches!(e, GpuError::DeviceLost));
     assert!(e.to_string().contains("lost"));
 }
+
+/// A frame timed over several repetitions in one submission returns the
+/// results of a single frame: every repetition starts from the same state,
+/// including the BVH, whose memory the bin's lists reuse (copied in again
+/// before each repetition).
+#[test]
+fn timed_repetitions_give_a_single_frames_results() {
+    let Some(r) = renderer() else { return };
+    let r = r.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(timed) = common::gpu::own_renderer(&izb::gpu::GpuOptions::from_env()) else {
+        return;
+    };
+    let timed = timed.timed(3);
+    let settings = IzbSettings {
+        mode: SampleMode::Exact32,
+        edge_surfaces: true,
+        ..Default::default()
+    };
+    let mut compared = 0;
+    for name in ["default", "city"] {
+        let scene = scene::load(name)
+            .unwrap()
+            .with_resolution([96, 64])
+            .unwrap();
+        let once = r.render(&scene, settings, GBufferSource::Gpu).unwrap();
+        let thrice = timed.render(&scene, settings, GBufferSource::Gpu).unwrap();
+        assert_no_validation_messages(&r, name);
+        assert_no_validation_messages(&timed, name);
+        assert!(once.masks.iter().any(|&m| m != 0), "{name}: no shadow");
+        assert_eq!(once.masks, thrice.masks, "{name}: masks");
+        assert_eq!(
+            once.gbuffer.triangle_id, thrice.gbuffer.triangle_id,
+            "{name}: ids"
+        );
+        assert_eq!(
+            once.report.counters.cell_entries, thrice.report.counters.cell_entries,
+            "{name}: cell entries"
+        );
+        compared += 1;
+    }
+    assert_eq!(compared, 2);
+}

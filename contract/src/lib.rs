@@ -13,12 +13,14 @@ mod structs;
 
 use macros::{shared_constants, GlslConstant, SharedStruct};
 pub use pcss_taps::pcss;
-pub use structs::{BvhNode, CascadeGrid, FrameParams, GpuTriangle, LightState};
+pub use structs::{BvhNode, CascadeGrid, FrameParams, GpuTriangle, GpuTriangleCorners, LightState};
 
 shared_constants! {
     /// Descriptor bindings of the one set every pass shares (`B_*`).
     pub mod binding: u32 as Int, prefix "B_" {
         FRAME = 0;
+        /// Per triangle its three corners' indices into `B_VERTICES`
+        /// (`uvec3`, `scene_triangles.glsl`).
         TRIANGLES = 1;
         BVH_NODES = 2;
         BVH_PRIMS = 3;
@@ -60,23 +62,28 @@ shared_constants! {
         /// Bits 32–63 of a `MODE_PAIRED64` frame's masks under an area
         /// light (evaluate's second half writes them); 4 bytes otherwise.
         MASKS_HIGH = 21;
-        /// Edge surfaces, per pixel a word: 0 when all its samples stand
-        /// on its centre's surface, else 1 + the index r of its record;
-        /// then the edge pixels' records (`uvec4` at word `pixels + 4r`):
-        /// the samples on the centre's surface, the samples that count,
-        /// the samples on a surface facing away, and its extra surfaces
-        /// (first entry, count above `EDGE_COUNT_SHIFT`). 4 bytes in a
-        /// frame without them.
+        /// Edge surfaces: per 8×8 tile of pixels (the pixel passes'
+        /// workgroup, tiles in row order) `EDGE_TILE_WORDS` words: which of
+        /// its pixels keep a record (bit 8y + x over two words), then the
+        /// index of its first one's record; then the edge pixels' records,
+        /// a tile's in pixel order (`uvec4` per mask half: the samples on
+        /// the centre's surface, the samples that count, the samples on a
+        /// surface facing away, and its extra surfaces, first entry and
+        /// count above `EDGE_COUNT_SHIFT`). A pixel without a record has
+        /// all its samples on its centre's surface. 4 bytes in a frame
+        /// without edge surfaces.
         EDGE_PIXELS = 22;
         /// Edge surfaces, per extra surface: the samples of its pixel it
         /// covers. Its receiver is G-buffer entry `width × height + k` (the
         /// rows below the image); 4 bytes in a frame without them.
         EDGE_COVERAGE = 23;
+        /// The scene's distinct eye-relative vertices (`vec3`), each once.
+        VERTICES = 24;
     }
 }
 
 /// Number of bindings (one past the last of [`binding`]).
-pub const BINDING_COUNT: u32 = binding::EDGE_COVERAGE + 1;
+pub const BINDING_COUNT: u32 = binding::VERTICES + 1;
 
 shared_constants! {
     /// Word indices into the counters buffer (`C_*`); 64-bit counters take
@@ -249,6 +256,9 @@ shared_constants! {
         /// Surfaces an edge pixel keeps, the centre's included
         /// (`edge_surfaces::MAX_SURFACES`).
         EDGE_MAX_SURFACES = 4;
+        /// Words per tile of `B_EDGE_PIXELS`' table: a 64-bit mask of its
+        /// pixels with records, and its first record's index.
+        EDGE_TILE_WORDS = 3;
     }
 }
 
@@ -438,6 +448,7 @@ pub fn glsl_header() -> String {
     out += &glsl_struct::<CascadeGrid>();
     out += &glsl_struct::<LightState>();
     out += &glsl_struct::<GpuTriangle>();
+    out += &glsl_struct::<GpuTriangleCorners>();
     out += &glsl_struct::<BvhNode>();
     out
 }
@@ -451,8 +462,9 @@ fn glsl_struct<S: SharedStruct>() -> String {
     out + "};\n\n"
 }
 
-/// All shared structs' member lists, by GLSL name (for the SPIR-V layout
-/// test).
+/// The member lists of the shared structs that buffers hold, by GLSL name
+/// (for the SPIR-V layout test; `Triangle` is only ever a shader's value,
+/// assembled from its corners).
 pub fn shared_structs() -> Vec<(&'static str, usize, Vec<macros::Member>)> {
     fn entry<S: SharedStruct>() -> (&'static str, usize, Vec<macros::Member>) {
         (S::GLSL_NAME, S::SIZE, S::members())
@@ -461,7 +473,7 @@ pub fn shared_structs() -> Vec<(&'static str, usize, Vec<macros::Member>)> {
         entry::<FrameParams>(),
         entry::<CascadeGrid>(),
         entry::<LightState>(),
-        entry::<GpuTriangle>(),
+        entry::<GpuTriangleCorners>(),
         entry::<BvhNode>(),
     ]
 }

@@ -181,11 +181,22 @@ shared_struct! {
 }
 
 shared_struct! {
-    /// `Triangle`: three eye-relative vertices.
+    /// `Triangle`: three eye-relative vertices, as the shaders assemble a
+    /// triangle from its corners (`scene_triangle`) and the host uses it.
     pub struct GpuTriangle as "Triangle" {
         pub a: [f32; 3] => "vec3 a",
         pub b: [f32; 3] => "vec3 b",
         pub c: [f32; 3] => "vec3 c",
+    }
+}
+
+shared_struct! {
+    /// `TriangleCorners`: a triangle's vertices as indices into
+    /// `B_VERTICES` (`B_TRIANGLES` holds one per triangle).
+    pub struct GpuTriangleCorners as "TriangleCorners" {
+        pub a: u32 => "uint a",
+        pub b: u32 => "uint b",
+        pub c: u32 => "uint c",
     }
 }
 

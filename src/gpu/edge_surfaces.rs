@@ -9,10 +9,12 @@
 //! surface's neighbours in its row are the next edge pixels' surfaces,
 //! near it on screen, so a tile's elected cells stay shared. Two tables
 //! carry what only the edges have (`shaders/edge_receivers.glsl`):
-//! `B_EDGE_PIXELS`, a word per pixel (0, or 1 + the index of its record)
-//! and per edge pixel a record of the samples on its centre's surface,
-//! the samples that count, those facing away and its extra surfaces
-//! (sparse: courtyard's 224 k edge pixels of 2 M at 1080p); and
+//! `B_EDGE_PIXELS`, per edge pixel a record of the samples on its
+//! centre's surface, the samples that count, those facing away and its
+//! extra surfaces (sparse: courtyard's 224 k edge pixels of 2 M at 1080p),
+//! found through a table of 12 bytes per 8×8 tile (which of its pixels
+//! have records, and its first one's: 0.19 bytes per pixel, where a word
+//! per pixel took 4, 8.3 MB at 1080p); and
 //! `B_EDGE_COVERAGE`, per extra surface the samples it covers. Evaluate
 //! stops a receiver when its own samples are full (`evaluate_wanted`),
 //! and under a point-like light bins and evaluates a partial one over the
@@ -41,11 +43,30 @@ const COUNT_SHIFT: u32 = izb_contract::size::EDGE_COUNT_SHIFT;
 // Up to MAX_SURFACES − 1 extra surfaces per mask half, two halves.
 const _: () = assert!(2 * (MAX_SURFACES - 1) < 1 << (32 - COUNT_SHIFT));
 
+/// Words per tile of the edge table, and the tile's side in pixels: the
+/// pixel passes' workgroup, whose 64 pixels a tile's two mask words hold.
+const TILE_WORDS: usize = izb_contract::size::EDGE_TILE_WORDS as usize;
+const TILE: [u32; 2] = shared::WORKGROUP_PIXELS;
+const _: () = assert!(TILE[0] * TILE[1] == 64);
+
+/// The 8×8 tiles of a `[w, h]` image, in the edge table's row order.
+pub(super) fn edge_tiles([w, h]: [u32; 2]) -> u64 {
+    u64::from(w.div_ceil(TILE[0])) * u64::from(h.div_ceil(TILE[1]))
+}
+
+/// Pixel `i`'s tile and its bit there (8y + x within the tile), as
+/// `edge_receivers.glsl`'s `edge_tile_bit`.
+fn tile_bit(i: usize, w: u32) -> (usize, u32) {
+    let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+    let tile = (y / TILE[1]) * w.div_ceil(TILE[0]) + x / TILE[0];
+    (tile as usize, (y % TILE[1]) * TILE[0] + x % TILE[0])
+}
+
 /// What a frame uploads for its edge surfaces.
 pub(super) struct EdgeUpload {
-    /// `B_EDGE_PIXELS`: per pixel 0 or 1 + its record's index, then the
-    /// edge pixels' records, per mask half (centre coverage, counted,
-    /// facing away, first extra surface | count << `EDGE_COUNT_SHIFT`).
+    /// `B_EDGE_PIXELS`: the tile table, then the edge pixels' records,
+    /// per mask half (centre coverage, counted, facing away, first extra
+    /// surface | count << `EDGE_COUNT_SHIFT`).
     pub(super) pixel_words: Vec<u32>,
     /// Records (edge pixels).
     pub(super) records: u64,
@@ -118,7 +139,7 @@ impl EdgeUpload {
         let mut id_flags = upload.gbuffer_words(g)?;
         id_flags.extend(order.iter().map(|&(_, half, k)| words[half][k]));
         id_flags.extend(std::iter::repeat_n(ID_MASK, padding));
-        let (pixel_words, records) = sparse_records(&records, stride);
+        let (pixel_words, records) = sparse_records(&records, stride, [g.width, g.height]);
         Ok(EdgeUpload {
             pixel_words,
             records,
@@ -202,35 +223,57 @@ pub(super) fn check_source(
 const SMOOTH: [u32; 4] = [u32::MAX, u32::MAX, 0, 0];
 
 /// `B_EDGE_PIXELS` of per-pixel records (`stride` words each, 4 per mask
-/// half): a word per pixel (0 for a smooth pixel, all of whose halves
-/// have every sample on the centre's surface, else 1 + its record's
-/// index), then the edge pixels' records in pixel order; and their number.
-fn sparse_records(dense: &[u32], stride: usize) -> (Vec<u32>, u64) {
-    let pixels = dense.len() / stride;
-    let mut words = vec![0u32; pixels];
-    let mut records = Vec::new();
+/// half) of a `[w, h]` image: per tile its pixels with records (a smooth
+/// pixel, all of whose halves have every sample on the centre's surface,
+/// has none) and its first record's index, then the records, tile after
+/// tile, a tile's in bit order; and their number.
+fn sparse_records(dense: &[u32], stride: usize, [w, h]: [u32; 2]) -> (Vec<u32>, u64) {
+    let tiles = edge_tiles([w, h]) as usize;
+    let mut table = vec![0u32; TILE_WORDS * tiles];
+    let mut tile_pixels: Vec<Vec<(u32, usize)>> = vec![Vec::new(); tiles];
     for (i, r) in dense.chunks_exact(stride).enumerate() {
         if r.iter().step_by(4).any(|&centre| centre != SMOOTH[0]) {
-            records.extend_from_slice(r);
-            words[i] = (records.len() / stride) as u32;
+            let (tile, bit) = tile_bit(i, w);
+            tile_pixels[tile].push((bit, i));
+        }
+    }
+    let mut records = Vec::new();
+    for (tile, mut edge) in tile_pixels.into_iter().enumerate() {
+        edge.sort_unstable();
+        let entry = &mut table[TILE_WORDS * tile..][..TILE_WORDS];
+        entry[2] = (records.len() / stride) as u32;
+        for (bit, i) in edge {
+            entry[(bit / 32) as usize] |= 1 << (bit % 32);
+            records.extend_from_slice(&dense[i * stride..][..stride]);
         }
     }
     let n = (records.len() / stride) as u64;
-    words.extend(records);
-    (words, n)
+    table.extend(records);
+    (table, n)
 }
 
-/// The per-pixel records of `B_EDGE_PIXELS` (`words`, at least a word per
-/// pixel and the `records` after them): [`sparse_records`] undone.
-fn dense_records(words: &[u32], pixels: usize, records: usize) -> Vec<[u32; 4]> {
-    let table = &words[pixels..pixels + 4 * records];
-    words[..pixels]
-        .iter()
-        .map(|&w| match w as usize {
-            0 => SMOOTH,
-            r if r <= records => table[4 * (r - 1)..4 * r].try_into().unwrap(),
+/// Pixel `i`'s record index through the tile table (`words`), as
+/// `edge_record_link`: `None` for a pixel without one.
+fn record_of(words: &[u32], i: usize, w: u32) -> Option<usize> {
+    let (tile, bit) = tile_bit(i, w);
+    let entry = &words[TILE_WORDS * tile..][..TILE_WORDS];
+    let mask = u64::from(entry[0]) | u64::from(entry[1]) << 32;
+    (mask >> bit & 1 == 1)
+        .then(|| entry[2] as usize + (mask & ((1u64 << bit) - 1)).count_ones() as usize)
+}
+
+/// The per-pixel records of `B_EDGE_PIXELS` (`words`: the tile table of a
+/// `[w, h]` image and at least `records` records after it):
+/// [`sparse_records`] undone.
+fn dense_records(words: &[u32], [w, h]: [u32; 2], records: usize) -> Vec<[u32; 4]> {
+    let table_words = TILE_WORDS * edge_tiles([w, h]) as usize;
+    let table = &words[table_words..table_words + 4 * records];
+    (0..w as usize * h as usize)
+        .map(|i| match record_of(words, i, w) {
+            None => SMOOTH,
+            Some(r) if r < records => table[4 * r..4 * r + 4].try_into().unwrap(),
             // Past the slots (the frame is rerun with room): not read.
-            _ => SMOOTH,
+            Some(_) => SMOOTH,
         })
         .collect()
 }
@@ -319,17 +362,18 @@ impl FrameEdges {
         &self,
         read: &impl Fn(u32) -> Result<&'a [u8], GpuError>,
         counters: &[u32],
-        pixels: usize,
+        resolution: [u32; 2],
     ) -> Result<(usize, Option<(Vec<[u32; 4]>, Vec<u32>)>), GpuError> {
         let FrameEdges::Traced { capacity } = self else {
             return Ok((0, None));
         };
         let found = u64::from(counters[shared::counter::EDGE_SURFACES]).min(*capacity) as usize;
         let records = u64::from(counters[shared::counter::EDGE_PIXELS]).min(*capacity) as usize;
+        let table = TILE_WORDS * edge_tiles(resolution) as usize;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(
-            &read(shared::binding::EDGE_PIXELS)?[..(pixels + 4 * records) * 4],
+            &read(shared::binding::EDGE_PIXELS)?[..(table + 4 * records) * 4],
         );
-        let records = dense_records(&words, pixels, records);
+        let records = dense_records(&words, resolution, records);
         let coverage =
             bytemuck::pod_collect_to_vec(&read(shared::binding::EDGE_COVERAGE)?[..found * 4]);
         Ok((found, Some((records, coverage))))
@@ -385,18 +429,36 @@ impl TracedEdges {
 mod tests {
     use super::*;
 
-    /// Only edge pixels keep a record, behind their pixel's word, and the
-    /// read-back undoes it; a word past the records read back is smooth.
+    /// Only edge pixels keep a record, found through their tile, and the
+    /// read-back undoes it; a record past those read back is smooth.
     #[test]
     fn sparse_edge_records_round_trip() {
         let edge = [0x0f0f_0f0f, 0xffff_0fff, 0x0000_0f00, 7 | 2 << COUNT_SHIFT];
-        let pixels = vec![SMOOTH, edge, SMOOTH, [1, 3, 2, 9], SMOOTH];
-        let (words, records) = sparse_records(pixels.as_flattened(), 4);
-        assert_eq!(records, 2);
-        assert_eq!(words.len(), 5 + 8);
-        assert_eq!(&words[..5], &[0, 1, 0, 2, 0]);
-        assert_eq!(dense_records(&words, 5, 2), pixels);
-        // A traced frame whose second record fell past its slots.
-        assert_eq!(dense_records(&words, 5, 1)[3], SMOOTH);
+        // 10×9 pixels: tiles 2×2, the last column and row partial.
+        let (w, h) = (10u32, 9u32);
+        let mut pixels = vec![SMOOTH; (w * h) as usize];
+        let marked = [
+            (3, edge),
+            (12, [1, 3, 2, 9]),
+            (9, [5, 5, 0, 0]),
+            (80, [0, 0, 0, 0]),
+        ];
+        for (i, r) in marked {
+            pixels[i] = r;
+        }
+        let (words, records) = sparse_records(pixels.as_flattened(), 4, [w, h]);
+        assert_eq!(records, 4);
+        assert_eq!(words.len(), 3 * 4 + 4 * 4);
+        // Tile 0 holds pixels 3 (bit 3) and 12 (row 1, bit 8 + 2) in bit
+        // order, then tile 1 pixel 9 (bit 1), tile 2 pixel 80 (row 8: bit 0).
+        assert_eq!(
+            &words[..12],
+            &[1 << 3 | 1 << 10, 0, 0, 1 << 1, 0, 2, 1, 0, 3, 0, 0, 4]
+        );
+        assert_eq!(&words[12..16], &edge);
+        assert_eq!(dense_records(&words, [w, h], 4), pixels);
+        // A traced frame whose last records fell past its slots.
+        let cut = dense_records(&words, [w, h], 2);
+        assert_eq!((cut[12], cut[9], cut[80]), ([1, 3, 2, 9], SMOOTH, SMOOTH));
     }
 }

@@ -11,10 +11,11 @@ pub use super::frame_inputs::LLVMPIPE_LOOP_CAP;
 use super::frame_inputs::{
     check_workgroups, frame_params, grid_budget_side, heavy_entries, loop_budget, SceneUpload,
 };
-pub use super::frame_memory::{frame_buffer_descs, planned_memory, EdgeSlots, FrameSizes};
 use super::frame_memory::{
-    initial_cell_capacity, initial_edge_capacity, memory_by_pass, reset_pass_state,
+    frame_allocation, initial_cell_capacity, initial_edge_capacity, memory_by_pass,
+    reset_pass_state, restaged_each_repetition,
 };
+pub use super::frame_memory::{frame_buffer_descs, planned_memory, EdgeSlots, FrameSizes};
 use super::frame_report::{FrameOutput, FramePasses};
 pub use super::frame_report::{
     GpuCascadeSummary, GpuCounters, GpuLightSummary, GpuPassMillis, GpuRender, GpuRenderReport,
@@ -63,14 +64,15 @@ pub struct GpuRenderer {
     read_back_maps: bool,
 }
 
-/// The frame's device buffers, one per binding, in binding order.
+/// The frame's device buffers ([`frame_allocation`]) and each binding's.
 struct FrameBuffers {
     buffers: Vec<GpuBuffer>,
+    at: [usize; super::shared::BINDING_COUNT as usize],
 }
 
 impl FrameBuffers {
     fn get(&self, b: u32) -> &GpuBuffer {
-        &self.buffers[b as usize]
+        &self.buffers[self.at[b as usize]]
     }
 }
 
@@ -258,9 +260,11 @@ impl GpuRenderer {
         };
         let descs = frame_buffer_descs(&FrameSizes {
             pixels,
+            tiles: super::edge_surfaces::edge_tiles(scene.resolution),
             receivers,
             edge_surfaces: edges.slots(),
             triangles: t,
+            vertices: upload.vertices.len() as u64,
             bvh_nodes: bvh.nodes.len() as u64,
             bvh_prims: bvh.prims.len() as u64,
             max_cells,
@@ -269,11 +273,13 @@ impl GpuRenderer {
             shadow_map_words: passes.shadow_map_words(pixels),
             mask_halves: halves as u64,
         });
+        let (buffer_descs, at) = frame_allocation(descs);
         let frame_buffers = FrameBuffers {
-            buffers: descs
+            buffers: buffer_descs
                 .into_iter()
                 .map(|d| GpuBuffer::new(shared, d))
                 .collect::<Result<_, _>>()?,
+            at,
         };
         let fb = &frame_buffers;
         let refs: [&GpuBuffer; super::shared::BINDING_COUNT as usize] =
@@ -336,7 +342,8 @@ impl GpuRenderer {
             Ok(())
         };
         stage(binding::FRAME, bytemuck::bytes_of(&params))?;
-        stage(binding::TRIANGLES, as_bytes(triangles))?;
+        stage(binding::TRIANGLES, as_bytes(&upload.corners))?;
+        stage(binding::VERTICES, as_bytes(&upload.vertices))?;
         stage(binding::TRIANGLE_NORMALS, as_bytes(&upload.normals))?;
         stage(binding::BVH_NODES, as_bytes(&bvh.nodes))?;
         stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
@@ -394,7 +401,10 @@ impl GpuRenderer {
         // same state, so the last one's results are a single frame's.
         let repeats = self.timed_repeats.max(1);
         let timestamps = TimestampPool::new(shared, TIMESTAMPS_PER_FRAME * repeats)?;
-        let light_reset = uploads.iter().find(|(_, b)| *b == binding::LIGHT);
+        let restaged: Vec<&(GpuBuffer, u32)> = uploads
+            .iter()
+            .filter(|(_, b)| restaged_each_repetition(*b))
+            .collect();
         let device = &shared.device;
         let start = Instant::now();
         let steps = StepMarks::new(shared)?;
@@ -421,7 +431,7 @@ impl GpuRenderer {
                     // The previous repetition's passes are done with the
                     // state reset below.
                     rec.barrier();
-                    if let Some((staging, b)) = light_reset {
+                    for (staging, b) in &restaged {
                         let region = [vk::BufferCopy::default().size(staging.size())];
                         // SAFETY: as above.
                         unsafe {
@@ -530,7 +540,7 @@ impl GpuRenderer {
             bytemuck::pod_collect_to_vec(&read(binding::COUNTERS)?[..counter::WORDS * 4]);
         // The G-buffer entries: the pixels, and the traced edge surfaces'
         // slots after them.
-        let (found, edge_tables) = edges.read_back(&read, &counters, pixels as usize)?;
+        let (found, edge_tables) = edges.read_back(&read, &counters, scene.resolution)?;
         let entries = pixels as usize + found;
         let words_of = |b: u32, n: usize| -> Result<Vec<u32>, GpuError> {
             Ok(bytemuck::pod_collect_to_vec(&read(b)?[..n * 4]))

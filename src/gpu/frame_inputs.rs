@@ -2,7 +2,7 @@
 //! receives it and the frame's parameters, with the per-device loop
 //! budget.
 
-use super::shared::{self, FrameParams, GpuTriangle};
+use super::shared::{self, FrameParams, GpuTriangle, GpuTriangleCorners};
 use super::GpuError;
 use crate::cpu::light_setup::directional_rotation;
 use crate::gbuffer::{flags, GBuffer, MAX_MICROQUAD_STRETCH};
@@ -14,21 +14,32 @@ use glam::Vec3;
 /// rerun reuses it): eye-relative `f32` vertices and the unit normals the
 /// CPU twin computes from the `f64` vertices, rounded.
 pub(super) struct SceneUpload {
+    /// Each triangle's three vertices, for the host's own uses (the BVH
+    /// build, a shadow map's fit).
     pub(super) triangles: Vec<GpuTriangle>,
+    /// What the device holds instead (`B_TRIANGLES`, `B_VERTICES`): per
+    /// triangle its corners' indices into `vertices`, each distinct
+    /// vertex (by its `f32` bits) once.
+    pub(super) corners: Vec<GpuTriangleCorners>,
+    pub(super) vertices: Vec<[f32; 3]>,
     pub(super) normals: Vec<[f32; 3]>,
 }
 
 impl SceneUpload {
     pub(super) fn new(scene: &Scene) -> Self {
         let eye_relative = scene.eye_relative_triangles();
+        let triangles: Vec<GpuTriangle> = eye_relative
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| v.as_vec3().to_array());
+                GpuTriangle { a, b, c }
+            })
+            .collect();
+        let (corners, vertices) = distinct_vertices(&triangles);
         SceneUpload {
-            triangles: eye_relative
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = t.map(|v| v.as_vec3().to_array());
-                    GpuTriangle { a, b, c }
-                })
-                .collect(),
+            triangles,
+            corners,
+            vertices,
             normals: eye_relative
                 .iter()
                 .map(|t| {
@@ -78,6 +89,29 @@ impl SceneUpload {
             })
             .collect()
     }
+}
+
+/// Each triangle's corners as indices into a table of distinct vertices,
+/// in order of first use. Vertices are the same by their bits, so a
+/// triangle read back through its indices is the very triangle (`-0.0`
+/// and `0.0` stay apart).
+fn distinct_vertices(triangles: &[GpuTriangle]) -> (Vec<GpuTriangleCorners>, Vec<[f32; 3]>) {
+    let mut index: std::collections::HashMap<[u32; 3], u32> =
+        std::collections::HashMap::with_capacity(triangles.len());
+    let mut vertices = Vec::with_capacity(triangles.len());
+    let corners = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = [t.a, t.b, t.c].map(|v| {
+                *index.entry(v.map(f32::to_bits)).or_insert_with(|| {
+                    vertices.push(v);
+                    (vertices.len() - 1) as u32
+                })
+            });
+            GpuTriangleCorners { a, b, c }
+        })
+        .collect();
+    (corners, vertices)
 }
 
 fn mode_code(mode: SampleMode) -> u32 {

@@ -13,6 +13,8 @@ use ash::vk;
 /// The sizes that decide a frame's buffers.
 pub struct FrameSizes {
     pub pixels: u64,
+    /// 8×8 tiles of the image (the edge surfaces' table).
+    pub tiles: u64,
     /// G-buffer entries: the pixels, then with edge surfaces their rows
     /// of extra surfaces ([`receivers`]).
     pub receivers: u64,
@@ -20,6 +22,8 @@ pub struct FrameSizes {
     /// frame has edge surfaces.
     pub edge_surfaces: Option<EdgeSlots>,
     pub triangles: u64,
+    /// Distinct vertices of the triangles (`SceneUpload::vertices`).
+    pub vertices: u64,
     pub bvh_nodes: u64,
     pub bvh_prims: u64,
     pub max_cells: u64,
@@ -33,8 +37,8 @@ pub struct FrameSizes {
 }
 
 /// A frame's room for edge surfaces: extra surfaces (G-buffer rows and
-/// `B_EDGE_COVERAGE`) and edge pixels' records (`B_EDGE_PIXELS`, after a
-/// word per pixel).
+/// `B_EDGE_COVERAGE`) and edge pixels' records (`B_EDGE_PIXELS`, after the
+/// tile table).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EdgeSlots {
     pub surfaces: u64,
@@ -48,19 +52,21 @@ const BINDINGS: usize = BINDING_COUNT as usize;
 /// (`shared::binding`), each with the pass it counts toward and its size.
 pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
     let (p, r, t, vec3) = (z.pixels, z.receivers, z.triangles, 12u64);
-    // A word per pixel, then 4 per edge pixel's record and mask half; a
-    // coverage word per extra surface and half.
+    // The tile table, then 4 words per edge pixel's record and mask half;
+    // a coverage word per extra surface and half.
     let h = z.mask_halves;
+    let table = u64::from(izb_contract::size::EDGE_TILE_WORDS) * z.tiles;
     let (edge_pixel_words, edge_coverage_words) = z
         .edge_surfaces
-        .map_or((0, 0), |e| (p + 4 * h * e.pixels, h * e.surfaces));
+        .map_or((0, 0), |e| (table + 4 * h * e.pixels, h * e.surfaces));
     let d = BufferDesc::device;
     by_binding([
         (
             binding::FRAME,
             d("frame", "frame_params", size_of::<FrameParams>() as u64),
         ),
-        (binding::TRIANGLES, d("scene", "triangles", t * 36)),
+        (binding::TRIANGLES, d("scene", "triangle_corners", t * 12)),
+        (binding::VERTICES, d("scene", "vertices", z.vertices * vec3)),
         (
             binding::BVH_NODES,
             d("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
@@ -135,6 +141,57 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
     ])
 }
 
+/// Bindings that hold their data in another binding's device buffer, with
+/// the name of the buffer they share: their passes never overlap. Only the
+/// G-buffer passes (`gbuffer`, `edge_surfaces`) and the shadow-ray peer,
+/// which runs no bin, read the BVH; the bin writes its cell list and
+/// overflow list after them, over it. This is a render graph's transient
+/// aliasing (O'Donnell 2017). A frame timed over several repetitions
+/// copies the BVH in again before each ([`restaged_each_repetition`]).
+const SHARED_BUFFERS: [(u32, u32, &str); 2] = [
+    (
+        binding::BVH_NODES,
+        binding::CELL_TRIANGLES,
+        "bvh_nodes_then_cell_triangles",
+    ),
+    (
+        binding::BVH_PRIMS,
+        binding::OVERFLOW,
+        "bvh_prims_then_overflow",
+    ),
+];
+
+/// Whether binding `b`'s upload must be copied in again before each
+/// repetition of a frame's passes: a later pass overwrites it (the light
+/// state's reductions, the bin over the BVH).
+pub(super) fn restaged_each_repetition(b: u32) -> bool {
+    b == binding::LIGHT || SHARED_BUFFERS.iter().any(|&(sharer, _, _)| sharer == b)
+}
+
+/// The device buffers a frame allocates for its bindings' descriptions:
+/// one per binding, except that the bindings of [`SHARED_BUFFERS`] share
+/// one, as large as the larger; and per binding the index of its buffer.
+pub fn frame_allocation(descs: [BufferDesc; BINDINGS]) -> (Vec<BufferDesc>, [usize; BINDINGS]) {
+    let mut buffers: Vec<BufferDesc> = Vec::with_capacity(BINDINGS);
+    let mut at = [usize::MAX; BINDINGS];
+    let sharer_of = |owner: u32| SHARED_BUFFERS.iter().find(|s| s.1 == owner);
+    for (b, desc) in descs.iter().enumerate() {
+        let b = b as u32;
+        if SHARED_BUFFERS.iter().any(|s| s.0 == b) {
+            continue;
+        }
+        let mut desc = desc.clone();
+        if let Some(&(sharer, _, name)) = sharer_of(b) {
+            desc.name = name;
+            desc.size = desc.size.max(descs[sharer as usize].size);
+            at[sharer as usize] = buffers.len();
+        }
+        at[b as usize] = buffers.len();
+        buffers.push(desc);
+    }
+    (buffers, at)
+}
+
 /// Each description at its binding's index: every binding exactly once (a
 /// missing or repeated one panics in the first frame any test builds,
 /// not as a wrong buffer in a shader).
@@ -157,14 +214,17 @@ pub fn planned_memory(
     settings: IzbSettings,
     edge_surfaces: Option<EdgeSlots>,
 ) -> Result<Vec<PassMemory>, GpuError> {
-    let triangles = SceneUpload::new(scene).triangles;
-    let bvh = super::gbuffer::build_bvh(&triangles)?;
+    let upload = SceneUpload::new(scene);
+    let triangles = &upload.triangles;
+    let bvh = super::gbuffer::build_bvh(triangles)?;
     let side = grid_budget_side(scene.pixel_count(), triangles.len(), settings.cells);
     let descs = frame_buffer_descs(&FrameSizes {
         pixels: scene.pixel_count() as u64,
+        tiles: super::edge_surfaces::edge_tiles(scene.resolution),
         receivers: receivers(scene.resolution, edge_surfaces.map_or(0, |e| e.surfaces)),
         edge_surfaces,
         triangles: triangles.len() as u64,
+        vertices: upload.vertices.len() as u64,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
         max_cells: crate::cascades::max_total_cells(side),
@@ -173,7 +233,8 @@ pub fn planned_memory(
         shadow_map_words: 0,
         mask_halves: settings.mask_halves(scene) as u64,
     });
-    Ok(group_by_pass(descs.iter().map(|d| {
+    let (buffers, _) = frame_allocation(descs);
+    Ok(group_by_pass(buffers.iter().map(|d| {
         (d.pass, d.name, d.size.max(4).next_multiple_of(4))
     })))
 }
@@ -266,5 +327,67 @@ pub(super) fn reset_pass_state(
         // SAFETY: `cmd` is recording; the buffer belongs to the frame and
         // lives until after its fence wait; the fill covers the whole buffer.
         unsafe { device.cmd_fill_buffer(cmd, buffer(b), 0, vk::WHOLE_SIZE, word) };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every binding gets a buffer at least its size; only the listed
+    /// pairs share one, named after both.
+    #[test]
+    fn shared_buffers_hold_both_bindings() {
+        let descs = frame_buffer_descs(&FrameSizes {
+            pixels: 64,
+            tiles: 1,
+            receivers: 64,
+            edge_surfaces: None,
+            triangles: 10,
+            vertices: 12,
+            bvh_nodes: 50_000,
+            bvh_prims: 10,
+            max_cells: 16,
+            cell_capacity: 1 << 16,
+            lut_entries: 4,
+            shadow_map_words: 0,
+            mask_halves: 1,
+        });
+        let (buffers, at) = frame_allocation(descs.clone());
+        assert_eq!(buffers.len(), BINDINGS - SHARED_BUFFERS.len());
+        for (b, desc) in descs.iter().enumerate() {
+            assert!(
+                buffers[at[b]].size >= desc.size,
+                "binding {b} ({})",
+                desc.name
+            );
+        }
+        let mut shared = 0;
+        for b in 0..BINDINGS {
+            for c in b + 1..BINDINGS {
+                if at[b] == at[c] {
+                    let pair = SHARED_BUFFERS
+                        .iter()
+                        .find(|s| s.0 as usize == b || s.1 as usize == b);
+                    let (sharer, owner, name) = *pair.expect("only listed bindings share");
+                    assert_eq!(
+                        [sharer, owner]
+                            .map(|x| x as usize)
+                            .iter()
+                            .filter(|&&x| x == b || x == c)
+                            .count(),
+                        2
+                    );
+                    assert_eq!(buffers[at[b]].name, name);
+                    shared += 1;
+                }
+            }
+        }
+        assert_eq!(shared, SHARED_BUFFERS.len());
+        // The BVH (50 000 nodes of 32 bytes) is the larger of its pair.
+        assert_eq!(
+            buffers[at[binding::CELL_TRIANGLES as usize]].size,
+            50_000 * 32
+        );
     }
 }

@@ -4,7 +4,8 @@
 //! under the names the passes use, and the host-side helpers of its words.
 
 pub use izb_contract::{
-    binding, counter, mode, BvhNode, CascadeGrid, FrameParams, GpuTriangle, LightState,
+    binding, counter, mode, BvhNode, CascadeGrid, FrameParams, GpuTriangle, GpuTriangleCorners,
+    LightState,
 };
 
 /// Number of descriptor bindings.
