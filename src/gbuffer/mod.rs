@@ -328,26 +328,47 @@ fn edge_surfaces_of(
     pattern: &[[f32; 2]; 32],
 ) -> EdgeSurfaces {
     let [w, h] = scene.resolution;
+    // Each pixel's centre triangle (`u32::MAX` for a miss) in one flat
+    // array: the id test reads 8 neighbours for every pixel, and reading
+    // them from the 100-byte surfaces cost more (default at 1080p: the
+    // whole render 5 % faster, median of 8 pairs).
+    let hit_ids: Vec<u32> = rows
+        .par_iter()
+        .flat_map_iter(|row| {
+            row.iter()
+                .map(|s| s.as_ref().map_or(u32::MAX, |s| s.hit.triangle))
+        })
+        .collect();
     // Only the candidates' results are kept: a smooth pixel's entries are
     // the defaults below.
     let samples: Vec<(usize, PixelSamples)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
         .filter_map(|(x, y)| {
-            let centre = rows[y as usize][x as usize].filter(|c| c.shadow_tested)?;
-            let at = |nx: u32, ny: u32| rows[ny as usize][nx as usize].map(|s| s.hit.triangle);
-            if edge_surfaces::neighbours_on_triangle(x, y, [w, h], centre.hit.triangle, at) {
+            let i = y as usize * w as usize + x as usize;
+            let triangle = hit_ids[i];
+            if triangle == u32::MAX {
                 return None;
             }
+            let at = |nx: u32, ny: u32| {
+                let id = hit_ids[ny as usize * w as usize + nx as usize];
+                (id != u32::MAX).then_some(id)
+            };
+            if edge_surfaces::neighbours_on_triangle(x, y, [w, h], triangle, at) {
+                return None;
+            }
+            let centre = rows[y as usize][x as usize]
+                .as_ref()
+                .filter(|c| c.shadow_tested)?;
             let (probes, n) = edge_surfaces::neighbour_probes(x, y, [w, h], |nx, ny| {
                 rows[ny as usize][nx as usize].map(|s| s.hit)
             });
             let probes = &probes[..n];
-            edge_surfaces::is_edge_candidate(&centre, probes).then(|| {
+            edge_surfaces::is_edge_candidate(centre, probes).then(|| {
                 let s = edge_surfaces::sample_surfaces(
-                    bvh, scene, frame, x, y, &centre, probes, pattern,
+                    bvh, scene, frame, x, y, centre, probes, pattern,
                 );
-                (y as usize * w as usize + x as usize, s)
+                (i, s)
             })
         })
         .collect();
