@@ -116,6 +116,40 @@ impl Delta {
     }
 }
 
+impl FlickerOptions {
+    /// The most the light may turn over a run, in degrees: past a half
+    /// turn the sweep only repeats itself.
+    pub const MAX_SWEEP_DEGREES: f64 = 180.0;
+
+    /// Refuses settings that measure nothing: fewer than two frames (no
+    /// frame step to compare), a step that is not a positive finite angle,
+    /// or a sweep past [`Self::MAX_SWEEP_DEGREES`].
+    pub fn check(&self) -> Result<(), String> {
+        if self.frames < 2 {
+            return Err(format!(
+                "--flicker-frames {}: flicker compares consecutive frames, so it needs at least 2",
+                self.frames
+            ));
+        }
+        if !(self.step_degrees.is_finite() && self.step_degrees > 0.0) {
+            return Err(format!(
+                "--flicker-step {}: the light's turn per frame must be a positive number of degrees",
+                self.step_degrees
+            ));
+        }
+        let sweep = self.step_degrees * (self.frames - 1) as f64;
+        if sweep > Self::MAX_SWEEP_DEGREES {
+            return Err(format!(
+                "--flicker-step {} over --flicker-frames {} turns the light {sweep}°, more than {}°",
+                self.step_degrees,
+                self.frames,
+                Self::MAX_SWEEP_DEGREES
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Runs every method and the ground truth on `options.frames` frames;
 /// `progress` is called once per frame. Methods a frame refuses are
 /// left out of the result.

@@ -55,7 +55,13 @@ fn main() {
         Command::View(a) => run_view_command(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        // Nobody reads a closed stdout's message: exit quietly.
+        if e.downcast_ref::<izb::cli::console::StreamClosed>()
+            .is_some()
+        {
+            std::process::exit(izb::cli::console::STREAM_CLOSED_STATUS);
+        }
+        izb::note!("error: {e:#}");
         std::process::exit(1);
     }
 }

@@ -99,7 +99,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         if shared_largest.exists() {
             vec![shared_largest.display().to_string()]
         } else {
-            eprintln!("bench: ../shared/scenes not found, measuring the `default` scene");
+            crate::note!("bench: ../shared/scenes not found, measuring the `default` scene");
             vec!["default".to_string()]
         }
     } else {
@@ -168,6 +168,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         step_degrees: args.flicker_step,
         reference: reference_settings,
     };
+    flicker_options.check().map_err(anyhow::Error::msg)?;
     let (mut rows, mut scene_rows, mut flicker_rows) = (Vec::new(), Vec::new(), Vec::new());
     let resolutions: Vec<Option<[u32; 2]>> = if args.resolution.is_empty() {
         vec![None]
@@ -205,7 +206,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
             pool.install(|| bench::SceneTruth::new(&scene, reference_settings, &|n| bar.inc(n)));
         bar.finish_and_clear();
         let stats = &shared.truth.stats;
-        println!(
+        crate::say!(
             "{}: {} triangles, {}x{}; ground truth {} spp: {:.2} s ({:.2} Mrays/s, {} threads)",
             scene.name,
             scene.triangles.len(),
@@ -215,7 +216,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
             stats.seconds,
             stats.rays_per_second / 1e6,
             pool.current_num_threads()
-        );
+        )?;
         let mut scene_results = Vec::new();
         let mut refused = Vec::new();
         // rt32 and rt32-embree have no Vulkan twin: they run on the CPU
@@ -238,9 +239,9 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
             refused.extend(why);
         }
         for why in &refused {
-            eprintln!("bench: {why}");
+            crate::note!("bench: {why}");
         }
-        print_bench_table(&scene.name, &scene_results);
+        print_bench_table(&scene.name, &scene_results)?;
         if args.flicker {
             let bar = progress_bar(
                 args.flicker_frames as u64,
@@ -251,7 +252,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
             });
             bar.finish_and_clear();
             for r in &f {
-                println!(
+                crate::say!(
                     "{}: flicker {:<14} mean |Δ| {:.5} per frame, {:.2}x the ground truth's \
                      (95% {:.2}-{:.2}x; smooth pixels {:.2}x, edge pixels {:.2}x)",
                     scene.name,
@@ -262,7 +263,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
                     r.ratio_ci95[1],
                     r.smooth_ratio_to_truth,
                     r.edge_ratio_to_truth
-                );
+                )?;
             }
             flicker_rows.push(SceneFlicker {
                 scene: scene.name.clone(),
@@ -290,10 +291,15 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
     }
     let scaling = izb32_scaling(&rows);
     for s in &scaling {
-        println!(
+        crate::say!(
             "{} ({}): izb32 shadow time {:.2}x from {} to {} ({:.1}x the pixels)",
-            s.scene, s.backend, s.time_ratio, s.from, s.to, s.pixel_ratio
-        );
+            s.scene,
+            s.backend,
+            s.time_ratio,
+            s.from,
+            s.to,
+            s.pixel_ratio
+        )?;
     }
     let report = BenchDocument {
         command: "bench".into(),
@@ -313,11 +319,11 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         flicker: flicker_rows,
     };
     write_json(&args.out, &report).with_context(|| format!("writing {}", args.out.display()))?;
-    println!(
+    crate::say!(
         "wrote {} (images in {})",
         args.out.display(),
         images_dir.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -369,15 +375,25 @@ pub fn cpu_model() -> Option<String> {
 }
 
 /// One line per method: time, ratio to `izb32`, and the error metrics.
-pub fn print_bench_table(scene: &str, rows: &[bench::MethodRow]) {
+pub fn print_bench_table(
+    scene: &str,
+    rows: &[bench::MethodRow],
+) -> Result<(), crate::cli::console::StreamClosed> {
     // The method column fits the longest name (`csm4-pcf3-2048+contact`).
     let w = rows.iter().map(|r| r.method.len()).fold(16, usize::max);
-    println!(
+    crate::say!(
         "{scene}: {:<w$} {:>7} {:>10} {:>8} {:>9} {:>9} {:>9} {:>8}",
-        "method", "backend", "shadow s", "/izb32", "MAE", "penumbra", "edge", "% wrong"
-    );
+        "method",
+        "backend",
+        "shadow s",
+        "/izb32",
+        "MAE",
+        "penumbra",
+        "edge",
+        "% wrong"
+    )?;
     for r in rows {
-        println!(
+        crate::say!(
             "{scene}: {:<w$} {:>7} {:>10.4} {:>8} {:>9.5} {:>9.4} {:>9.4} {:>8.3}",
             r.method,
             r.backend,
@@ -388,6 +404,7 @@ pub fn print_bench_table(scene: &str, rows: &[bench::MethodRow]) {
             r.metrics.smooth_penumbra_mae,
             r.metrics.edge_mae,
             r.metrics.percent_over_one_sample
-        );
+        )?;
     }
+    Ok(())
 }

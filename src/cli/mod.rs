@@ -4,6 +4,7 @@
 //! scene's name (default: `default`) or a path to a `*.scene.json` spec.
 
 pub mod bench;
+pub mod console;
 pub mod reference;
 pub mod render;
 pub mod tools;
@@ -112,19 +113,31 @@ pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
         scene = scene.with_light_size(size)?;
     }
     for w in &scene.warnings {
-        eprintln!("warning: {w}");
+        crate::note!("warning: {w}");
     }
     Ok(scene)
 }
 
+/// The worker pool of `--threads` (default: one per core), at most
+/// [`THREADS_PER_CORE`] per core: more only adds stacks and switching (and
+/// `--threads 100000` spent over a minute starting threads).
 pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut b = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
         anyhow::ensure!(n > 0, "--threads must be at least 1");
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        let most = THREADS_PER_CORE * cores;
+        anyhow::ensure!(
+            n <= most,
+            "--threads {n}: at most {most} on this machine ({THREADS_PER_CORE} per core, {cores} cores)"
+        );
         b = b.num_threads(n);
     }
     Ok(b.build()?)
 }
+
+/// The most worker threads per core `--threads` takes.
+pub const THREADS_PER_CORE: usize = 4;
 
 pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     let bar = ProgressBar::new(len);

@@ -90,11 +90,11 @@ pub fn run_same_sample_reference(args: ReferenceArgs) -> Result<()> {
         "gbuffer": g.stats,
     });
     write_json(&args.run.out.join("report.json"), &report)?;
-    println!(
+    crate::say!(
         "same-sample reference {}: {w}x{h}, 32 µQuad samples per pixel, {seconds:.2} s -> {}",
         scene.name,
         args.run.out.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -141,7 +141,7 @@ pub fn run_reference(args: ReferenceArgs) -> Result<()> {
         "gbuffer": gbuffer.stats,
     });
     write_json(&args.run.out.join("report.json"), &report)?;
-    println!(
+    crate::say!(
         "reference {}: {}x{} at {} spp, {} triangles, {:.2} s ({:.2} Mrays/s on {} threads) -> {}",
         scene.name,
         w,
@@ -152,7 +152,7 @@ pub fn run_reference(args: ReferenceArgs) -> Result<()> {
         image.stats.rays_per_second / 1e6,
         pool.current_num_threads(),
         args.run.out.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -181,10 +181,18 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
     let same = pool.install(|| same_sample_masks(&scene, &bvh, crate::lut::sample_pattern()));
     bar.finish_and_clear();
     let mut rows = Vec::new();
-    println!(
+    crate::say!(
         "{:<12} {:>8} {:>8} {:>8} {:>8} {:>10} {:>9} {:>12} {:>9}",
-        "method", "MAE", "RMSE", "max", ">1/32 %", "smooth-pen", "edge", "mismatch", "seconds"
-    );
+        "method",
+        "MAE",
+        "RMSE",
+        "max",
+        ">1/32 %",
+        "smooth-pen",
+        "edge",
+        "mismatch",
+        "seconds"
+    )?;
     for (name, mode) in &methods {
         let settings = IzbSettings {
             mode: *mode,
@@ -198,7 +206,7 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
             });
             m.sample_mismatch_rate = Some(diff as f64 / total.max(1) as f64);
         }
-        println!(
+        crate::say!(
             "{:<12} {:>8.5} {:>8.5} {:>8.4} {:>8.3} {:>10.5} {:>9.5} {:>12} {:>9.3}",
             name,
             m.mae,
@@ -210,7 +218,7 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
             m.sample_mismatch_rate
                 .map_or("-".into(), |r| format!("{r:.2e}")),
             render.report.seconds.total
-        );
+        )?;
         write_png(
             &args.run.out.join(format!("error_{name}.png")),
             &error_heat_map(&render.visibility, &truth.visibility, w, h, 0.25),
@@ -237,6 +245,6 @@ pub fn run_compare(args: CompareArgs) -> Result<()> {
         "methods": rows,
     });
     write_json(&args.run.out.join("compare.json"), &report)?;
-    println!("wrote {}", args.run.out.join("compare.json").display());
+    crate::say!("wrote {}", args.run.out.join("compare.json").display())?;
     Ok(())
 }

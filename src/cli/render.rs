@@ -98,7 +98,7 @@ pub fn run_render(args: RenderArgs) -> Result<()> {
     let renderer = match args.backend {
         Backend::Cpu => None,
         Backend::Auto if edges_on_cpu_only => {
-            eprintln!(
+            crate::note!(
                 "backend: cpu (edge surfaces' G-buffer is the CPU's; --backend vulkan uploads \
                  it, --no-edge-surfaces renders wholly on Vulkan)"
             );
@@ -112,7 +112,7 @@ pub fn run_render(args: RenderArgs) -> Result<()> {
             match GpuRenderer::new(&options) {
                 Ok(r) => Some(r),
                 Err(e) if args.backend == Backend::Auto => {
-                    eprintln!("backend: cpu ({e})");
+                    crate::note!("backend: cpu ({e})");
                     None
                 }
                 Err(e) => return Err(e).context("--backend vulkan"),
@@ -124,7 +124,7 @@ pub fn run_render(args: RenderArgs) -> Result<()> {
             // lavapipe refuses frames its loop cap would cut short: with
             // --backend auto the CPU renders the same masks instead.
             Err(e) if args.backend == Backend::Auto && is_loop_cap(&e) => {
-                eprintln!("backend: cpu ({e:#})");
+                crate::note!("backend: cpu ({e:#})");
                 render_on_cpu(&scene, settings, &args)
             }
             other => other,
@@ -155,12 +155,12 @@ pub fn print_render_summary(
     tests: u64,
     timing: &str,
     out: &Path,
-) {
+) -> Result<(), crate::cli::console::StreamClosed> {
     let [w, h] = scene.resolution;
     let grids: Vec<String> = grids
         .map(|([x, y], cap)| format!("{x}x{y} pyramid (≤ {cap} cells per triangle)"))
         .collect();
-    println!(
+    crate::say!(
         "render {} ({mode:?}, {backend}): {w}x{h}, {} triangles ({binned} placements binned, \
          {overflow} overflow, {culled} culled), {} cascade(s) ({cascade_reason}): {}, {tests} tests, \
          {timing} -> {}",
@@ -169,7 +169,7 @@ pub fn print_render_summary(
         grids.len(),
         grids.join(" + "),
         out.display()
-    );
+    )
 }
 
 pub fn render_on_gpu(
@@ -178,7 +178,7 @@ pub fn render_on_gpu(
     settings: IzbSettings,
     args: &RenderArgs,
 ) -> Result<()> {
-    eprintln!(
+    crate::note!(
         "backend: vulkan ({}, {})",
         renderer.context.info().name,
         renderer.context.info().kind
@@ -189,7 +189,7 @@ pub fn render_on_gpu(
     // cap on dense scenes, paper-notes/edge-surfaces.md); the passes after
     // it run on the device.
     let cpu_gbuffer = settings.uses_edge_surfaces(scene).then(|| {
-        eprintln!("gbuffer: cpu (edge surfaces' sample rays), uploaded");
+        crate::note!("gbuffer: cpu (edge surfaces' sample rays), uploaded");
         crate::gbuffer::gbuffer_with(scene, &SceneBvh::build(scene), settings.edge_halves(scene))
     });
     let source = cpu_gbuffer
@@ -198,7 +198,7 @@ pub fn render_on_gpu(
     let render = renderer.render(scene, settings, source)?;
     let messages = renderer.take_validation_messages();
     for m in &messages {
-        eprintln!("validation: {m}");
+        crate::note!("validation: {m}");
     }
     let [w, h] = scene.resolution;
     write_mask_outputs(
@@ -246,7 +246,7 @@ pub fn render_on_gpu(
             r.memory_total_bytes as f64 / (1024.0 * 1024.0)
         ),
         &args.out,
-    );
+    )?;
     Ok(())
 }
 
@@ -300,6 +300,6 @@ pub fn render_on_cpu(scene: &Scene, settings: IzbSettings, args: &RenderArgs) ->
             r.seconds.total, r.seconds.evaluate
         ),
         &args.out,
-    );
+    )?;
     Ok(())
 }

@@ -45,7 +45,7 @@ pub struct ReportArgs {
 pub fn run_report(args: ReportArgs) -> Result<()> {
     let files = crate::report::report(&args.bench, &args.out)?;
     for v in &files.verdicts {
-        println!(
+        crate::say!(
             "{} ({}): izb32 vs {:<16} penumbra MAE {:+.4}, MAE {:+.5}, time {:.2}x izb32{}",
             v.scene,
             v.backend,
@@ -58,37 +58,37 @@ pub fn run_report(args: ReportArgs) -> Result<()> {
             } else {
                 "  <- not more accurate"
             }
-        );
+        )?;
     }
-    println!(
+    crate::say!(
         "report: {} charts, {} crops -> {}",
         files.charts.len(),
         files.crops.len(),
         files.index.display()
-    );
+    )?;
     Ok(())
 }
 
 pub fn run_lut(args: LutArgs) -> Result<()> {
     let stats = crate::lut::regenerate_tables(args.angles, args.distances, &args.out)?;
-    println!(
+    crate::say!(
         "pixel table ({}), edges crossing the pixel, distances in pixels:",
         crate::lut::SAMPLE_PATTERN_NAME
-    );
-    println!("{:#?}", stats.edge);
-    println!(
+    )?;
+    crate::say!("{:#?}", stats.edge)?;
+    crate::say!(
         "light table ({}), edges crossing the light disk, coverage against the disk's area, \
          distances in light-disk diameters:",
         crate::lut::LIGHT_PATTERN_NAME
-    );
-    println!("{:#?}", stats.light);
+    )?;
+    crate::say!("{:#?}", stats.light)?;
     for name in [
         "edge_lut.bin",
         "edge_lut.png",
         "light_lut.bin",
         "light_lut.png",
     ] {
-        println!("wrote {}", args.out.join(name).display());
+        crate::say!("wrote {}", args.out.join(name).display())?;
     }
     Ok(())
 }
@@ -128,24 +128,24 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
             "edge_pixels": extra.map(|e| e.pixels),
         });
     }
-    println!("{}", serde_json::to_string_pretty(&summary)?);
+    crate::say!("{}", serde_json::to_string_pretty(&summary)?)?;
     Ok(())
 }
 
 pub fn run_devices() -> Result<()> {
     let devices = crate::gpu::list_devices()?;
     if devices.is_empty() {
-        println!("no Vulkan 1.2 device with compute and the scalar block layout");
+        crate::say!("no Vulkan 1.2 device with compute and the scalar block layout")?;
     }
     for d in devices {
-        println!(
+        crate::say!(
             "{}: {} ({}, Vulkan {}, max storage buffer {} MiB)",
             d.index,
             d.name,
             d.kind,
             d.api_version,
             d.max_storage_buffer_range / (1 << 20)
-        );
+        )?;
     }
     Ok(())
 }

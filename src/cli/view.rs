@@ -48,7 +48,7 @@ pub fn run_view_command(args: ViewArgs) -> Result<()> {
         out: args.out,
         truth_threads: cores.saturating_sub(1).max(1),
     })?;
-    eprintln!(
+    crate::note!(
         "view: {} UI frames, slowest {:.1} ms ({:.1} ms while a shadow frame computed), {} shadow frames, {} validation messages",
         stats.ui_frames,
         stats.ui_millis_max,
@@ -57,7 +57,7 @@ pub fn run_view_command(args: ViewArgs) -> Result<()> {
         stats.validation_messages.len()
     );
     for m in &stats.validation_messages {
-        eprintln!("validation: {m}");
+        crate::note!("validation: {m}");
     }
     if let Some(path) = &args.stats {
         write_json(path, &stats)?;

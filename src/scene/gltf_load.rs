@@ -198,6 +198,9 @@ fn load_buffers(
                 gltf::buffer::Source::Bin => "GLB BIN chunk".to_string(),
             };
             let what = format!("buffer {} ({source})", buffer.index());
+            if let gltf::buffer::Source::Uri(uri) = buffer.source() {
+                check_buffer_uri(uri).map_err(|e| format!("{what}: {e}"))?;
+            }
             let data =
                 gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
                     .map_err(|e| format!("{what}: {e}"))?;
@@ -211,6 +214,55 @@ fn load_buffers(
             Ok(data)
         })
         .collect()
+}
+
+/// A buffer URI the loader follows: a data URI, or a relative path that
+/// stays in the glTF file's folder. Refused, before anything is read: an
+/// absolute path (`/etc/passwd`), a URI with a scheme (`file:`, `http:`)
+/// and a path with a `..` segment (`../../../../etc/hostname`), percent-
+/// encoded or not, with `/` or `\` between segments: a scene file is
+/// input from anywhere, and must not make the renderer read other files
+/// as geometry.
+fn check_buffer_uri(uri: &str) -> Result<(), String> {
+    if uri.starts_with("data:") {
+        return Ok(());
+    }
+    let decoded = percent_decoded(uri);
+    let refuse = |why: &str| {
+        Err(format!("URI '{uri}' {why}; only data URIs and relative paths inside the glTF's folder are read"))
+    };
+    if decoded.starts_with('/') || decoded.starts_with('\\') {
+        return refuse("is an absolute path");
+    }
+    let first_segment = decoded.split(['/', '\\']).next().unwrap_or("");
+    if first_segment.contains(':') {
+        return refuse("has a scheme or a drive letter");
+    }
+    if decoded.split(['/', '\\']).any(|segment| segment == "..") {
+        return refuse("climbs out of the glTF's folder (a '..' segment)");
+    }
+    Ok(())
+}
+
+/// `uri` with its `%XX` escapes decoded (an invalid escape stays as it is);
+/// bytes that do not form UTF-8 become U+FFFD.
+fn percent_decoded(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = |b: u8| (b as char).to_digit(16);
+        if bytes[i] == b'%' && i + 2 < bytes.len() {
+            if let (Some(h), Some(l)) = (hex(bytes[i + 1]), hex(bytes[i + 2])) {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(bytes[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 /// Checks that an accessor's elements (and its sparse indices and values)

@@ -1,0 +1,138 @@
+//! Inputs a hostile or careless user gives (issue 28's table): each ends
+//! in a named error or the right answer, never a panic, a hang, or a
+//! file read that the scene had no business reading.
+
+mod common;
+
+use common::*;
+use izb::scene::load_gltf;
+use std::process::{Command, Stdio};
+
+/// A glTF whose buffer URI names a file outside its folder, or by an
+/// absolute path or a scheme, is refused before anything is read; the
+/// same buffer by a plain relative path (into a subfolder, percent-encoded
+/// or not) still loads.
+#[test]
+fn gltf_buffer_uris_stay_in_the_gltf_folder() {
+    let dir = TempDir::new("hostile-uris");
+    let gltf = Gltf::single_mesh(&[[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]]);
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    std::fs::write(dir.join("sub/data.bin"), &gltf.bin).unwrap();
+    // The same bytes one folder up, where only a `..` could reach them.
+    let outside = TempDir::new("hostile-uris-outside");
+    std::fs::write(outside.join("data.bin"), &gltf.bin).unwrap();
+    let up = format!(
+        "../{}/data.bin",
+        outside.path().file_name().unwrap().to_str().unwrap()
+    );
+    let refused: [(&str, &str); 7] = [
+        ("/etc/passwd", "absolute path"),
+        ("\\etc\\passwd", "absolute path"),
+        ("file:///etc/passwd", "scheme"),
+        ("C:/Windows/win.ini", "drive letter"),
+        (&up, "'..' segment"),
+        ("sub/../../x.bin", "'..' segment"),
+        ("%2e%2e/%2E%2E/etc/hostname", "'..' segment"),
+    ];
+    let mut checked = 0;
+    for (k, (uri, why)) in refused.iter().enumerate() {
+        let path = dir.join(format!("hostile{k}.gltf"));
+        write_json(&path, &gltf.to_json(Some(uri)));
+        let err = load_gltf(&path)
+            .err()
+            .unwrap_or_else(|| panic!("{uri}: loaded"));
+        let message = err.to_string();
+        assert!(message.contains(why), "{uri}: {message}");
+        assert!(message.contains("buffer 0"), "{uri}: {message}");
+        checked += 1;
+    }
+    assert_eq!(checked, refused.len());
+    for uri in ["sub/data.bin", "sub/%64ata.bin", "./sub/data.bin"] {
+        let path = dir.join("fine.gltf");
+        write_json(&path, &gltf.to_json(Some(uri)));
+        let meshes = load_gltf(&path).unwrap_or_else(|e| panic!("{uri}: {e}"));
+        assert!(!meshes.triangles.is_empty(), "{uri}");
+    }
+}
+
+/// Runs `izb` with its stdout the write end of a pipe whose read end is
+/// already closed.
+fn izb_into_a_closed_pipe(args: &[&str]) -> std::process::Output {
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    Command::new(env!("CARGO_BIN_EXE_izb"))
+        .args(args)
+        .stdout(Stdio::from(writer))
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap_or_else(|e| panic!("izb {args:?} did not start: {e}"))
+}
+
+/// A closed stdout (`izb … | true`, `| head`) ends a command quietly with
+/// status 141, never with a panic; what it wrote to files is whole.
+#[test]
+fn a_closed_stdout_ends_a_command_quietly() {
+    let dir = TempDir::new("closed-stdout");
+    let (out, lut) = (dir.join("render"), dir.join("lut"));
+    let (out, lut) = (out.to_str().unwrap(), lut.to_str().unwrap());
+    let cases: [&[&str]; 3] = [
+        &["info", "default"],
+        &[
+            "render",
+            "default",
+            "--resolution",
+            "64x36",
+            "--backend",
+            "cpu",
+            "--out",
+            out,
+        ],
+        &["lut", "--out", lut],
+    ];
+    for args in cases {
+        let run = izb_into_a_closed_pipe(args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+        assert_eq!(run.status.code(), Some(141), "{args:?}: {stderr}");
+    }
+    // The render's files were written before its summary line failed.
+    assert!(dir.join("render/visibility.exr").exists());
+}
+
+/// Numeric flags that would measure nothing or run away are refused by
+/// name before any work.
+#[test]
+fn numeric_flags_out_of_range_are_refused() {
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["bench", "default", "--flicker", "--flicker-frames", "0"],
+            "--flicker-frames 0",
+        ),
+        (
+            &["bench", "default", "--flicker", "--flicker-frames", "1"],
+            "at least 2",
+        ),
+        (
+            &["bench", "default", "--flicker", "--flicker-step", "NaN"],
+            "--flicker-step NaN",
+        ),
+        (
+            &["bench", "default", "--flicker", "--flicker-step=-1"],
+            "positive number of degrees",
+        ),
+        (
+            &["render", "default", "--threads", "100000"],
+            "--threads 100000: at most",
+        ),
+    ];
+    for (args, expected) in cases {
+        let run = izb_cli(args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{args:?} should fail");
+        assert!(
+            stderr.contains(expected),
+            "{args:?}: expected '{expected}' in: {stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    }
+}
