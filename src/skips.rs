@@ -98,6 +98,11 @@ impl Skips {
         }
         let mut skips = Skips::NONE;
         for name in text.split(',').map(str::trim) {
+            if name == "all" || name == "none" {
+                return Err(format!(
+                    "{name:?} stands alone (--skip {name}), not in a list with other skips"
+                ));
+            }
             let (_, _, field) = FIELDS.iter().find(|(n, _, _)| *n == name).ok_or_else(|| {
                 format!(
                     "unknown skip {name:?}: expected all, none or some of {}",

@@ -136,3 +136,121 @@ fn numeric_flags_out_of_range_are_refused() {
         assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
     }
 }
+
+/// A run over several scenes that fails on one writes nothing (its images
+/// are staged and renamed into place only when it finishes), and a report
+/// whose bench folder lost an image stops before writing a chart.
+#[test]
+fn multi_output_runs_are_written_whole_or_not_at_all() {
+    let dir = TempDir::new("all-or-nothing");
+    let json = dir.join("bench.json");
+    let json = json.to_str().unwrap();
+    let bench = |scenes: &[&str]| {
+        let mut args = vec!["bench"];
+        args.extend_from_slice(scenes);
+        args.extend_from_slice(&[
+            "--methods",
+            "izb1,izb32",
+            "--resolution",
+            "48x27",
+            "--spp",
+            "4",
+            "--backend",
+            "cpu",
+            "--out",
+            json,
+        ]);
+        izb_cli(&args)
+    };
+    let failed = bench(&["default", "missing.scene.json"]);
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert!(!failed.status.success());
+    assert!(stderr.contains("missing.scene.json"), "{stderr}");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "a failed bench left {left:?}");
+
+    let done = bench(&["default"]);
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    assert!(dir.join("bench.images").is_dir());
+    let truth = dir.join("bench.images/default/truth.exr");
+    std::fs::remove_file(&truth).unwrap();
+    let report_dir = dir.join("report");
+    let report = izb_cli(&["report", json, "--out", report_dir.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&report.stderr);
+    assert!(!report.status.success());
+    assert!(
+        stderr.contains("truth.exr") && stderr.contains("missing"),
+        "{stderr}"
+    );
+    assert!(!report_dir.exists(), "the report wrote before failing");
+}
+
+/// The smaller messages of issue 28's list say what is wrong in the
+/// user's terms.
+#[test]
+fn messages_name_the_problem_once() {
+    let dir = TempDir::new("messages");
+    Gltf::single_mesh(&[[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+        .write_glb(dir.path(), "tri");
+    // A spec saved with a byte-order mark loads.
+    let text = serde_json::to_string(&spec_json("tri.glb")).unwrap();
+    let bom = dir.join("bom.scene.json");
+    std::fs::write(&bom, format!("\u{feff}{text}")).unwrap();
+    load_path(&bom).unwrap_or_else(|e| panic!("a spec with a BOM: {e}"));
+    // A zero up vector is named as such.
+    let mut spec = spec_json("tri.glb");
+    spec["camera"]["up"] = serde_json::json!([0.0, 0.0, 0.0]);
+    let zero_up = write_spec(dir.path(), "zero-up", &spec);
+    let message = error_message(load_path(&zero_up), "zero up");
+    assert!(
+        message.contains("`camera.up` is the zero vector"),
+        "{message}"
+    );
+    let file = dir.join("a-file");
+    std::fs::write(&file, "not a folder").unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        // The OS error once, not twice (message and source).
+        (
+            &["render", "missing.scene.json"],
+            "cannot read: No such file or directory (os error 2)",
+        ),
+        (
+            &[
+                "render",
+                "default",
+                "--resolution",
+                "32x18",
+                "--out",
+                file.to_str().unwrap(),
+            ],
+            "is a file",
+        ),
+        (
+            &["render", "default", "--skip", "none,saturated-edges"],
+            "\"none\" stands alone",
+        ),
+        (
+            &["render", "default", "--cells", "99999999"],
+            "99999999 is not in 1..=4096",
+        ),
+    ];
+    for (args, expected) in cases {
+        let run = izb_cli(args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{args:?} should fail");
+        assert!(
+            stderr.contains(expected),
+            "{args:?}: expected '{expected}' in: {stderr}"
+        );
+        let os_errors = stderr.matches("(os error").count();
+        assert!(
+            os_errors <= 1,
+            "{args:?}: the OS error {os_errors} times: {stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    }
+}

@@ -1,7 +1,10 @@
 //! `izb bench`: run time against error for every method, one process,
 //! repetitions interleaved; `bench.json`.
 
-use super::{load_scene, parse_resolution, progress_bar, thread_pool, BenchBackend, SceneArgs};
+use super::{
+    load_scene, load_scene_quietly, parse_resolution, progress_bar, thread_pool, BenchBackend,
+    SceneArgs,
+};
 use crate::bench;
 use crate::bench::document::{
     BenchDocument, FlickerSettings, ResultRow, Scaling, SceneEntry, SceneFlicker, TruthEntry,
@@ -158,11 +161,6 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
     };
     let images_dir = args.out.with_extension("images");
     let image_prefix = bench::relative_to(&images_dir, &args.out);
-    let options = bench::BenchOptions {
-        repeat: args.repeat,
-        reference: reference_settings,
-        images: Some(images_dir.clone()),
-    };
     let flicker_options = bench::flicker::FlickerOptions {
         frames: args.flicker_frames,
         step_degrees: args.flicker_step,
@@ -188,6 +186,22 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
             }
         }
     }
+    // Every scene loads before the first ground truth, so a bad one stops
+    // the run before anything is written; the images go to a staged
+    // folder that only a finished run renames into place.
+    for &(name, resolution, light_size) in &runs {
+        load_scene_quietly(&SceneArgs {
+            scene: name.clone(),
+            resolution,
+            light_size,
+        })?;
+    }
+    let images = crate::output::StagedDir::new(&images_dir)?;
+    let options = bench::BenchOptions {
+        repeat: args.repeat,
+        reference: reference_settings,
+        images: Some(images.path().to_path_buf()),
+    };
     for (name, resolution, light_size) in runs {
         let mut scene = load_scene(&SceneArgs {
             scene: name.clone(),
@@ -318,7 +332,12 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         results: rows,
         flicker: flicker_rows,
     };
-    write_json(&args.out, &report).with_context(|| format!("writing {}", args.out.display()))?;
+    images.commit()?;
+    if let Err(e) = write_json(&args.out, &report) {
+        // No document for the images: remove them too.
+        let _ = std::fs::remove_dir_all(&images_dir);
+        return Err(e.context(format!("writing {}", args.out.display())));
+    }
     crate::say!(
         "wrote {} (images in {})",
         args.out.display(),

@@ -59,8 +59,9 @@ pub struct GridArgs {
     /// Cell budget of the light-space grids as the side of a square (200:
     /// 40 000 cells, square in light space whatever the footprint's shape),
     /// shared between the cascades in proportion to their pixels (default:
-    /// from the pixel and triangle counts).
-    #[arg(long)]
+    /// from the pixel and triangle counts). At most 4096: no grid is
+    /// longer than that either way, so a larger budget adds no cell.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::cascades::MAX_GRID_SIDE as i64))]
     cells: Option<u32>,
     /// A triangle is binned at the finest grid-pyramid level where its
     /// cell rectangle holds at most this many cells (default 1024).
@@ -104,16 +105,23 @@ pub fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
     Ok([parse(w)?, parse(h)?])
 }
 
+/// The scene of `args`, its warnings printed.
 pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
+    let scene = load_scene_quietly(args)?;
+    for w in &scene.warnings {
+        crate::note!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+/// The scene of `args`, its warnings kept in [`Scene::warnings`].
+pub fn load_scene_quietly(args: &SceneArgs) -> Result<Scene> {
     let mut scene = scene::load(&args.scene)?;
     if let Some(r) = args.resolution {
         scene = scene.with_resolution(r)?;
     }
     if let Some(size) = args.light_size {
         scene = scene.with_light_size(size)?;
-    }
-    for w in &scene.warnings {
-        crate::note!("warning: {w}");
     }
     Ok(scene)
 }

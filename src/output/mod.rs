@@ -17,7 +17,7 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) ->
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    create_folder(dir)?;
     let name = path.file_name().context("output path has no file name")?;
     let tmp: PathBuf = dir.join(format!(
         ".{}.{}.tmp",
@@ -31,6 +31,76 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) ->
         let _ = std::fs::remove_file(&tmp);
     }
     result.with_context(|| format!("writing {}", path.display()))
+}
+
+/// Creates the output folder `dir` (and its parents); one that names an
+/// existing file is refused as such, not as the OS's "File exists".
+pub fn create_folder(dir: &Path) -> Result<()> {
+    if let Some(file) = dir.ancestors().find(|a| a.is_file()) {
+        anyhow::bail!(
+            "the output folder {} cannot be made: {} is a file",
+            dir.display(),
+            file.display()
+        );
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+}
+
+/// A folder of outputs written under a temporary name beside its final
+/// one and renamed into place by [`StagedDir::commit`]; dropped without a
+/// commit (a failed run), it is removed. The folder a run leaves is then
+/// whole, the previous one's, or none.
+pub struct StagedDir {
+    staging: PathBuf,
+    target: PathBuf,
+    committed: bool,
+}
+
+impl StagedDir {
+    /// Creates the temporary folder for `target`.
+    pub fn new(target: &Path) -> Result<StagedDir> {
+        let name = target.file_name().context("output folder has no name")?;
+        let parent = target.parent().unwrap_or(Path::new("."));
+        let staging = parent.join(format!(
+            ".{}.{}.partial",
+            name.to_string_lossy(),
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&staging);
+        std::fs::create_dir_all(&staging)
+            .with_context(|| format!("creating {}", staging.display()))?;
+        Ok(StagedDir {
+            staging,
+            target: target.to_path_buf(),
+            committed: false,
+        })
+    }
+
+    /// Where the run writes.
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Replaces `target` (and whatever an earlier run left there) with the
+    /// written folder.
+    pub fn commit(mut self) -> Result<()> {
+        if self.target.exists() {
+            std::fs::remove_dir_all(&self.target)
+                .with_context(|| format!("replacing {}", self.target.display()))?;
+        }
+        std::fs::rename(&self.staging, &self.target)
+            .with_context(|| format!("renaming into {}", self.target.display()))?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
 }
 
 /// Writes a single-layer EXR of `f32` channels, each `width × height`,

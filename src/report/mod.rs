@@ -16,7 +16,7 @@ pub use crops::{edge_window, penumbra_window, CROP_SIDE, CROP_ZOOM};
 use crate::bench::document::{BenchDocument, ResultRow};
 use crate::metrics::Metrics;
 use crate::output::{read_exr_channel, write_atomically};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use chart::write_chart;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -96,11 +96,32 @@ fn num(x: impl Into<Option<f64>>, digits: usize) -> String {
 }
 
 /// Reads `bench` (a `bench.json`) and writes the report into `out`.
+/// Every image the document names, relative to `base`, is a file: checked
+/// before the report writes anything, so a moved or half-deleted bench
+/// folder stops it with the missing image's name, not half-way with its
+/// charts written.
+fn check_images_exist(doc: &BenchDocument, base: &Path, bench: &Path) -> Result<()> {
+    let truths = doc.scenes.iter().map(|s| s.truth.image.as_str());
+    let methods = doc.results.iter().filter_map(|r| r.row.image.as_deref());
+    for rel in truths.chain(methods) {
+        let path = base.join(rel);
+        anyhow::ensure!(
+            path.is_file(),
+            "{} names the image {}, which is missing (was the bench's .images folder moved \
+             or deleted?); nothing written",
+            bench.display(),
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 pub fn report(bench: &Path, out: &Path) -> Result<ReportFiles> {
     let doc = BenchDocument::read(bench)?;
     let results = &doc.results;
     let base = bench.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    check_images_exist(&doc, base, bench)?;
+    crate::output::create_folder(out)?;
     let mut files = ReportFiles::default();
     let mut scene_names: Vec<String> = Vec::new();
     for r in results {

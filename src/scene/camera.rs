@@ -44,7 +44,12 @@ impl Camera {
                 self.eye
             ));
         }
-        if forward.normalize().cross(self.up).length() <= 1e3 * f64::EPSILON {
+        if self.up.length_squared() == 0.0 {
+            return Err(
+                "`camera.up` is the zero vector: it must give the image's up direction".into(),
+            );
+        }
+        if forward.normalize().cross(self.up.normalize()).length() <= 1e3 * f64::EPSILON {
             return Err(format!(
                 "`camera.up` {} is parallel to the view direction {}",
                 self.up,

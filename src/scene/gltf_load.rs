@@ -21,9 +21,9 @@ pub struct GltfMeshes {
 /// Loads every mesh instance of the file's default scene (or its first
 /// scene; or every root node when it declares no scene).
 pub fn load_gltf(path: &Path) -> Result<GltfMeshes, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+    let bytes = std::fs::read(path).map_err(|cause| SceneError::Io {
         path: path.display().to_string(),
-        source,
+        cause,
     })?;
     load_gltf_bytes(&bytes, path)
 }

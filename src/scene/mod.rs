@@ -27,12 +27,10 @@ pub type Triangle = [DVec3; 3];
 /// Why a scene could not be built. Every variant names the offending input.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{path}: cannot read: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The OS error is part of the message, not a `source` (a chain
+    /// printer would repeat it).
+    #[error("{path}: cannot read: {cause}")]
+    Io { path: String, cause: std::io::Error },
     #[error("{path}: invalid scene spec: {message}")]
     Spec { path: String, message: String },
     #[error("{path}: invalid glTF: {message}")]

@@ -107,9 +107,9 @@ impl SceneSpec {
     /// Reads and parses a spec file. Errors name the file and the JSON path
     /// of the offending field (e.g. `camera.eye`).
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Io {
             path: path.display().to_string(),
-            source,
+            cause,
         })?;
         let mut spec = Self::parse(&text).map_err(|message| SceneError::Spec {
             path: path.display().to_string(),
@@ -121,6 +121,8 @@ impl SceneSpec {
 
     /// Parses spec text; the error names the field and what was expected.
     pub fn parse(text: &str) -> Result<Self, String> {
+        // A byte-order mark, as some Windows editors write one, is no JSON.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let de = &mut serde_json::Deserializer::from_str(text);
         serde_path_to_error::deserialize(de).map_err(|e| {
             let field = e.path().to_string();
