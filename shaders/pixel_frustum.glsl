@@ -46,10 +46,11 @@ bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
     return beyond > tolerance * length(n);     // P beyond the plane, away from the light
 }
 
-// frustum::side_plane_normal.
+// frustum::side_plane_normal (for a point light (x − l) × (y − x), which
+// does not cancel when the light is far).
 vec3 side_plane_normal(vec3 x, vec3 y, vec3 light_rel) {
     precise vec3 n = light.projection == 0u ? cross(y - x, light_rel)
-                                            : cross(x - light_rel, y - light_rel);
+                                            : cross(x - light_rel, y - x);
     return n;
 }
 

@@ -82,11 +82,16 @@ impl_vector!(DVec3, f64);
 pub type EdgeFunctions<S> = [[S; 3]; 3];
 
 /// Normal of the side plane through edge (x, y) (pixel-relative vertices).
+/// For a point light at `l`, (x − l) × (y − x): equal to (x − l) × (y − l)
+/// in exact arithmetic, but without its cancellation — two vectors of
+/// length ~|l| that differ by the edge, whose rounding (ulp(|l|) each)
+/// swamped the edge once the light was far: a light 10⁴ scene radii away
+/// put 0.8 % of `default`'s samples on the wrong side (issue 28).
 #[inline]
 fn side_plane_normal<V: Vector>(x: V, y: V, light: LightRel<V>) -> V {
     match light {
         LightRel::Toward(w) => (y - x).cross(w),
-        LightRel::At(l) => (x - l).cross(y - l),
+        LightRel::At(l) => (x - l).cross(y - x),
     }
 }
 

@@ -65,9 +65,23 @@ fn surface_mask(
             continue;
         }
         let sample = p + (s[0] as f64 - 0.5) * px.axis_x + (s[1] as f64 - 0.5) * px.axis_y;
+        // A line from beyond every triangle to the sample: from the light,
+        // or `far` from the sample toward it when the light is farther (the
+        // BVH's rounding bound holds for origins within 3R of the eye; a
+        // point light 10⁴ radii away made this reference miss and invent
+        // occluders, linearly in its distance).
         let (origin, dir): (DVec3, DVec3) = match light {
             Light::Directional { direction } => (sample + direction * far, -direction),
-            Light::Point { position } => (position, sample - position),
+            Light::Point { position } => {
+                let to_light = position - sample;
+                let distance = to_light.length();
+                let origin = if distance > far {
+                    sample + to_light * (far / distance)
+                } else {
+                    position
+                };
+                (origin, sample - origin)
+            }
         };
         if bvh.any_hit(origin, dir, 0.0, f64::INFINITY, occludes) {
             mask |= 1 << i;

@@ -8,6 +8,7 @@
 //! ([`Scene::eye_relative_triangles`]).
 
 mod camera;
+pub mod envelope;
 mod gltf_load;
 mod light;
 pub mod procedural;
@@ -144,9 +145,20 @@ impl Scene {
 
     pub fn validate(&self) -> Result<(), SceneError> {
         if self.triangles.is_empty() {
+            // Every triangle collapsing is also what coordinates far beyond
+            // the f64 range of their detail look like.
+            let far = self.camera.eye.length() > 1e15;
             return Err(SceneError::Invalid(format!(
-                "scene '{}' has no triangles ({} in the source, {} degenerate dropped)",
-                self.name, self.stats.source_triangles, self.stats.dropped_degenerate
+                "scene '{}' has no triangles ({} in the source, {} degenerate dropped{})",
+                self.name,
+                self.stats.source_triangles,
+                self.stats.dropped_degenerate,
+                if far {
+                    "; the camera is beyond 1e15 units from the origin, where f64 coordinates \
+                     round away a scene's detail"
+                } else {
+                    ""
+                }
             )));
         }
         spec::check_resolution(self.resolution).map_err(SceneError::Invalid)?;
@@ -160,6 +172,7 @@ impl Scene {
         self.light
             .validate_size(spec_units)
             .map_err(SceneError::Invalid)?;
+        envelope::check(self).map_err(SceneError::Invalid)?;
         Ok(())
     }
 

@@ -1,0 +1,79 @@
+//! The precision envelope: the scene sizes and point-light distances in
+//! which the `f32` passes stay exact (agree with the `f64` same-sample
+//! reference sample for sample, decisions within their documented margin
+//! excepted). Outside it a scene is refused by name, never rendered with
+//! shadows that silently went wrong. Measured with
+//! `examples/precision_envelope.rs` (`paper-notes/precision-envelope.md`):
+//! every quantity is a ratio or an eye-relative length, since the passes
+//! work relative to the eye and the pixel's P, so moving a scene away from
+//! the origin (tried to 10⁸ radii) changes nothing.
+
+use super::{Light, Scene};
+
+/// Smallest eye-relative radius (the farthest bounds corner from the eye):
+/// exact down to 3.2·10⁻³ (`default` scaled by 10⁻⁴); at 3.2·10⁻⁴ primary
+/// rays began to miss.
+pub const MIN_EYE_RADIUS: f64 = 1e-2;
+
+/// Largest eye-relative radius: exact up to 3.2·10¹⁰ (`default` scaled by
+/// 10⁹); at 3.2·10¹¹ (and `city` at 3.6·10¹¹) shadows vanished.
+pub const MAX_EYE_RADIUS: f64 = 1e9;
+
+/// Farthest the scene and its camera may lie from the origin, in
+/// eye-relative radii: the passes subtract the eye in `f64`, so only the
+/// scene's own `f64` coordinates round with the distance. Moved 10¹⁰
+/// radii (`default`, 2·10¹¹ units) the masks equal the unmoved scene's; at
+/// 10¹² the `f64` vertices had rounded enough to change the image.
+pub const MAX_ORIGIN_RADII: f64 = 1e9;
+
+/// Farthest a point light may be from the scene's centre, in scene radii
+/// (half the bounds' diagonal): exact to 10⁵ on `default`, `far` and
+/// `city`; at 10⁶ the light view lost occluders. A light that far is, to
+/// within 1/10⁴ radian across the scene, the directional light toward it.
+pub const MAX_POINT_LIGHT_RADII: f64 = 1e4;
+
+/// Refuses `scene` when it lies outside the envelope, naming the quantity,
+/// its value and the limit.
+pub fn check(scene: &Scene) -> Result<(), String> {
+    let (lo, hi) = scene.bounds();
+    let eye = scene.camera.eye;
+    let eye_radius = (lo - eye).abs().max((hi - eye).abs()).length();
+    if eye_radius < MIN_EYE_RADIUS {
+        return Err(format!(
+            "the scene reaches only {eye_radius:.3e} units from the eye, below the {MIN_EYE_RADIUS:e} \
+             the f32 passes are exact at: scale the scene and its camera up by one factor (the \
+             shadows do not change)"
+        ));
+    }
+    if eye_radius > MAX_EYE_RADIUS {
+        return Err(format!(
+            "the scene reaches {eye_radius:.3e} units from the eye, beyond the {MAX_EYE_RADIUS:e} the \
+             f32 passes are exact at: scale the scene and its camera down by one factor (the \
+             shadows do not change)"
+        ));
+    }
+    let farthest = lo.abs().max(hi.abs()).max(eye.abs()).length();
+    let origin_radii = farthest / eye_radius;
+    if origin_radii > MAX_ORIGIN_RADII {
+        return Err(format!(
+            "the scene lies {farthest:.3e} units from the origin, {origin_radii:.3e} times its \
+             {eye_radius:.3e} reach from the eye and beyond the {MAX_ORIGIN_RADII:e} its f64 \
+             coordinates keep its detail at: move the scene and its camera nearer the origin"
+        ));
+    }
+    if let Light::Point { position } = scene.light {
+        let centre = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE);
+        let radii = (position - centre).length() / radius;
+        if radii > MAX_POINT_LIGHT_RADII {
+            let toward = (centre - position).normalize();
+            return Err(format!(
+                "the point light is {radii:.3e} scene radii from the scene's centre, beyond the \
+                 {MAX_POINT_LIGHT_RADII:e} its f32 light view is exact at; that far it is a \
+                 directional light: use \"type\": \"directional\", \"direction\": [{:.6}, {:.6}, {:.6}]",
+                toward.x, toward.y, toward.z
+            ));
+        }
+    }
+    Ok(())
+}
