@@ -375,3 +375,41 @@ fn far_point_lights_stay_exact() {
     }
     assert_eq!(checked, 2);
 }
+
+/// Thousands of copies of one triangle (which made the BVH build take
+/// the square of their number, then overflow its stack at 30 000) load
+/// with at most `MAX_COINCIDENT` of them kept, counted and warned about;
+/// the scene renders.
+#[test]
+fn coincident_triangles_build_in_bounded_time() {
+    use glam::DVec3;
+    let base = izb::scene::load("default").unwrap();
+    let mut triangles = base.triangles.clone();
+    let copy = [
+        DVec3::new(0.0, 1.0, 0.0),
+        DVec3::new(1.0, 1.0, 0.0),
+        DVec3::new(0.0, 2.0, 0.0),
+    ];
+    // Every order of the corners is the same triangle.
+    for k in 0..30_000 {
+        triangles.push(if k % 2 == 0 {
+            copy
+        } else {
+            [copy[2], copy[1], copy[0]]
+        });
+    }
+    let scene =
+        izb::scene::Scene::new("copies", triangles, base.camera, base.light, [64, 36]).unwrap();
+    let kept = izb::scene::MAX_COINCIDENT as usize;
+    assert_eq!(scene.stats.dropped_coincident, 30_000 - kept);
+    assert_eq!(scene.triangles.len(), base.triangles.len() + kept);
+    assert!(
+        scene.warnings.iter().any(|w| w.contains("coincident")),
+        "{:?}",
+        scene.warnings
+    );
+    // Before, the build below aborted the test binary (stack overflow).
+    let bvh = izb::bvh::SceneBvh::build(&scene);
+    let render = izb::cpu::render_cpu(&scene, &bvh, Default::default());
+    assert!(render.masks.iter().any(|&m| m != 0));
+}

@@ -166,7 +166,7 @@ impl SceneSpec {
                 let mut scene = Scene::new(name, meshes.triangles, camera, light, self.resolution)?;
                 scene.light_radius = light_radius;
                 scene.stats.skipped_non_triangle_primitives = meshes.skipped_non_triangle_primitives;
-                scene.warnings = meshes.warnings;
+                scene.warnings.extend(meshes.warnings);
                 Ok(scene)
             }
             (None, Some(procedural)) => {
