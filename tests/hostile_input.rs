@@ -126,14 +126,7 @@ fn numeric_flags_out_of_range_are_refused() {
         ),
     ];
     for (args, expected) in cases {
-        let run = izb_cli(args);
-        let stderr = String::from_utf8_lossy(&run.stderr);
-        assert!(!run.status.success(), "{args:?} should fail");
-        assert!(
-            stderr.contains(expected),
-            "{args:?}: expected '{expected}' in: {stderr}"
-        );
-        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+        assert_cli_refuses(args, expected);
     }
 }
 
@@ -239,19 +232,12 @@ fn messages_name_the_problem_once() {
         ),
     ];
     for (args, expected) in cases {
-        let run = izb_cli(args);
-        let stderr = String::from_utf8_lossy(&run.stderr);
-        assert!(!run.status.success(), "{args:?} should fail");
-        assert!(
-            stderr.contains(expected),
-            "{args:?}: expected '{expected}' in: {stderr}"
-        );
+        let stderr = assert_cli_refuses(args, expected);
         let os_errors = stderr.matches("(os error").count();
         assert!(
             os_errors <= 1,
             "{args:?}: the OS error {os_errors} times: {stderr}"
         );
-        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
     }
 }
 

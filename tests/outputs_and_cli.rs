@@ -166,14 +166,7 @@ fn cli_rejects_bad_arguments_with_a_clear_message() {
         ),
     ];
     for (args, expected) in cases {
-        let run = izb(args);
-        let stderr = String::from_utf8_lossy(&run.stderr);
-        assert!(!run.status.success(), "{args:?} should fail");
-        assert!(
-            stderr.contains(expected),
-            "{args:?}: expected '{expected}' in: {stderr}"
-        );
-        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+        common::assert_cli_refuses(args, expected);
     }
 }
 

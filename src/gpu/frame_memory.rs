@@ -171,7 +171,9 @@ pub(super) fn restaged_each_repetition(b: u32) -> bool {
 /// The device buffers a frame allocates for its bindings' descriptions:
 /// one per binding, except that the bindings of [`SHARED_BUFFERS`] share
 /// one, as large as the larger; and per binding the index of its buffer.
-pub fn frame_allocation(descs: [BufferDesc; BINDINGS]) -> (Vec<BufferDesc>, [usize; BINDINGS]) {
+pub(super) fn frame_allocation(
+    descs: [BufferDesc; BINDINGS],
+) -> (Vec<BufferDesc>, [usize; BINDINGS]) {
     let mut buffers: Vec<BufferDesc> = Vec::with_capacity(BINDINGS);
     let mut at = [usize::MAX; BINDINGS];
     let sharer_of = |owner: u32| SHARED_BUFFERS.iter().find(|s| s.1 == owner);

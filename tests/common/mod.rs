@@ -67,6 +67,20 @@ pub fn izb_cli(args: &[&str]) -> std::process::Output {
         .unwrap_or_else(|e| panic!("izb {args:?} did not start: {e}"))
 }
 
+/// Runs `izb args`, which must fail without a panic and with `expected`
+/// in its stderr; returns that stderr.
+pub fn assert_cli_refuses(args: &[&str], expected: &str) -> String {
+    let run = izb_cli(args);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert!(!run.status.success(), "{args:?} should fail");
+    assert!(
+        stderr.contains(expected),
+        "{args:?}: expected '{expected}' in: {stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    stderr
+}
+
 /// glTF `componentType` values.
 pub const UNSIGNED_BYTE: u32 = 5121;
 pub const UNSIGNED_SHORT: u32 = 5123;
