@@ -107,9 +107,21 @@ bool saturated_edge(vec3 e, out uint m) {
     return e.x > reach || -e.x > reach;
 }
 
+// frustum::normalised_edge: e scaled by the power of two that brings
+// max(|β|, |γ|) into [1, 2), exact, so that β² + γ² stays in range at any
+// scene scale.
+vec3 normalised_edge(vec3 e) {
+    float m = max(abs(e.y), abs(e.z));
+    uint exponent = floatBitsToUint(m) & 0x7F800000u;
+    if (m == 0.0 || exponent == 0x7F800000u) return e;
+    precise vec3 scaled = e * uintBitsToFloat(0x7F000000u - min(exponent, 0x7E800000u));
+    return scaled;
+}
+
 // MaskRule::edge_mask: the samples edge e keeps inside, and whether the
 // cheap path decided them.
-uint edge_mask(vec3 e, out bool cheap) {
+uint edge_mask(vec3 e_in, out bool cheap) {
+    vec3 e = normalised_edge(e_in);
     if (frame.mode == MODE_ONE) {
         cheap = true;
         return e.x >= 0.0 ? FULL_MASK : 0u;

@@ -103,7 +103,7 @@ fn a_closed_stdout_ends_a_command_quietly() {
 /// name before any work.
 #[test]
 fn numeric_flags_out_of_range_are_refused() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (
             &["bench", "default", "--flicker", "--flicker-frames", "0"],
             "--flicker-frames 0",
@@ -124,6 +124,11 @@ fn numeric_flags_out_of_range_are_refused() {
             &["render", "default", "--threads", "100000"],
             "--threads 100000: at most",
         ),
+        (
+            &["reference", "default", "--spp", "1048576"],
+            "--spp 1048576: at most 65536",
+        ),
+        (&["reference", "default", "--spp", "0"], "perfect square"),
     ];
     for (args, expected) in cases {
         assert_cli_refuses(args, expected);
@@ -231,8 +236,41 @@ fn messages_name_the_problem_once() {
             "99999999 is not in 1..=4096",
         ),
     ];
+    let under_file = dir.join("a-file/bench");
+    let under_file = under_file.to_str().unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        cases[0],
+        cases[1],
+        cases[2],
+        cases[3],
+        // A bench folder under a file, named before any scene renders.
+        (
+            &[
+                "bench",
+                "default",
+                "--resolution",
+                "32x18",
+                "--methods",
+                "izb1",
+                "--out",
+                under_file,
+            ],
+            "a-file is a file",
+        ),
+        // Render checks its folder before the frame: nothing else said.
+        (
+            &["render", "default", "--out", under_file],
+            "a-file is a file",
+        ),
+    ];
     for (args, expected) in cases {
         let stderr = assert_cli_refuses(args, expected);
+        if args[0] == "render" && args.contains(&under_file) {
+            assert!(
+                !stderr.contains("backend"),
+                "{args:?}: the folder was checked after the frame began: {stderr}"
+            );
+        }
         let os_errors = stderr.matches("(os error").count();
         assert!(
             os_errors <= 1,
@@ -398,4 +436,53 @@ fn coincident_triangles_build_in_bounded_time() {
     let bvh = izb::bvh::SceneBvh::build(&scene);
     let render = izb::cpu::render_cpu(&scene, &bvh, Default::default());
     assert!(render.masks.iter().any(|&m| m != 0));
+}
+
+/// A point light's sphere is capped as the sun's disk is: at most 30°
+/// seen from the nearest triangle (`--light-size 1e6` was accepted while
+/// a sun is capped), and one that fits renders.
+#[test]
+fn a_point_lights_sphere_is_capped_like_the_suns_disk() {
+    let dir = TempDir::new("sphere-light");
+    Gltf::single_mesh(&[
+        [[-2.0, 0.0, -2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]],
+        [[-0.3, 0.5, -0.3], [0.3, 0.5, 0.3], [0.3, 0.5, -0.3]],
+    ])
+    .write_glb(dir.path(), "two");
+    let mut spec = spec_json("two.glb");
+    // 1.5 above the upper triangle: a sphere up to 0.75 subtends ≤ 30°.
+    spec["light"] = serde_json::json!({ "type": "point", "position": [0.0, 2.0, 0.0] });
+    let path = write_spec(dir.path(), "point", &spec);
+    let path = path.to_str().unwrap();
+    for (size, refused) in [("1e6", true), ("0.8", true), ("0.7", false)] {
+        let out = dir.join(format!("out-{size}"));
+        let args = [
+            "render",
+            path,
+            "--light-size",
+            size,
+            "--resolution",
+            "32x24",
+            "--backend",
+            "cpu",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if refused {
+            let stderr = assert_cli_refuses(&args, "subtends more than 30°");
+            assert_mentions(&stderr, &["--light-size", "triangle 1", "1.5000e0"]);
+        } else {
+            let run = izb_cli(&args);
+            assert!(
+                run.status.success(),
+                "{args:?}: {}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+        }
+    }
+    // The spec's own `radius` takes the same check.
+    spec["light"]["radius"] = serde_json::json!(2.0);
+    let too_big = write_spec(dir.path(), "too-big", &spec);
+    let message = error_message(load_path(&too_big), "a 2.0 sphere 1.5 from a triangle");
+    assert_mentions(&message, &["`light.radius` is 2", "subtends more than 30°"]);
 }

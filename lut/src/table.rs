@@ -213,8 +213,9 @@ impl EdgeLut {
     /// first, so r = 0 or r tiny against |α| never reaches the division. It
     /// also routes NaN inputs to "none inside", as [`crate::exact_mask_f32`].
     /// Correct normalisation needs β² + γ² within f32 range
-    /// (|β|, |γ| ≲ 10¹⁸ and not both ≲ 10⁻¹⁹); µQuad-relative light-view
-    /// coordinates (paper-notes/frustum-test.md) stay far inside it.
+    /// (|β|, |γ| ≲ 10¹⁸ and not both ≲ 10⁻¹⁹). The renderer's edges grow
+    /// with the cube of the scene's scale under a point light, so it scales
+    /// each by a power of two first (`izb::frustum::normalised_edge`, exact).
     pub fn cell(&self, alpha: f32, beta: f32, gamma: f32) -> LutCell {
         const HALF_DIAGONAL_F32: f32 = std::f32::consts::FRAC_1_SQRT_2;
         const PI_F32: f32 = std::f32::consts::PI;

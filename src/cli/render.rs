@@ -77,6 +77,9 @@ pub fn mode_for(spp: u32, exact: bool, paired: bool, paired64: bool) -> SampleMo
 }
 
 pub fn run_render(args: RenderArgs) -> Result<()> {
+    // Before the frame: an --out that cannot become a folder is named now,
+    // not after seconds of rendering.
+    crate::output::check_folder(&args.out)?;
     let scene = load_scene(&args.scene)?;
     anyhow::ensure!(
         !((args.exact || args.paired || args.paired64) && args.spp == 1),

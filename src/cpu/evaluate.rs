@@ -21,7 +21,7 @@ use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
 use super::{is_receiver, SampleMode, Skips};
 use crate::frustum::{
     above_tangent_plane, beyond_triangle_plane, edge_function, exact_edge_mask,
-    microquad_tolerance, saturated_edge, winding, LightRel,
+    microquad_tolerance, normalised_edge, saturated_edge, winding, LightRel,
 };
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
@@ -205,6 +205,7 @@ impl<'a> MaskRule<'a> {
     /// exact evaluation [`saturated_edge`]; one sample is always cheap.
     #[inline]
     pub(super) fn edge_mask(&self, e: [f32; 3]) -> (u32, bool) {
+        let e = normalised_edge(e);
         match self.mode {
             SampleMode::One => (if e[0] >= 0.0 { FULL } else { 0 }, true),
             SampleMode::Lut32 => {

@@ -264,6 +264,30 @@ pub fn edge_function<V: Vector>(
     [-(n.dot(x)), n.dot(ex), n.dot(ey)]
 }
 
+/// Edge `e` = (α, β, γ) scaled by the power of two that brings
+/// max(|β|, |γ|) into [1, 2). A power-of-two scale is exact in binary
+/// floating point, so every sample's sign, the saturation test and the
+/// LUT cell of an edge in range are unchanged bit for bit; what it removes
+/// is the range problem: the side planes' coefficients grow as the square
+/// (directional light) or the cube (point light) of the scene's scale, and
+/// β² + γ² in the LUT's and the saturation test's normalisation overflowed
+/// `f32` at 10⁷ units under a point light (found by the numeric-extremes
+/// run, `examples/fuzz_extremes`). Zero, infinite and NaN edges pass as
+/// they are. The GPU's `normalised_edge` (`pixel_frustum.glsl`) is the twin.
+#[inline]
+pub fn normalised_edge(e: [f32; 3]) -> [f32; 3] {
+    const EXPONENT: u32 = 0x7F80_0000;
+    let m = e[1].abs().max(e[2].abs());
+    let exponent = m.to_bits() & EXPONENT;
+    if m == 0.0 || exponent == EXPONENT {
+        return e;
+    }
+    // 2^(127 − E) as bits: biased exponent 254 − E, at least 1 (a normal
+    // number) for the largest finite m.
+    let scale = f32::from_bits(0x7F00_0000 - exponent.min(0x7E80_0000));
+    e.map(|x| x * scale)
+}
+
 /// Whether edge `e` = (α, β, γ) keeps every sample of the pattern on one
 /// side, and which: `Some(FULL)` all inside, `Some(0)` all outside, `None`
 /// when the line may cross a sample (then the LUT or the 32 evaluations

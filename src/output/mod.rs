@@ -36,14 +36,26 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) ->
 /// Creates the output folder `dir` (and its parents); one that names an
 /// existing file is refused as such, not as the OS's "File exists".
 pub fn create_folder(dir: &Path) -> Result<()> {
-    if let Some(file) = dir.ancestors().find(|a| a.is_file()) {
-        anyhow::bail!(
+    // The ancestors are walked only when the folder cannot be made, to
+    // say why in the user's terms (the OS says "File exists").
+    std::fs::create_dir_all(dir).or_else(|e| {
+        check_folder(dir)?;
+        Err(anyhow::Error::new(e).context(format!("creating {}", dir.display())))
+    })
+}
+
+/// Refuses a folder path that cannot become a folder because it, or a
+/// folder above it, is a file; creates nothing (a command checks its
+/// `--out` before its expensive work).
+pub fn check_folder(dir: &Path) -> Result<()> {
+    match dir.ancestors().find(|a| a.is_file()) {
+        Some(file) => anyhow::bail!(
             "the output folder {} cannot be made: {} is a file",
             dir.display(),
             file.display()
-        );
+        ),
+        None => Ok(()),
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
 }
 
 /// A folder of outputs written under a temporary name beside its final
@@ -66,9 +78,9 @@ impl StagedDir {
             name.to_string_lossy(),
             std::process::id()
         ));
+        check_folder(target)?;
         let _ = std::fs::remove_dir_all(&staging);
-        std::fs::create_dir_all(&staging)
-            .with_context(|| format!("creating {}", staging.display()))?;
+        create_folder(&staging)?;
         Ok(StagedDir {
             staging,
             target: target.to_path_buf(),

@@ -60,6 +60,11 @@ pub fn concentric_disk(u: f64, v: f64) -> DVec2 {
     DVec2::new(r * phi.cos(), r * phi.sin())
 }
 
+/// The most rays per pixel a reference takes: 256 × 256. A count far
+/// beyond (a million per pixel at 1080p is 2·10¹² rays) would not fail,
+/// it would run for days.
+pub const MAX_SPP: u32 = 65_536;
+
 /// What the ground truth is traced with.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct ReferenceSettings {
@@ -79,13 +84,21 @@ impl Default for ReferenceSettings {
 }
 
 impl ReferenceSettings {
-    /// Settings for `spp` samples per pixel, which must be a perfect square.
+    /// Settings for `spp` samples per pixel, which must be a perfect square
+    /// no larger than [`MAX_SPP`].
     pub fn from_spp(spp: u32, seed: u64) -> Result<Self, String> {
         let k = (spp as f64).sqrt().round() as u32;
         if spp == 0 || k * k != spp {
             return Err(format!(
                 "--spp {spp}: the reference stratifies the pixel into k×k cells, so spp must be a \
                  perfect square (e.g. 64, 256, 1024)"
+            ));
+        }
+        if spp > MAX_SPP {
+            return Err(format!(
+                "--spp {spp}: at most {MAX_SPP} ({side}×{side}) rays per pixel are supported \
+                 (the bench's ground truth uses 64 to 256)",
+                side = (MAX_SPP as f64).sqrt()
             ));
         }
         Ok(ReferenceSettings {

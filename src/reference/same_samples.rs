@@ -197,6 +197,36 @@ pub fn decision_margin(
     light: &Light,
     uv: [f32; 2],
 ) -> f64 {
+    sample_margins(eye_relative_triangles, px, light, uv).decision
+}
+
+/// How far sample `uv` of the pixel `px` lies from the nearest edge of a
+/// triangle that passes the per-pixel depth test, in µQuad side lengths
+/// (the unit of the LUT's misclassification bound,
+/// [`crate::lut::EdgeLut::misclassification_bound`]): a sample LUT mode
+/// gets wrong must lie within that bound of some such edge (Wyman et al.
+/// 2015, §4). Infinite when no triangle passes. `f64`, brute force.
+pub fn nearest_edge_distance(
+    eye_relative_triangles: &[crate::scene::Triangle],
+    px: &crate::gbuffer::PixelSurface,
+    light: &Light,
+    uv: [f32; 2],
+) -> f64 {
+    sample_margins(eye_relative_triangles, px, light, uv).nearest_edge
+}
+
+/// What [`decision_margin`] and [`nearest_edge_distance`] report.
+struct SampleMargins {
+    decision: f64,
+    nearest_edge: f64,
+}
+
+fn sample_margins(
+    eye_relative_triangles: &[crate::scene::Triangle],
+    px: &crate::gbuffer::PixelSurface,
+    light: &Light,
+    uv: [f32; 2],
+) -> SampleMargins {
     use crate::frustum::{edge_functions, DEPTH_TOLERANCE_MICROQUAD, DEPTH_TOLERANCE_ROUNDING};
     let p = px.hit.position;
     let size = px.axis_x.length().max(px.axis_y.length());
@@ -205,7 +235,10 @@ pub fn decision_margin(
         Light::Point { position } => LightRel::At(position - p),
     };
     let (du, dv) = (uv[0] as f64 - 0.5, uv[1] as f64 - 0.5);
-    let mut margin = f64::INFINITY;
+    let mut margins = SampleMargins {
+        decision: f64::INFINITY,
+        nearest_edge: f64::INFINITY,
+    };
     for (id, tri) in eye_relative_triangles.iter().enumerate() {
         if id as u32 == px.hit.triangle {
             continue;
@@ -229,17 +262,19 @@ pub fn decision_margin(
             n.dot(t[0]) * facing.signum() / n.length() - tolerance
         };
         let depth = (height - tolerance).min(beyond);
-        margin = margin.min((height - tolerance).abs().min(beyond.abs()) / scale);
+        let depth_margin = (height - tolerance).abs().min(beyond.abs()) / scale;
+        margins.decision = margins.decision.min(depth_margin);
         if depth > 0.0 {
             for e in edge_functions(&t, px.axis_x, px.axis_y, rel) {
                 let len = (e[1] * e[1] + e[2] * e[2]).sqrt().max(f64::MIN_POSITIVE);
-                let f = e[0] + e[1] * du + e[2] * dv;
                 // The side plane's normal scales with the edge length and
-                // the light vector: normalise by its component in the µQuad
-                // plane to get a distance on the µQuad.
-                margin = margin.min((f / len * size).abs() / scale);
+                // the light vector: normalised by its component in the
+                // µQuad plane, f / len is a distance in µQuad sides.
+                let g = (e[0] + e[1] * du + e[2] * dv) / len;
+                margins.decision = margins.decision.min((g * size).abs() / scale);
+                margins.nearest_edge = margins.nearest_edge.min(g.abs());
             }
         }
     }
-    margin
+    margins
 }

@@ -241,6 +241,9 @@ impl Scene {
         self.light
             .validate_size(spec_units)
             .map_err(SceneError::Invalid)?;
+        self.light
+            .validate_sphere_clearance(radius, &self.triangles)
+            .map_err(SceneError::Invalid)?;
         envelope::check(self).map_err(SceneError::Invalid)?;
         Ok(())
     }
@@ -252,7 +255,11 @@ impl Scene {
         self.light
             .validate_size(size)
             .map_err(|m| SceneError::Invalid(format!("--light-size: {m}")))?;
-        self.light_radius = self.light.radius_from_spec(size);
+        let radius = self.light.radius_from_spec(size);
+        self.light
+            .validate_sphere_clearance(radius, &self.triangles)
+            .map_err(|m| SceneError::Invalid(format!("--light-size: {m}")))?;
+        self.light_radius = radius;
         Ok(self)
     }
 
