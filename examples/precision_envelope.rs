@@ -10,8 +10,8 @@
 use glam::DVec3;
 use izb::bvh::SceneBvh;
 use izb::cpu::{render_cpu, IzbSettings, SampleMode};
-use izb::gbuffer::flags;
-use izb::reference::same_samples::same_sample_masks;
+use izb::gbuffer::{flags, pixel_surface};
+use izb::reference::same_samples::{decision_margin, same_sample_masks, FLOAT_DECISION_TOLERANCE};
 use izb::scene::{self, Camera, Light, Scene};
 
 fn masks(scene: &Scene) -> (Vec<u32>, Vec<u32>, Vec<bool>) {
@@ -41,7 +41,9 @@ fn bits(a: &[u32], b: &[u32], t: &[bool]) -> u64 {
         .sum()
 }
 
-fn mismatch(scene: &Scene) -> (u64, u64, u64) {
+/// (differing samples, compared samples, samples the IZB left lit, samples
+/// differing with a decision margin above the float tolerance).
+fn mismatch(scene: &Scene) -> (u64, u64, u64, u64) {
     let (reference, exact, tested) = masks(scene);
     let tested = |i: usize| tested[i];
     let (diff, total) = izb::metrics::sample_mismatches(&exact, &reference, tested);
@@ -49,7 +51,24 @@ fn mismatch(scene: &Scene) -> (u64, u64, u64) {
         .filter(|&i| tested(i))
         .map(|i| (reference[i] & !exact[i]).count_ones() as u64)
         .sum();
-    (diff, total, missed)
+    let bvh = SceneBvh::build(scene);
+    let frame = scene.camera.frame(scene.resolution);
+    let light = scene.light.relative_to(scene.camera.eye);
+    let triangles = scene.eye_relative_triangles();
+    let pattern = izb::lut::sample_pattern();
+    let w = scene.resolution[0];
+    let mut beyond = 0;
+    for i in (0..reference.len()).filter(|&i| tested(i) && exact[i] != reference[i]) {
+        let px = pixel_surface(&bvh, scene, &frame, i as u32 % w, i as u32 / w).unwrap();
+        let differing = exact[i] ^ reference[i];
+        beyond += (0..32)
+            .filter(|b| differing >> b & 1 == 1)
+            .filter(|&b| {
+                decision_margin(&triangles, &px, &light, pattern[b]) >= FLOAT_DECISION_TOLERANCE
+            })
+            .count() as u64;
+    }
+    (diff, total, missed, beyond)
 }
 
 fn transformed(
@@ -77,9 +96,10 @@ fn report(what: &str, scene: Result<Scene, String>) {
     match scene {
         Err(e) => println!("{what}: refused ({e})"),
         Ok(scene) => {
-            let (d, t, missed) = mismatch(&scene);
+            let (d, t, missed, beyond) = mismatch(&scene);
             println!(
-                "{what}: {d} of {t} samples differ ({:.2e}); {missed} missed (lit in the IZB)",
+                "{what}: {d} of {t} samples differ ({:.2e}); {missed} missed (lit in the IZB); \
+                 {beyond} beyond float rounding",
                 d as f64 / t.max(1) as f64
             );
         }
@@ -160,4 +180,47 @@ fn main() {
             transformed(&base, |p| p + offset, light, 1.0),
         );
     }
+    // The field of view narrowed around the target: the pixel's angle
+    // shrinks toward the f32 rounding of eye-relative positions (2⁻²⁴).
+    for k in [1.0, 2.0, 3.0, 4.0, 5.0, 6.0] {
+        let mut camera = base.camera;
+        camera.fov_y_deg /= 10f64.powf(k);
+        let pixel = camera.fov_y_deg.to_radians() / resolution[1] as f64;
+        let zoomed = Scene::new(
+            base.name.clone(),
+            base.triangles.clone(),
+            camera,
+            base.light,
+            base.resolution,
+        )
+        .map_err(|e| e.to_string());
+        report(
+            &format!("field narrowed by 1e{k}: a pixel spans {pixel:.3e} rad"),
+            zoomed,
+        );
+    }
+    // The camera moved back along its view with the field narrowed to
+    // frame the same view: eye-relative f32 positions round by ~d·2⁻²⁴,
+    // which approaches the scene's own size.
+    let d0 = (base.camera.target - eye).length();
+    for k in [3.0, 1e1, 3e1, 1e2, 3e2, 1e3, 1e4, 1e5, 1e7] {
+        let d = k * radius;
+        let mut camera = base.camera;
+        let back = (eye - camera.target).normalize();
+        camera.eye = camera.target + back * d;
+        camera.fov_y_deg = (2.0 * ((base.camera.fov_y_deg.to_radians() * 0.5).tan() * d0 / d).atan())
+            .to_degrees();
+        camera.near = base.camera.near * d / d0;
+        camera.far = base.camera.far + d;
+        let moved = Scene::new(
+            base.name.clone(),
+            base.triangles.clone(),
+            camera,
+            base.light,
+            base.resolution,
+        )
+        .map_err(|e| e.to_string());
+        report(&format!("camera {k:e} radii away, the same view"), moved);
+    }
 }
+

@@ -19,6 +19,16 @@ pub const MIN_EYE_RADIUS: f64 = 1e-2;
 /// 10⁹); at 3.2·10¹¹ (and `city` at 3.6·10¹¹) shadows vanished.
 pub const MAX_EYE_RADIUS: f64 = 1e9;
 
+/// Farthest the eye may be from the scene, in scene radii: the scene's
+/// reach from the eye over its own radius (half the bounds' diagonal).
+/// Eye-relative `f32` positions round by ~reach·2⁻²⁴, which must stay far
+/// below the scene's detail. `default` moved back along its view with the
+/// field narrowed to frame the same image: exact to 10² radii, then 29
+/// samples beyond float rounding at 3·10² and 492 at 10³ (160×90); the
+/// numeric-extremes run found its small scenes wrong from 2·10⁴ radii on.
+/// Ten times inside the last exact distance, as the other limits.
+pub const MAX_EYE_REACH_RADII: f64 = 10.0;
+
 /// Farthest the scene and its camera may lie from the origin, in
 /// eye-relative radii: the passes subtract the eye in `f64`, so only the
 /// scene's own `f64` coordinates round with the distance. Moved 10¹⁰
@@ -50,6 +60,16 @@ pub fn check(scene: &Scene) -> Result<(), String> {
             "the scene reaches {eye_radius:.3e} units from the eye, beyond the {MAX_EYE_RADIUS:e} the \
              f32 passes are exact at: scale the scene and its camera down by one factor (the \
              shadows do not change)"
+        ));
+    }
+    let scene_radius = (hi - lo).length() * 0.5;
+    let reach_radii = eye_radius / scene_radius;
+    if reach_radii > MAX_EYE_REACH_RADII {
+        return Err(format!(
+            "the scene reaches {eye_radius:.3e} units from the eye, {reach_radii:.3e} times its \
+             own {scene_radius:.3e} radius and beyond the {MAX_EYE_REACH_RADII} radii at which \
+             eye-relative f32 positions keep its detail: move the camera nearer the scene (a \
+             wider field of view frames the same)"
         ));
     }
     let farthest = lo.abs().max(hi.abs()).max(eye.abs()).length();
