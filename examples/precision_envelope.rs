@@ -208,8 +208,8 @@ fn main() {
         let mut camera = base.camera;
         let back = (eye - camera.target).normalize();
         camera.eye = camera.target + back * d;
-        camera.fov_y_deg = (2.0 * ((base.camera.fov_y_deg.to_radians() * 0.5).tan() * d0 / d).atan())
-            .to_degrees();
+        camera.fov_y_deg =
+            (2.0 * ((base.camera.fov_y_deg.to_radians() * 0.5).tan() * d0 / d).atan()).to_degrees();
         camera.near = base.camera.near * d / d0;
         camera.far = base.camera.far + d;
         let moved = Scene::new(
@@ -223,4 +223,3 @@ fn main() {
         report(&format!("camera {k:e} radii away, the same view"), moved);
     }
 }
-

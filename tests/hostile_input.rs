@@ -438,23 +438,24 @@ fn coincident_triangles_build_in_bounded_time() {
     assert!(render.masks.iter().any(|&m| m != 0));
 }
 
-/// A point light's sphere is capped as the sun's disk is: at most 30°
-/// seen from the nearest triangle (`--light-size 1e6` was accepted while
-/// a sun is capped), and one that fits renders.
+/// A point light's sphere is capped as the sun's disk is: no wider than
+/// the scene (`--light-size 1e6` was accepted while a sun is capped at
+/// 30°); one within it renders.
 #[test]
 fn a_point_lights_sphere_is_capped_like_the_suns_disk() {
     let dir = TempDir::new("sphere-light");
+    // Bounds 4 × 0.5 × 4: radius √(16 + 0.25 + 16) / 2 ≈ 2.839.
     Gltf::single_mesh(&[
         [[-2.0, 0.0, -2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]],
         [[-0.3, 0.5, -0.3], [0.3, 0.5, 0.3], [0.3, 0.5, -0.3]],
     ])
     .write_glb(dir.path(), "two");
     let mut spec = spec_json("two.glb");
-    // 1.5 above the upper triangle: a sphere up to 0.75 subtends ≤ 30°.
-    spec["light"] = serde_json::json!({ "type": "point", "position": [0.0, 2.0, 0.0] });
+    spec["light"] = serde_json::json!({ "type": "point", "position": [0.0, 4.0, 0.0] });
     let path = write_spec(dir.path(), "point", &spec);
     let path = path.to_str().unwrap();
-    for (size, refused) in [("1e6", true), ("0.8", true), ("0.7", false)] {
+    let mut checked = 0;
+    for (size, refused) in [("1e6", true), ("2.9", true), ("0.3", false)] {
         let out = dir.join(format!("out-{size}"));
         let args = [
             "render",
@@ -469,8 +470,8 @@ fn a_point_lights_sphere_is_capped_like_the_suns_disk() {
             out.to_str().unwrap(),
         ];
         if refused {
-            let stderr = assert_cli_refuses(&args, "subtends more than 30°");
-            assert_mentions(&stderr, &["--light-size", "triangle 1", "1.5000e0"]);
+            let stderr = assert_cli_refuses(&args, "wider than the scene itself");
+            assert_mentions(&stderr, &["--light-size", "radius 2.8395e0"]);
         } else {
             let run = izb_cli(&args);
             assert!(
@@ -479,10 +480,15 @@ fn a_point_lights_sphere_is_capped_like_the_suns_disk() {
                 String::from_utf8_lossy(&run.stderr)
             );
         }
+        checked += 1;
     }
+    assert_eq!(checked, 3);
     // The spec's own `radius` takes the same check.
-    spec["light"]["radius"] = serde_json::json!(2.0);
+    spec["light"]["radius"] = serde_json::json!(3.0);
     let too_big = write_spec(dir.path(), "too-big", &spec);
-    let message = error_message(load_path(&too_big), "a 2.0 sphere 1.5 from a triangle");
-    assert_mentions(&message, &["`light.radius` is 2", "subtends more than 30°"]);
+    let message = error_message(load_path(&too_big), "a sphere wider than the scene");
+    assert_mentions(
+        &message,
+        &["`light.radius` is 3", "wider than the scene itself"],
+    );
 }

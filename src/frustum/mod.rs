@@ -266,14 +266,15 @@ pub fn edge_function<V: Vector>(
 
 /// Edge `e` = (α, β, γ) scaled by the power of two that brings
 /// max(|β|, |γ|) into [1, 2). A power-of-two scale is exact in binary
-/// floating point, so every sample's sign, the saturation test and the
-/// LUT cell of an edge in range are unchanged bit for bit; what it removes
-/// is the range problem: the side planes' coefficients grow as the square
-/// (directional light) or the cube (point light) of the scene's scale, and
-/// β² + γ² in the LUT's and the saturation test's normalisation overflowed
-/// `f32` at 10⁷ units under a point light (found by the numeric-extremes
-/// run, `examples/fuzz_extremes`). Zero, infinite and NaN edges pass as
-/// they are. The GPU's `normalised_edge` (`pixel_frustum.glsl`) is the twin.
+/// floating point (Goldberg 1991), so every sample's sign, the saturation
+/// test and the LUT cell of an edge in range are unchanged bit for bit;
+/// what it removes is the range problem: the side planes' coefficients
+/// grow as the square (directional light) or the cube (point light) of
+/// the scene's scale, and β² + γ² in the LUT's and the saturation test's
+/// normalisation overflowed `f32` at 10⁷ units under a point light (found
+/// by the numeric-extremes run, `examples/fuzz_extremes`). Zero, infinite
+/// and NaN edges pass as they are. The GPU's `normalised_edge`
+/// (`pixel_frustum.glsl`) is the twin.
 #[inline]
 pub fn normalised_edge(e: [f32; 3]) -> [f32; 3] {
     const EXPONENT: u32 = 0x7F80_0000;

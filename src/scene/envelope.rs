@@ -26,8 +26,8 @@ pub const MAX_EYE_RADIUS: f64 = 1e9;
 /// field narrowed to frame the same image: exact to 10² radii, then 29
 /// samples beyond float rounding at 3·10² and 492 at 10³ (160×90); the
 /// numeric-extremes run found its small scenes wrong from 2·10⁴ radii on.
-/// Ten times inside the last exact distance, as the other limits.
-pub const MAX_EYE_REACH_RADII: f64 = 10.0;
+/// Ten times inside the first distance found wrong.
+pub const MAX_EYE_REACH_RADII: f64 = 30.0;
 
 /// Farthest the scene and its camera may lie from the origin, in
 /// eye-relative radii: the passes subtract the eye in `f64`, so only the

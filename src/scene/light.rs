@@ -64,41 +64,24 @@ impl Light {
         Ok(())
     }
 
-    /// Checks that a point light's sphere of radius `radius` subtends at
-    /// most [`MAX_ANGULAR_RADIUS_DEG`] seen from every triangle, as a
-    /// directional light's disk must: the disk the soft-shadow passes put
-    /// in its place stays a faithful stand-in only there, and a sphere
-    /// reaching a surface has no meaning at all. Brute force over the
-    /// triangles (`f64`, about 20 ns each); nothing to check for a
-    /// directional light or a point-like one.
-    pub(crate) fn validate_sphere_clearance(
+    /// Checks that a point light's sphere of radius `radius` is no wider
+    /// than the scene (`scene_radius`, half its bounds' diagonal), as a
+    /// directional light's disk is capped at [`MAX_ANGULAR_RADIUS_DEG`]:
+    /// the soft-shadow passes stand a disk facing each receiver in for the
+    /// sphere, a faithful model of a lamp, not of a light that swallows
+    /// the scene (a sphere may still cut a surface: the receiver's horizon
+    /// hides the part below it). Nothing to check for a directional light.
+    pub(crate) fn validate_sphere_size(
         &self,
         radius: f64,
-        triangles: &[super::Triangle],
+        scene_radius: f64,
     ) -> Result<(), String> {
-        let Light::Point { position } = *self else {
-            return Ok(());
-        };
-        if radius <= 0.0 {
-            return Ok(());
-        }
-        let nearest = triangles
-            .iter()
-            .enumerate()
-            .map(|(id, t)| {
-                (
-                    id,
-                    (closest_point_on_triangle(position, t) - position).length(),
-                )
-            })
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((id, distance)) = nearest else {
-            return Ok(());
-        };
-        let largest = distance * MAX_ANGULAR_RADIUS_DEG.to_radians().sin();
-        if radius > largest {
+        if matches!(self, Light::Point { .. }) && radius > scene_radius {
             return Err(format!(
-                "`light.radius` is {radius}, but triangle {id} lies {distance:.4e} from the                  light's centre: a sphere of that radius subtends more than                  {MAX_ANGULAR_RADIUS_DEG}° there (at most {largest:.4e} is supported)"
+                "`light.radius` is {radius}, wider than the scene itself (radius \
+                 {scene_radius:.4e}, half its bounds' diagonal): a sphere light is a lamp \
+                 within the scene; for light from a wide sky use a directional light's \
+                 `angular_radius_deg` (at most {MAX_ANGULAR_RADIUS_DEG}°)"
             ));
         }
         Ok(())
@@ -225,80 +208,5 @@ impl LightDisk<DVec3> {
     /// The vector from P to the light sample at `uv` of the pattern.
     pub fn sample(&self, uv: [f32; 2]) -> DVec3 {
         self.centre + (uv[0] as f64 - 0.5) * self.axis_u + (uv[1] as f64 - 0.5) * self.axis_v
-    }
-}
-
-/// The point of triangle `t` nearest `p` (Ericson 2005, §5.1.5: the
-/// Voronoi regions of the vertices, the edges and the face in turn).
-fn closest_point_on_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
-    let [a, b, c] = *t;
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The closest point against a dense sampling of the triangle: never
-    /// farther than the nearest sample, and on the triangle.
-    #[test]
-    fn closest_point_is_no_farther_than_any_sampled_point() {
-        let t = [
-            DVec3::new(0.0, 0.0, 0.0),
-            DVec3::new(2.0, 0.2, 0.0),
-            DVec3::new(0.5, 1.5, 0.3),
-        ];
-        let mut checked = 0;
-        for p in [
-            DVec3::new(-1.0, -1.0, 0.5),
-            DVec3::new(3.0, 0.0, -1.0),
-            DVec3::new(0.6, 2.5, 0.0),
-            DVec3::new(0.8, 0.5, 2.0),
-            DVec3::new(1.5, 1.2, -0.4),
-            DVec3::new(-0.5, 0.8, 0.1),
-        ] {
-            let q = closest_point_on_triangle(p, &t);
-            let best = (0..=200)
-                .flat_map(|i| (0..=200 - i).map(move |j| (i, j)))
-                .map(|(i, j)| {
-                    let (u, v) = (i as f64 / 200.0, j as f64 / 200.0);
-                    t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v
-                })
-                .map(|s| (s - p).length())
-                .fold(f64::INFINITY, f64::min);
-            let d = (q - p).length();
-            assert!(d <= best + 1e-12, "{p}: {d} above the sampled {best}");
-            assert!(d > best - 0.02, "{p}: {d} far below the sampled {best}");
-            checked += 1;
-        }
-        assert_eq!(checked, 6);
     }
 }

@@ -242,7 +242,7 @@ impl Scene {
             .validate_size(spec_units)
             .map_err(SceneError::Invalid)?;
         self.light
-            .validate_sphere_clearance(radius, &self.triangles)
+            .validate_sphere_size(radius, self.radius())
             .map_err(SceneError::Invalid)?;
         envelope::check(self).map_err(SceneError::Invalid)?;
         Ok(())
@@ -257,7 +257,7 @@ impl Scene {
             .map_err(|m| SceneError::Invalid(format!("--light-size: {m}")))?;
         let radius = self.light.radius_from_spec(size);
         self.light
-            .validate_sphere_clearance(radius, &self.triangles)
+            .validate_sphere_size(radius, self.radius())
             .map_err(|m| SceneError::Invalid(format!("--light-size: {m}")))?;
         self.light_radius = radius;
         Ok(self)
@@ -288,6 +288,12 @@ impl Scene {
             .iter()
             .map(|t| [t[0] - eye, t[1] - eye, t[2] - eye])
             .collect()
+    }
+
+    /// Half the diagonal of [`Self::bounds`].
+    pub fn radius(&self) -> f64 {
+        let (lo, hi) = self.bounds();
+        (hi - lo).length() * 0.5
     }
 
     /// World-space bounds of all triangles.

@@ -165,6 +165,7 @@ impl SceneSpec {
                 let meshes = super::load_gltf(&base.join(gltf))?;
                 let mut scene = Scene::new(name, meshes.triangles, camera, light, self.resolution)?;
                 scene.light_radius = light_radius;
+                scene.validate()?;
                 scene.stats.skipped_non_triangle_primitives = meshes.skipped_non_triangle_primitives;
                 scene.warnings.extend(meshes.warnings);
                 Ok(scene)
@@ -178,6 +179,7 @@ impl SceneSpec {
                 })?;
                 let mut scene = Scene::new(name, geometry, camera, light, self.resolution)?;
                 scene.light_radius = light_radius;
+                scene.validate()?;
                 Ok(scene)
             }
             (Some(_), Some(_)) => Err(spec_error(
