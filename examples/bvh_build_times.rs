@@ -59,6 +59,15 @@ fn main() {
         let load = median_ms(|| {
             std::hint::black_box(izb::scene::load(spec).expect("loads again"));
         });
+        // `Scene::new` alone: degenerate and coincident triangles dropped,
+        // the scene validated (the part of `load` past reading the glTF).
+        let assemble = median_ms(|| {
+            let t = scene.triangles.clone();
+            std::hint::black_box(
+                izb::scene::Scene::new("again", t, scene.camera, scene.light, scene.resolution)
+                    .expect("valid"),
+            );
+        });
         let cpu = median_ms(|| {
             std::hint::black_box(SceneBvh::build(&scene));
         });
@@ -83,10 +92,11 @@ fn main() {
             std::hint::black_box(build_bvh(&gpu_tris).expect("builds"));
         });
         println!(
-            "{:<12} {:>9} {:>8.1} {:>11.1} {:>11.1} {:>18?}",
+            "{:<12} {:>9} {:>8.1} {:>7.1} {:>11.1} {:>11.1} {:>18?}",
             scene.name,
             scene.triangles.len(),
             load,
+            assemble,
             cpu,
             gpu,
             groups

@@ -71,14 +71,18 @@ fn hash(k: &[u32; 6]) -> u64 {
 /// buckets are then sorted to find the exact groups.
 pub fn identical_boxes(boxes: &[Aabb]) -> Option<Clusters> {
     let hashes: Vec<u64> = boxes.par_iter().map(|b| hash(&key(b))).collect();
-    let buckets = (2 * boxes.len()).next_power_of_two().max(64);
-    let mask = buckets as u64 - 1;
-    let mut counts = vec![0u8; buckets];
-    for h in &hashes {
-        let c = &mut counts[(h & mask) as usize];
+    // The hash's top bits: the multiply mixes into them best.
+    let bits = (2 * boxes.len())
+        .next_power_of_two()
+        .max(64)
+        .trailing_zeros();
+    let bucket = |h: u64| (h >> (64 - bits)) as usize;
+    let mut counts = vec![0u8; 1 << bits];
+    for &h in &hashes {
+        let c = &mut counts[bucket(h)];
         *c = c.saturating_add(1);
     }
-    let full = |h: u64| counts[(h & mask) as usize] as usize >= MIN_CLUSTER;
+    let full = |h: u64| counts[bucket(h)] as usize >= MIN_CLUSTER;
     let mut suspects: Vec<u32> = (0..boxes.len() as u32)
         .filter(|&i| full(hashes[i as usize]))
         .collect();
