@@ -199,7 +199,7 @@ impl SceneBvh {
     ) {
         let n = directions.len();
         assert!(n <= PACKET_RAYS && t_max.len() == n && hits.len() == n);
-        let f32_dir = |d: DVec3| Vec3A::from(d.as_vec3());
+        let f32_dir = super::f32_direction;
         let first = directions.first().map(|&d| octant(f32_dir(d)));
         if directions
             .iter()
@@ -252,25 +252,27 @@ impl SceneBvh {
             slabs.children(node, state.oct_inv4, packet_t),
             {
                 let prim = state.primitive_id as usize;
-                let tri = &self.triangles[prim];
                 let mut hit_any = false;
-                let mut maybe = rays.may_hit(tri, origin, &best_t32) & live;
-                while maybe != 0 {
-                    let i = maybe.trailing_zeros() as usize;
-                    maybe &= maybe - 1;
-                    match testers[i].intersect(tri) {
-                        Some(t) if t > t_min && t < best_t[i] => {
-                            best_t[i] = t;
-                            best_t32[i] = t as f32;
-                            // Rounded up as in `closest_hit`.
-                            cull_t[i] = (t as f32).next_up();
-                            hits[i] = Some(Hit {
-                                triangle: self.ids[prim],
-                                t,
-                            });
-                            hit_any = true;
+                for k in self.members(prim) {
+                    let tri = &self.triangles[k];
+                    let mut maybe = rays.may_hit(tri, origin, &best_t32) & live;
+                    while maybe != 0 {
+                        let i = maybe.trailing_zeros() as usize;
+                        maybe &= maybe - 1;
+                        match testers[i].intersect(tri) {
+                            Some(t) if t > t_min && t < best_t[i] => {
+                                best_t[i] = t;
+                                best_t32[i] = t as f32;
+                                // Rounded up as in `closest_hit`.
+                                cull_t[i] = (t as f32).next_up();
+                                hits[i] = Some(Hit {
+                                    triangle: self.ids[k],
+                                    t,
+                                });
+                                hit_any = true;
+                            }
+                            _ => {}
                         }
-                        _ => {}
                     }
                 }
                 if hit_any {

@@ -60,12 +60,19 @@ pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
             Aabb::new(a.min(b).min(c), a.max(b).max(c))
         })
         .collect();
+    let clusters = crate::bvh::identical_boxes(&boxes);
+    let heads: Vec<Aabb> = match &clusters {
+        Some(c) => (0..c.len())
+            .map(|r| boxes[c.members(r)[0] as usize])
+            .collect(),
+        None => boxes,
+    };
     let bvh = obvhs::bvh2::builder::build_bvh2(
-        &boxes,
+        &heads,
         BvhBuildParams::medium_build(),
         &mut Duration::default(),
     );
-    let nodes: Vec<BvhNode> = bvh
+    let mut nodes: Vec<BvhNode> = bvh
         .nodes
         .iter()
         .map(|n| BvhNode {
@@ -75,6 +82,10 @@ pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
             first: n.first_index,
         })
         .collect();
+    let prims = match &clusters {
+        Some(c) => expand_leaves(&mut nodes, &bvh.primitive_indices, c),
+        None => bvh.primitive_indices,
+    };
     // Depth by an explicit walk from the root (node 0).
     let mut depth = 0;
     let mut stack = vec![(0usize, 1usize)];
@@ -93,9 +104,30 @@ pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
     }
     Ok(GpuBvh {
         nodes,
-        prims: bvh.primitive_indices,
+        prims,
         depth,
     })
+}
+
+/// Leaves over grouped primitives (`crate::bvh::identical_boxes`) list
+/// every member: a group of identical boxes becomes one leaf's flat run,
+/// which the shader's leaf loop tests one by one (no tree over identical
+/// boxes could cull any of them).
+fn expand_leaves(
+    nodes: &mut [BvhNode],
+    heads: &[u32],
+    clusters: &crate::bvh::Clusters,
+) -> Vec<u32> {
+    let mut prims = Vec::with_capacity(clusters.members.len());
+    for n in nodes.iter_mut().filter(|n| n.prim_count > 0) {
+        let first = prims.len() as u32;
+        for &r in &heads[n.first as usize..(n.first + n.prim_count) as usize] {
+            prims.extend_from_slice(clusters.members(r as usize));
+        }
+        n.first = first;
+        n.prim_count = prims.len() as u32 - first;
+    }
+    prims
 }
 
 /// Records the pass: one thread per pixel; with `edge_surfaces` then the
