@@ -116,7 +116,8 @@ impl Rendered {
 fn differing_within_margin(
     what: &str,
     judge: &Rendered,
-    (a, a_tested, a_counted): (&[u32], &dyn Fn(usize) -> bool, &dyn Fn(usize) -> u32),
+    subject: &Rendered,
+    a: &[u32],
     b: &[u32],
     lut: bool,
 ) -> Result<u64, String> {
@@ -125,17 +126,16 @@ fn differing_within_margin(
     let pattern = sample_pattern();
     let mut within = 0;
     for i in 0..b.len() {
-        if a_tested(i) != judge.tested(i) || a_counted(i) != judge.counted(i) {
+        let (tested, counted) = (subject.tested(i), subject.counted(i));
+        if tested != judge.tested(i) || counted != judge.counted(i) {
             return Err(format!(
-                "{what}: pixel {i} tested {} / counted {:#010x} against {} / {:#010x}",
-                a_tested(i),
-                a_counted(i),
+                "{what}: pixel {i} tested {tested} / counted {counted:#010x} against {} / {:#010x}",
                 judge.tested(i),
                 judge.counted(i)
             ));
         }
-        let differing = (a[i] ^ b[i]) & a_counted(i);
-        if !a_tested(i) || differing == 0 {
+        let differing = (a[i] ^ b[i]) & counted;
+        if !tested || differing == 0 {
             continue;
         }
         for bit in (0..32).filter(|k| differing >> k & 1 == 1) {
@@ -177,9 +177,7 @@ pub fn check_case(case: &Case) -> Outcome {
         twin_refused: twin.is_none(),
         ..Default::default()
     };
-    let x_tested = |i: usize| extreme.tested(i);
-    let x_counted = |i: usize| extreme.counted(i);
-    let x = (&extreme.exact.masks[..], &x_tested as _, &x_counted as _);
+    let x = &extreme.exact.masks[..];
     counts.samples = (0..extreme.exact.masks.len())
         .filter(|&i| extreme.tested(i))
         .map(|i| extreme.counted(i).count_ones() as u64)
@@ -189,7 +187,7 @@ pub fn check_case(case: &Case) -> Outcome {
         if let Some(twin) = &twin {
             let m = &twin.exact.masks;
             counts.twin_within_margin =
-                differing_within_margin("exact vs twin", twin, x, m, false)?;
+                differing_within_margin("exact vs twin", twin, &extreme, x, m, false)?;
             if case.exact_similarity() && counts.twin_within_margin > 0 {
                 return Err(format!(
                     "exact vs twin under a power-of-two scale: {} samples differ (must be \
@@ -206,10 +204,16 @@ pub fn check_case(case: &Case) -> Outcome {
                 "the G-buffer and the reference count different samples at pixel {i}"
             ));
         }
-        counts.reference_within_margin =
-            differing_within_margin("exact vs reference", judge, x, &reference.masks, false)?;
+        counts.reference_within_margin = differing_within_margin(
+            "exact vs reference",
+            judge,
+            &extreme,
+            x,
+            &reference.masks,
+            false,
+        )?;
         counts.lut_within_bound =
-            differing_within_margin("LUT vs exact", judge, x, &lut.masks, true)?;
+            differing_within_margin("LUT vs exact", judge, &extreme, x, &lut.masks, true)?;
         Ok(())
     })();
     match result {
