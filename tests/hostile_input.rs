@@ -208,6 +208,36 @@ fn messages_name_the_problem_once() {
         message.contains("`camera.up` is the zero vector"),
         "{message}"
     );
+    // A vector of the wrong length says how many numbers it wants.
+    let mut checked = 0;
+    for (field, value, expected) in [
+        (
+            "eye",
+            serde_json::json!([0.0, 1.0, 10.0, 5.0]),
+            "`camera.eye`: expected an array of 3 numbers, got 4",
+        ),
+        (
+            "target",
+            serde_json::json!([0.0, 1.0]),
+            "`camera.target`: expected an array of 3 numbers, got 2",
+        ),
+    ] {
+        let mut spec = spec_json("tri.glb");
+        spec["camera"][field] = value;
+        let path = write_spec(dir.path(), field, &spec);
+        let message = error_message(load_path(&path), field);
+        assert!(message.contains(expected), "{message}");
+        checked += 1;
+    }
+    let mut spec = spec_json("tri.glb");
+    spec["resolution"] = serde_json::json!([64, 48, 1]);
+    let path = write_spec(dir.path(), "resolution", &spec);
+    let message = error_message(load_path(&path), "resolution");
+    assert!(
+        message.contains("expected an array of 2 numbers, got 3"),
+        "{message}"
+    );
+    assert_eq!(checked + 1, 3);
     let file = dir.join("a-file");
     std::fs::write(&file, "not a folder").unwrap();
     let cases: [(&[&str], &str); 4] = [

@@ -19,6 +19,7 @@ pub struct SceneSpec {
     pub procedural: Option<String>,
     pub camera: CameraSpec,
     pub light: LightSpec,
+    #[serde(deserialize_with = "exactly")]
     pub resolution: [u32; 2],
     /// The file this spec was read from (for relative paths and messages).
     #[serde(skip)]
@@ -28,9 +29,11 @@ pub struct SceneSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
+    #[serde(deserialize_with = "exactly")]
     pub eye: [f64; 3],
+    #[serde(deserialize_with = "exactly")]
     pub target: [f64; 3],
-    #[serde(default = "default_up")]
+    #[serde(default = "default_up", deserialize_with = "exactly")]
     pub up: [f64; 3],
     pub fov_y_deg: f64,
     pub near: f64,
@@ -45,6 +48,7 @@ fn default_up() -> [f64; 3] {
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum LightSpec {
     Directional {
+        #[serde(deserialize_with = "exactly")]
         direction: [f64; 3],
         /// The sun as a disk of this angular radius around `direction`
         /// (degrees; the real sun: 0.27). Absent or 0: hard shadows.
@@ -52,11 +56,27 @@ pub enum LightSpec {
         angular_radius_deg: f64,
     },
     Point {
+        #[serde(deserialize_with = "exactly")]
         position: [f64; 3],
         /// A sphere light of this radius. Absent or 0: hard shadows.
         #[serde(default)]
         radius: f64,
     },
+}
+
+/// A fixed-length array field that says how many numbers it wants:
+/// serde's own message for a longer array is serde_json's "trailing
+/// characters".
+fn exactly<'de, D, T, const N: usize>(deserializer: D) -> Result<[T; N], D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    let values = Vec::<T>::deserialize(deserializer)?;
+    let n = values.len();
+    values
+        .try_into()
+        .map_err(|_| serde::de::Error::custom(format!("expected an array of {N} numbers, got {n}")))
 }
 
 pub(crate) fn check_resolution(resolution: [u32; 2]) -> Result<(), String> {
