@@ -99,6 +99,44 @@ fn a_closed_stdout_ends_a_command_quietly() {
     assert!(dir.join("render/visibility.exr").exists());
 }
 
+/// A closed stderr loses the notes and nothing else: the command runs to
+/// its end (a panic's message would be lost with it, so the status is the
+/// witness: 101 for a panic, 0 here).
+#[test]
+fn a_closed_stderr_loses_only_the_notes() {
+    let dir = TempDir::new("closed-stderr");
+    let out = dir.join("render");
+    let out = out.to_str().unwrap();
+    let mut checked = 0;
+    for args in [
+        &[
+            "render",
+            "default",
+            "--resolution",
+            "64x36",
+            "--backend",
+            "cpu",
+            "--out",
+            out,
+        ][..],
+        &["render", "missing.scene.json"][..],
+    ] {
+        let (reader, writer) = std::io::pipe().expect("a pipe");
+        drop(reader);
+        let run = Command::new(env!("CARGO_BIN_EXE_izb"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::from(writer))
+            .output()
+            .unwrap_or_else(|e| panic!("izb {args:?} did not start: {e}"));
+        let expected = if args.len() > 2 { 0 } else { 1 };
+        assert_eq!(run.status.code(), Some(expected), "{args:?}");
+        checked += 1;
+    }
+    assert_eq!(checked, 2);
+    assert!(dir.join("render/visibility.exr").exists());
+}
+
 /// Numeric flags that would measure nothing or run away are refused by
 /// name before any work.
 #[test]
