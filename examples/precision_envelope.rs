@@ -155,7 +155,7 @@ fn main() {
             transformed(&base, |p| p, light, 1.0),
         );
     }
-    for s in [1e-5, 1e-4, 1e-3, 1e3, 1e6, 1e7, 1e8, 1e9] {
+    for s in [1e-12, 1e-11, 1e-10, 1e-8, 1e-5, 1e-3, 1e3, 1e6, 1e8, 1e9] {
         let light = match base.light {
             Light::Directional { direction } => Light::Directional { direction },
             Light::Point { position } => Light::Point {

@@ -398,7 +398,7 @@ fn scenes_outside_the_precision_envelope_are_refused_by_name() {
             "units from the eye, beyond",
         ),
         (
-            mapped("default", |p| p * 1e-5, 1e-5, None),
+            mapped("default", |p| p * 1e-12, 1e-12, None),
             "units from the eye, below",
         ),
         (
@@ -559,4 +559,48 @@ fn a_point_lights_sphere_is_capped_like_the_suns_disk() {
         &message,
         &["`light.radius` is 3", "wider than the scene itself"],
     );
+}
+
+/// The whole scene scaled by a power of two, which `f64` and `f32`
+/// represent exactly, renders the same exact masks bit for bit, down to
+/// 2⁻³⁰ (≈ 10⁻⁹, an eye reach of 3·10⁻⁸): before, `obvhs`'s absolute
+/// 10⁻⁴ clamp on a box's entry distance culled every box of a scene below
+/// ~10⁻³ units (the primary rays missed) and the envelope refused such
+/// scenes below 10⁻²; the CPU tree is now scaled by a power of two.
+#[test]
+fn a_scene_scaled_by_a_power_of_two_casts_the_same_shadows() {
+    use izb::bvh::SceneBvh;
+    use izb::cpu::{render_cpu, IzbSettings, SampleMode};
+    let render = |scene: izb::scene::Scene| {
+        let scene = scene.with_resolution([96, 54]).unwrap();
+        let bvh = SceneBvh::build(&scene);
+        let settings = IzbSettings {
+            mode: SampleMode::Exact32,
+            edge_surfaces: true,
+            ..Default::default()
+        };
+        let r = render_cpu(&scene, &bvh, settings);
+        (r.masks, r.gbuffer.flags)
+    };
+    let (masks, flags) = render(mapped("default", |p| p, 1.0, None).unwrap());
+    assert!(
+        masks.iter().filter(|&&m| m != 0).count() > 100,
+        "too few shadowed pixels"
+    );
+    let mut checked = 0;
+    for k in [-30, -20, -10, 10, 24] {
+        let s = 2f64.powi(k);
+        let scaled = mapped("default", |p| p * s, s, None)
+            .unwrap_or_else(|e| panic!("scaled by 2^{k}: {e}"));
+        let (m, f) = render(scaled);
+        assert_eq!(f, flags, "scaled by 2^{k}: other pixels tested");
+        let differing: u32 = m
+            .iter()
+            .zip(&masks)
+            .map(|(a, b)| (a ^ b).count_ones())
+            .sum();
+        assert_eq!(differing, 0, "scaled by 2^{k}: {differing} samples differ");
+        checked += 1;
+    }
+    assert_eq!(checked, 5);
 }

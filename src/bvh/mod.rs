@@ -45,6 +45,9 @@ pub struct SceneBvh {
     starts: Vec<u32>,
     /// The eye-relative triangles indexed by triangle id.
     by_id: Vec<Triangle>,
+    /// The power of two the `f32` tree's coordinates and ray parameters
+    /// are scaled by ([`tree_scale`]).
+    scale: f64,
 }
 
 impl SceneBvh {
@@ -57,7 +60,8 @@ impl SceneBvh {
             .map(|v| v.abs().max_element())
             .fold(0.0, f64::max);
         let pad = 16.0 * f32::EPSILON as f64 * radius;
-        let bounds: Vec<Aabb> = by_id.iter().map(|t| padded_bounds(t, pad)).collect();
+        let scale = tree_scale(radius);
+        let bounds: Vec<Aabb> = by_id.iter().map(|t| padded_bounds(t, pad, scale)).collect();
         let Some(clusters) = identical_boxes(&bounds) else {
             let bvh = build_cwbvh(&bounds);
             let ids = bvh.primitive_indices.clone();
@@ -68,6 +72,7 @@ impl SceneBvh {
                 ids,
                 starts: Vec::new(),
                 by_id,
+                scale,
             };
         };
         let heads: Vec<Aabb> = (0..clusters.len())
@@ -88,6 +93,7 @@ impl SceneBvh {
             ids,
             starts,
             by_id,
+            scale,
         }
     }
 
@@ -126,7 +132,7 @@ impl SceneBvh {
         t_max: f64,
         skip: u32,
     ) -> Option<Hit> {
-        let ray = f32_ray(origin, direction, t_max);
+        let ray = self.f32_ray(origin, direction, t_max);
         let tester = WatertightRay::new(origin, direction);
         let mut best: Option<Hit> = None;
         let mut best_t = t_max;
@@ -146,7 +152,7 @@ impl SceneBvh {
                         });
                         // Round up so the f32 traversal keeps every box that
                         // could hold a nearer f64 hit.
-                        nearest = (t as f32).next_up();
+                        nearest = self.f32_t(t);
                     }
                     _ => {}
                 }
@@ -166,7 +172,7 @@ impl SceneBvh {
         t_max: f64,
         skip: u32,
     ) -> bool {
-        let ray = f32_ray(origin, direction, t_max);
+        let ray = self.f32_ray(origin, direction, t_max);
         let tester = WatertightRay::new(origin, direction);
         !self.bvh.ray_traverse_miss(ray, |_, prim| {
             let hit = self.members(prim).any(|k| {
@@ -195,7 +201,7 @@ impl SceneBvh {
         t_max: f64,
         accept: impl Fn(u32) -> bool,
     ) -> bool {
-        let ray = f32_ray(origin, direction, t_max);
+        let ray = self.f32_ray(origin, direction, t_max);
         let tester = WatertightRay::new(origin, direction);
         !self.bvh.ray_traverse_miss(ray, |_, prim| {
             let hit = self.members(prim).any(|k| {
@@ -212,14 +218,31 @@ impl SceneBvh {
     }
 }
 
-/// A triangle as the BVH builder sees it: padded eye-relative `f32` bounds.
-fn padded_bounds(tri: &Triangle, pad: f64) -> Aabb {
+/// A triangle as the BVH builder sees it: padded eye-relative `f32`
+/// bounds, times the tree's scale.
+fn padded_bounds(tri: &Triangle, pad: f64, scale: f64) -> Aabb {
     let lo = tri[0].min(tri[1]).min(tri[2]);
     let hi = tri[0].max(tri[1]).max(tri[2]);
     Aabb::new(
-        Vec3A::from((lo - pad).as_vec3()),
-        Vec3A::from((hi + pad).as_vec3()),
+        Vec3A::from(((lo - pad) * scale).as_vec3()),
+        Vec3A::from(((hi + pad) * scale).as_vec3()),
     )
+}
+
+/// The power of two that brings the scene's eye-relative radius into
+/// [2²⁰, 2²¹) for the `f32` tree. `obvhs`'s single-ray node test clamps a
+/// box's entry distance to at least 10⁻⁴ (`cwbvh::node::EPSILON`, an
+/// absolute length), which culled every box of a scene smaller than about
+/// 10⁻³ units (primary rays missed; the envelope's lower limit was 10⁻²);
+/// scaled, that clamp is 5·10⁻¹¹ of the radius, below `f32` resolution,
+/// whatever the scene's size. A power of two scales every `f32` bound and
+/// every slab distance exactly (Goldberg 1991), so the tree `obvhs` builds
+/// and the boxes a ray visits are otherwise those of the unscaled scene.
+fn tree_scale(radius: f64) -> f64 {
+    if !(radius.is_finite() && radius > 0.0) {
+        return 1.0;
+    }
+    2f64.powi(20 - radius.log2().floor() as i32)
 }
 
 /// `obvhs::cwbvh::builder::build_cwbvh` with `medium_build()`, step by
@@ -294,15 +317,30 @@ fn bvh2_depth(bvh2: &Bvh2) -> usize {
 /// The id `closest_hit` skips to skip no triangle.
 pub const NO_SKIP: u32 = u32::MAX;
 
-fn f32_ray(origin: DVec3, direction: DVec3, t_max: f64) -> Ray {
-    // Rounded to f32 for culling only; the padding of the bounds absorbs
-    // the rounding (module docs).
-    Ray::new(
-        Vec3A::from(origin.as_vec3()),
-        f32_direction(direction),
-        0.0,
-        f32_t_max(t_max),
-    )
+impl SceneBvh {
+    /// The ray as the `f32` tree sees it: its origin and end scaled with
+    /// the tree ([`tree_scale`]), rounded to `f32` for culling only; the
+    /// padding of the bounds absorbs the rounding (module docs).
+    fn f32_ray(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Ray {
+        Ray::new(
+            Vec3A::from((origin * self.scale).as_vec3()),
+            f32_direction(direction),
+            0.0,
+            self.f32_t(t_max),
+        )
+    }
+
+    /// A ray parameter `t` (an end, or a hit so far) as the `f32` tree
+    /// culls with it: scaled, rounded up, so the traversal keeps every box
+    /// that could hold a nearer `f64` hit.
+    fn f32_t(&self, t: f64) -> f32 {
+        f32_t_max(t * self.scale)
+    }
+
+    /// The packet's origin as the `f32` tree sees it.
+    fn f32_origin(&self, origin: DVec3) -> Vec3A {
+        Vec3A::from((origin * self.scale).as_vec3())
+    }
 }
 
 /// A direction as the `f32` traversal sees it, with no `-0.0` component:

@@ -215,7 +215,7 @@ impl SceneBvh {
             return;
         }
         let mut slabs = PacketSlabs {
-            origin: Vec3A::from(origin.as_vec3()),
+            origin: self.f32_origin(origin),
             inv_lo: Vec3A::splat(f32::INFINITY),
             inv_hi: Vec3A::splat(f32::NEG_INFINITY),
         };
@@ -229,7 +229,7 @@ impl SceneBvh {
             slabs.inv_hi = slabs.inv_hi.max(inv);
             testers[i] = WatertightRay::new(origin, directions[i]);
             best_t[i] = t_max[i];
-            cull_t[i] = super::f32_t_max(t_max[i]);
+            cull_t[i] = self.f32_t(t_max[i]);
             hits[i] = None;
         }
         let rays = EdgeTestRays::new(directions);
@@ -263,8 +263,8 @@ impl SceneBvh {
                             Some(t) if t > t_min && t < best_t[i] => {
                                 best_t[i] = t;
                                 best_t32[i] = t as f32;
-                                // Rounded up as in `closest_hit`.
-                                cull_t[i] = (t as f32).next_up();
+                                // Scaled and rounded up as in `closest_hit`.
+                                cull_t[i] = self.f32_t(t);
                                 hits[i] = Some(Hit {
                                     triangle: self.ids[k],
                                     t,

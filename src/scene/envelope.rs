@@ -11,12 +11,16 @@
 use super::{Light, Scene};
 
 /// Smallest eye-relative radius (the farthest bounds corner from the eye):
-/// exact down to 3.2·10⁻³ (`default` scaled by 10⁻⁴); at 3.2·10⁻⁴ primary
-/// rays began to miss.
-pub const MIN_EYE_RADIUS: f64 = 1e-2;
+/// exact down to 3.2·10⁻⁹ (`default` scaled by 10⁻¹⁰); at 3.2·10⁻¹¹ the
+/// depth test's `f32` plane normals underflow and shadows vanish. (Until
+/// the CPU tree was scaled by a power of two, `obvhs`'s absolute 10⁻⁴
+/// entry clamp made primary rays miss from 3.2·10⁻⁴: the limit was 10⁻².)
+pub const MIN_EYE_RADIUS: f64 = 1e-9;
 
 /// Largest eye-relative radius: exact up to 3.2·10¹⁰ (`default` scaled by
-/// 10⁹); at 3.2·10¹¹ (and `city` at 3.6·10¹¹) shadows vanished.
+/// 10⁹); at 3.2·10¹¹ (and `city` at 3.6·10¹¹) shadows vanished: the
+/// depth test's `f32` plane normals overflow (their squared length grows
+/// as the fourth power of the scale).
 pub const MAX_EYE_RADIUS: f64 = 1e9;
 
 /// Farthest the eye may be from the scene, in scene radii: the scene's
