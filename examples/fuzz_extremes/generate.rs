@@ -271,10 +271,10 @@ pub fn case(seed: u64, index: u64) -> Case {
     if pick(rng) || classes.is_empty() {
         if rng.random_bool(0.5) {
             classes.push("scale 2^k");
-            scale = 2f64.powi(rng.random_range(-20..=100));
+            scale = 2f64.powi(rng.random_range(-40..=100));
         } else {
             classes.push("scale");
-            scale = 10f64.powf(rng.random_range(-6.0..30.0));
+            scale = 10f64.powf(rng.random_range(-12.0..30.0));
         }
     }
     if pick(rng) {
