@@ -29,6 +29,17 @@ bool px_soft;
 vec3 px_disk_c, px_disk_u, px_disk_v;
 
 // frustum::may_shadow: the per-pixel depth test at P (t = vertices − P).
+// Vector::pow2_normalised: v scaled by the power of two that brings its
+// largest component into [1, 2), exact, so the plane normal's squared
+// length stays in range at any scene scale.
+vec3 pow2_normalised(vec3 v) {
+    float m = max(max(abs(v.x), abs(v.y)), abs(v.z));
+    uint exponent = floatBitsToUint(m) & 0x7F800000u;
+    if (m == 0.0 || exponent == 0x7F800000u) return v;
+    precise vec3 scaled = v * uintBitsToFloat(0x7F000000u - min(exponent, 0x7E800000u));
+    return scaled;
+}
+
 bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
     precise float height = max_of3(dot(px_normal, t0), dot(px_normal, t1), dot(px_normal, t2));
     // The tolerance is this plus a non-negative term (no fused ops:
@@ -38,7 +49,7 @@ bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
     precise float reach = max_of3(length(t0), length(t1), length(t2));
     precise float tolerance = microquad_part + float(DEPTH_TOLERANCE_ROUNDING) * reach;
     if (!(height > tolerance)) return false;   // wholly below the tangent plane
-    precise vec3 n = cross(t1 - t0, t2 - t0);
+    precise vec3 n = pow2_normalised(cross(t1 - t0, t2 - t0));
     precise float facing = light.projection == 0u ? dot(n, light_rel) : dot(n, light_rel - t0);
     if (facing == 0.0) return false;           // seen edge-on from the light
     if (facing < 0.0) n = -n;
@@ -190,7 +201,7 @@ bool may_shadow_soft(vec3 t0, vec3 t1, vec3 t2) {
     precise float reach = max_of3(length(t0), length(t1), length(t2));
     precise float tolerance = microquad_part + float(DEPTH_TOLERANCE_ROUNDING) * reach;
     if (!(height > tolerance)) return false;
-    precise vec3 n = cross(t1 - t0, t2 - t0);
+    precise vec3 n = pow2_normalised(cross(t1 - t0, t2 - t0));
     precise float distance = abs(dot(n, t0));
     return distance > tolerance * length(n);
 }

@@ -46,10 +46,16 @@ pub trait Vector: Copy + std::ops::Sub<Output = Self> + std::ops::Neg<Output = S
     fn length(self) -> Self::Scalar;
     fn zero() -> Self::Scalar;
     fn from_f64(x: f64) -> Self::Scalar;
+    /// The vector scaled by the power of two that brings its largest
+    /// component into [1, 2): exact (Goldberg 1991), so a ratio or a sign
+    /// taken of it is the unscaled vector's, and its squared length stays
+    /// in range whatever the scene's scale. Zero, infinite and NaN vectors
+    /// pass as they are.
+    fn pow2_normalised(self) -> Self;
 }
 
 macro_rules! impl_vector {
-    ($v:ty, $s:ty) => {
+    ($v:ty, $s:ty, $exponent:expr, $one_over:expr, $largest:expr) => {
         impl Vector for $v {
             type Scalar = $s;
             #[inline]
@@ -72,11 +78,27 @@ macro_rules! impl_vector {
             fn from_f64(x: f64) -> $s {
                 x as $s
             }
+            #[inline]
+            fn pow2_normalised(self) -> Self {
+                let m = self.abs().max_element();
+                let exponent = m.to_bits() & $exponent;
+                if m == 0.0 || exponent == $exponent {
+                    return self;
+                }
+                // 2^(bias − E) as bits, at least the smallest normal.
+                self * <$s>::from_bits($one_over - exponent.min($largest))
+            }
         }
     };
 }
-impl_vector!(Vec3, f32);
-impl_vector!(DVec3, f64);
+impl_vector!(Vec3, f32, 0x7F80_0000, 0x7F00_0000, 0x7E80_0000);
+impl_vector!(
+    DVec3,
+    f64,
+    0x7FF0_0000_0000_0000,
+    0x7FE0_0000_0000_0000,
+    0x7FD0_0000_0000_0000
+);
 
 /// The edge functions (α, β, γ) of the three side planes.
 pub type EdgeFunctions<S> = [[S; 3]; 3];
@@ -171,7 +193,11 @@ pub fn beyond_triangle_plane<V: Vector>(
     let Some(tolerance) = above_full_tolerance(t, height, microquad_part) else {
         return false;
     };
-    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    // Normalised by a power of two: its length is taken through its
+    // square, the fourth power of the scene's scale, which left `f32`'s
+    // range below 10⁻⁹ units (the numeric-extremes run: a canopy's small
+    // triangles at 2⁻³²) and above 10⁹.
+    let n = (t[1] - t[0]).cross(t[2] - t[0]).pow2_normalised();
     // Orient n toward the light.
     let facing = match light {
         LightRel::Toward(w) => n.dot(w),

@@ -57,7 +57,8 @@ pub fn off_triangle_plane<V: Vector>(
     let Some(tolerance) = above_full_tolerance(t, height, microquad_part) else {
         return false;
     };
-    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    // Power-of-two normalised as in `beyond_triangle_plane`.
+    let n = (t[1] - t[0]).cross(t[2] - t[0]).pow2_normalised();
     let distance = n.dot(t[0]);
     let distance = if distance < V::zero() {
         -distance

@@ -33,12 +33,17 @@ pub const MAX_EYE_RADIUS: f64 = 1e9;
 /// Ten times inside the first distance found wrong.
 pub const MAX_EYE_REACH_RADII: f64 = 30.0;
 
-/// Farthest the scene and its camera may lie from the origin, in
-/// eye-relative radii: the passes subtract the eye in `f64`, so only the
-/// scene's own `f64` coordinates round with the distance. Moved 10¹⁰
-/// radii (`default`, 2·10¹¹ units) the masks equal the unmoved scene's; at
-/// 10¹² the `f64` vertices had rounded enough to change the image.
-pub const MAX_ORIGIN_RADII: f64 = 1e9;
+/// Farthest the scene and its camera may lie from the origin, in units of
+/// the smaller of its reach from the eye and the eye's distance to its
+/// target: the passes subtract the eye in `f64`, so only the scene's own
+/// `f64` coordinates (and the camera's, which set the view) round with the
+/// distance. Moved 10¹⁰ radii (`default`, 2·10¹¹ units) the masks equal
+/// the unmoved scene's; at 10¹² the `f64` vertices had rounded enough to
+/// change the image. The numeric-extremes run found finer cases: a canopy
+/// of small triangles and a camera 10⁻⁵ units from its target changed
+/// their edge pixels' samples from 3·10⁸ such lengths (the inputs
+/// themselves round by 10⁻⁸ of them): ten times inside that (was 10⁹).
+pub const MAX_ORIGIN_RADII: f64 = 1e7;
 
 /// Farthest a point light may be from the scene's centre, in scene radii
 /// (half the bounds' diagonal): exact to 10⁵ on `default`, `far` and
@@ -76,13 +81,24 @@ pub fn check(scene: &Scene) -> Result<(), String> {
              wider field of view frames the same)"
         ));
     }
-    let farthest = lo.abs().max(hi.abs()).max(eye.abs()).length();
-    let origin_radii = farthest / eye_radius;
+    let farthest = lo
+        .abs()
+        .max(hi.abs())
+        .max(eye.abs())
+        .max(scene.camera.target.abs())
+        .length();
+    let view = (scene.camera.target - eye).length();
+    let (detail, what) = if view < eye_radius {
+        (view, "the eye's distance to its target")
+    } else {
+        (eye_radius, "its reach from the eye")
+    };
+    let origin_radii = farthest / detail;
     if origin_radii > MAX_ORIGIN_RADII {
         return Err(format!(
-            "the scene lies {farthest:.3e} units from the origin, {origin_radii:.3e} times its \
-             {eye_radius:.3e} reach from the eye and beyond the {MAX_ORIGIN_RADII:e} its f64 \
-             coordinates keep its detail at: move the scene and its camera nearer the origin"
+            "the scene lies {farthest:.3e} units from the origin, {origin_radii:.3e} times \
+             {what} ({detail:.3e}) and beyond the {MAX_ORIGIN_RADII:e} its f64 coordinates keep \
+             its detail at: move the scene and its camera nearer the origin"
         ));
     }
     if let Light::Point { position } = scene.light {
