@@ -71,7 +71,8 @@ pub fn check(scene: &Scene) -> Result<(), String> {
              shadows do not change)"
         ));
     }
-    let scene_radius = (hi - lo).length() * 0.5;
+    // Half the bounds' diagonal; never 0, so the ratios below stay finite.
+    let scene_radius = ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE);
     let reach_radii = eye_radius / scene_radius;
     if reach_radii > MAX_EYE_REACH_RADII {
         return Err(format!(
@@ -103,8 +104,7 @@ pub fn check(scene: &Scene) -> Result<(), String> {
     }
     if let Light::Point { position } = scene.light {
         let centre = (lo + hi) * 0.5;
-        let radius = ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE);
-        let radii = (position - centre).length() / radius;
+        let radii = (position - centre).length() / scene_radius;
         if radii > MAX_POINT_LIGHT_RADII {
             let toward = (centre - position).normalize();
             return Err(format!(
