@@ -1,4 +1,4 @@
-//! Screen-space contact shadows (seed 004; Unreal Engine's "contact
+//! Screen-space contact shadows (Agenjo 2020; Unreal Engine's "contact
 //! shadows" are this: the ray march engines add where the shadow map's
 //! bias and filter lose the contact): from each receiver, a short march
 //! toward the light through the depth buffer — here the G-buffer the IZB

@@ -1,5 +1,6 @@
-//! Filtered shadow maps (seed 003): the depth map turned into moments of
-//! depth and blurred, so a lookup filters once instead of comparing per
+//! Filtered shadow maps ([Shadow mapping mechanics]; Donnelly and
+//! Lauritzen 2006): the depth map turned into moments of depth and
+//! blurred, so a lookup filters once instead of comparing per
 //! tap.
 //!
 //! - `vsm-R`: variance shadow maps (Donnelly & Lauritzen 2006): two

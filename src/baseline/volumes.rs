@@ -1,4 +1,4 @@
-//! Shadow volumes (Crow 1977; seed 004), counted depth-fail (Everitt &
+//! Shadow volumes (Crow 1977; Agenjo 2020), counted depth-fail (Everitt &
 //! Kilgard 2002, "Carmack's reverse"): exact hard shadows at one sample
 //! per pixel, the rasteriser's exact competitor of `izb1`.
 //!

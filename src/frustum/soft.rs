@@ -2,8 +2,8 @@
 //! per receiver point P, a mask over the 32 samples of the light's disk
 //! ([`crate::scene::LightDisk`]) instead of the µQuad's.
 //!
-//! Kalbertodt's tiled per-triangle soft shadow volumes (seed 000's next
-//! step) rasterise each occluder's projection onto the light into a
+//! Kalbertodt's tiled per-triangle soft shadow volumes ([Compute IZB]'s
+//! next step) rasterise each occluder's projection onto the light into a
 //! per-pixel bitmask; here that projection is formed with Wyman et al.
 //! 2015's edge functions. Seen from P, each triangle edge (A, B) spans the
 //! plane through P, A and B; where that plane cuts the light's disk is a
