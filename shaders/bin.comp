@@ -24,9 +24,13 @@
 //                   below its cell's cursor (atomic decrement: cell_start
 //                   ends at each cell's first entry, with no cursor array),
 //                   and each cell's cover triangle among the best floors.
-// When the total exceeds the capacity nothing is scattered past it and
-// C_CAPACITY_EXCEEDED is raised: the host grows the list and runs the frame
-// again, it never reads a corrupt grid.
+// When the total exceeds the capacity, bin_scan raises C_CAPACITY_EXCEEDED
+// and STEP_SCATTER scatters nothing: each triangle placed in cells goes once
+// into the overflow list instead, tagged with those cascades, and evaluate
+// skips the grid. Every pixel then tests every triangle of its cascade: the
+// frame stays exact, the slow way (a triangle that cannot shadow a sample
+// only ORs in an empty mask), and C_CELL_ENTRIES is the need the host grows
+// the list to for the next frame. No frame reads a corrupt grid.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -288,10 +292,22 @@ void main() {
     // floats as STEP_COUNT, so the same cells.
     Triangle t;
     if (valid) t = light_view_triangle(id);
+    // Uniform over the dispatch: bin_scan wrote it before this step.
+    bool overrun = counters[C_CAPACITY_EXCEEDED] != 0u;
+    uint placed_in = 0u;
     for (uint k = 0u; k < light.cascade_count; ++k) {
         Footprint f;
         bool cells = valid && placement_in(t, k, f) == PLACEMENT_CELLS;
-        walk_rectangles(t, k, f, cells);
+        if (overrun) {
+            placed_in |= cells ? 1u << k : 0u;
+        } else {
+            walk_rectangles(t, k, f, cells);
+        }
+    }
+    // At most one entry here and one from STEP_COUNT per triangle: the
+    // overflow list holds two per triangle.
+    if (placed_in != 0u) {
+        overflow_list[atomicAdd(counters[C_OVERFLOW], 1u)] = id | (placed_in << ID_BITS);
     }
     loop_budget_report();
 #endif

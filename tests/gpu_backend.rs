@@ -322,6 +322,61 @@ fn grid_capacity_overrun_reruns_with_room() {
 }
 
 #[test]
+fn an_overrun_cell_list_stays_exact_the_slow_way() {
+    // A cell list far too small and never grown (a pass inside a host's
+    // frame cannot rerun it): the bin puts every placed triangle in the
+    // overflow list instead, so the one frame's masks are the grown
+    // frame's bit for bit, in the exact and the LUT mode, and the report
+    // names the need.
+    let Some(r) = renderer() else { return };
+    let r = r.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([96, 54])
+        .unwrap();
+    let bvh = SceneBvh::build(&scene);
+    let mut checked = 0;
+    for mode in [SampleMode::Exact32, SampleMode::Lut32] {
+        let s = settings(mode);
+        let cpu = render_cpu(&scene, &bvh, s);
+        let source = GBufferSource::Upload(&cpu.gbuffer);
+        let grown = r.render(&scene, s, source).unwrap();
+        let small = r.render_with_cell_capacity(&scene, s, source, 64).unwrap();
+        assert_no_validation_messages(&r, "overrun");
+        let (c, g) = (&small.report.counters, &grown.report.counters);
+        println!(
+            "{mode:?}: need {} entries, 64 given; overflow entries {} (grown frame {}), tests \
+             {} (grown frame {})",
+            c.cell_entries, c.overflow, g.overflow, c.tests_spawned, g.tests_spawned
+        );
+        assert!(c.cell_list_overrun && !g.cell_list_overrun);
+        assert_eq!(small.report.frames_run, 1);
+        assert_eq!(c.cell_entries, g.cell_entries, "the need is the grown list");
+        assert!(c.overflow > g.overflow, "placed triangles went to the list");
+        assert!(c.tests_spawned > g.tests_spawned, "the slow way");
+        // Every triangle of the pixel's cascade is a superset of its grid
+        // candidates, so the masks hold the grown frame's bits; exact
+        // masks of triangles the grid did not offer are empty.
+        let lost = (small.masks.iter().zip(&grown.masks)).filter(|&(s, g)| s & g != *g);
+        assert_eq!(lost.count(), 0, "{mode:?}: a grid candidate's bit was lost");
+        let (extra, total) = mask_mismatch(&small.masks, &grown.masks, &cpu.gbuffer);
+        println!("{mode:?}: {extra} of {total} samples set by triangles off the grid");
+        if mode == SampleMode::Exact32 {
+            assert_eq!(small.masks, grown.masks, "exact masks of the overrun frame");
+            let (diff, total) = mask_mismatch(&small.masks, &cpu.masks, &cpu.gbuffer);
+            assert!(diff as f64 <= uploaded_allowance(&r) * total as f64);
+        } else {
+            // The LUT's masks of a triangle just outside a µQuad's
+            // footprint may hold samples within the LUT's bound of its
+            // edges.
+            assert!(extra as f64 <= 1e-3 * total as f64);
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 2);
+}
+
+#[test]
 fn gpu_reports_memory_and_counters() {
     let Some(r) = renderer() else { return };
     let r = r.lock().unwrap_or_else(|e| e.into_inner());

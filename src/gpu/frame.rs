@@ -1,5 +1,5 @@
 //! One frame on the GPU: one command buffer (uploads → five passes with
-//! timestamps → read-backs) and the capacity rerun of the bin pass. Its
+//! timestamps → read-backs); the IZB's render around it is `izb_frame`. Its
 //! parts live beside it: the uploads and parameters (`frame_inputs`), the
 //! buffers by intent (`frame_memory`), the timestamps (`timestamps`) and
 //! the report (`frame_report`); the shadow-map and shadow-ray frames are
@@ -9,11 +9,10 @@ use super::context::{DeviceShared, GpuContext, GpuOptions};
 use super::edge_surfaces::FrameEdges;
 pub use super::frame_inputs::LLVMPIPE_LOOP_CAP;
 use super::frame_inputs::{
-    check_workgroups, frame_params, grid_budget_side, heavy_entries, loop_budget, SceneUpload,
+    check_workgroups, frame_params, heavy_entries, loop_budget, SceneUpload,
 };
 use super::frame_memory::{
-    frame_allocation, initial_cell_capacity, initial_edge_capacity, memory_by_pass,
-    reset_pass_state, restaged_each_repetition,
+    frame_allocation, memory_by_pass, reset_pass_state, restaged_each_repetition,
 };
 pub use super::frame_memory::{frame_buffer_descs, planned_memory, EdgeSlots, FrameSizes};
 use super::frame_report::{FrameOutput, FramePasses};
@@ -23,7 +22,7 @@ pub use super::frame_report::{
 };
 use super::pipeline::{BindingLayout, DescriptorSet};
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
-use super::shared::{self, binding, counter, LightState};
+use super::shared::{binding, counter, LightState};
 use super::timestamps::{StepMarks, TimestampPool};
 use super::{GpuError, Kernels, Recorder};
 use crate::gbuffer::GBuffer;
@@ -127,108 +126,6 @@ impl GpuRenderer {
     /// Validation messages collected since the last call.
     pub fn take_validation_messages(&self) -> Vec<String> {
         self.shared().take_messages()
-    }
-
-    /// What every frame checks before it allocates — the image's
-    /// workgroups within the device's limits, an uploaded G-buffer of the
-    /// scene's size, triangle ids that fit the G-buffer word — and then the
-    /// scene as the GPU receives it.
-    pub(super) fn prepare_frame(
-        &self,
-        scene: &Scene,
-        source: GBufferSource,
-    ) -> Result<SceneUpload, GpuError> {
-        let [w, h] = scene.resolution;
-        check_workgroups(&self.shared().limits, [w, h])?;
-        if let GBufferSource::Upload(g) = source {
-            if g.width != w || g.height != h {
-                return Err(GpuError::Unsupported(format!(
-                    "uploaded G-buffer is {}x{}, the scene renders at {w}x{h}",
-                    g.width, g.height
-                )));
-            }
-        }
-        let upload = SceneUpload::new(scene);
-        if upload.triangles.len() >= shared::ID_MASK as usize {
-            return Err(GpuError::Unsupported(format!(
-                "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
-                upload.triangles.len(),
-                shared::ID_BITS
-            )));
-        }
-        Ok(upload)
-    }
-
-    /// Renders `scene`'s shadow mask.
-    pub fn render(
-        &self,
-        scene: &Scene,
-        settings: IzbSettings,
-        source: GBufferSource,
-    ) -> Result<GpuRender, GpuError> {
-        super::edge_surfaces::check_source(scene, settings, source)?;
-        let pixels = scene.pixel_count();
-        let upload = self.prepare_frame(scene, source)?;
-        let triangles = &upload.triangles;
-        let bvh_start = Instant::now();
-        let bvh = super::gbuffer::frame_bvh(source, triangles)?;
-        let bvh_build_seconds = bvh_start.elapsed().as_secs_f64();
-
-        let side = grid_budget_side(pixels, triangles.len(), settings.cells);
-        if side > 0xFFFF {
-            return Err(GpuError::Unsupported(format!(
-                "--cells {side}: the GPU's cell budget is at most 65535² cells"
-            )));
-        }
-        let max_cells = crate::cascades::max_total_cells(side);
-        let mut capacity = initial_cell_capacity(triangles.len());
-        let mut edge_capacity = initial_edge_capacity(pixels as u64);
-        let mut frames_run = 0;
-        loop {
-            frames_run += 1;
-            let passes = FramePasses::Izb { edge_capacity };
-            let out = self.run_frame(
-                scene, settings, source, &upload, &bvh, max_cells, capacity, passes,
-            )?;
-            let needed = u64::from(out.counters[counter::CELL_ENTRIES]);
-            let cells_over = out.counters[counter::CAPACITY_EXCEEDED] != 0;
-            let edges_needed = super::edge_surfaces::slots_needed(&out.counters);
-            let edges_over = edges_needed > edge_capacity;
-            if (cells_over || edges_over) && frames_run == 1 {
-                capacity = if cells_over { needed } else { capacity };
-                edge_capacity = edge_capacity.max(edges_needed);
-                continue;
-            }
-            self.check_loop_budget(&out)?;
-            if cells_over || edges_over {
-                return Err(GpuError::Unsupported(format!(
-                    "the cell list ({capacity} entries) or the edge surfaces' slots \
-                     ({edge_capacity}) still overflowed after growing"
-                )));
-            }
-            return Ok(self.finish(
-                scene,
-                settings,
-                source,
-                out,
-                frames_run,
-                bvh_build_seconds,
-                &upload,
-            ));
-        }
-    }
-
-    /// A frame whose shader stopped at lavapipe's loop cap is refused
-    /// (its masks would be cut short), never returned.
-    pub(super) fn check_loop_budget(&self, out: &FrameOutput) -> Result<(), GpuError> {
-        match out.counters[counter::LOOP_BUDGET_EXCEEDED] {
-            0 => Ok(()),
-            trips => Err(GpuError::LoopCap {
-                device: self.context.info().name.clone(),
-                cap: LLVMPIPE_LOOP_CAP,
-                trips,
-            }),
-        }
     }
 
     #[allow(clippy::too_many_arguments)]

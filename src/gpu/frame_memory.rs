@@ -100,7 +100,10 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
             binding::CELL_TRIANGLES,
             d("bin", "cell_triangles", z.cell_capacity * 4),
         ),
-        (binding::OVERFLOW, d("bin", "overflow", t * 4)),
+        // Per triangle an entry for the cascades it overflows in and,
+        // after a cell-list overrun, one for those it is placed in
+        // (`bin.comp`).
+        (binding::OVERFLOW, d("bin", "overflow", 2 * t * 4)),
         (
             binding::EDGE_LUT,
             d("evaluate", "edge_lut", z.lut_entries * 4),

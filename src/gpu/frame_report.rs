@@ -64,7 +64,12 @@ pub struct GpuCounters {
     pub triangles_binned: u32,
     pub overflow: u32,
     pub culled: u32,
+    /// Entries the cell list needed (its size when nothing overran).
     pub cell_entries: u32,
+    /// The cell list was too small for `cell_entries`: the frame ran the
+    /// slow exact way, every placed triangle through the overflow list
+    /// (and `overflow` counts those entries too).
+    pub cell_list_overrun: bool,
     pub pixels_tested: u32,
     /// Edge pixels' extra surfaces tested (receivers beside the pixels).
     pub extra_surfaces_tested: u32,
@@ -110,7 +115,8 @@ pub struct GpuRenderReport {
     pub bvh_build_seconds: f64,
     pub counters: GpuCounters,
     pub light: GpuLightSummary,
-    /// Frames run: 2 when the cell list had to grow.
+    /// Frames run: 2 when the cell list or the edge surfaces' slots had
+    /// to grow.
     pub frames_run: u32,
     pub memory: Vec<PassMemory>,
     pub memory_total_bytes: u64,
@@ -238,6 +244,7 @@ impl GpuRenderer {
             overflow: c[counter::OVERFLOW],
             culled: c[counter::CULLED],
             cell_entries: c[counter::CELL_ENTRIES],
+            cell_list_overrun: c[counter::CAPACITY_EXCEEDED] != 0,
             pixels_tested: c[counter::PIXELS_TESTED],
             extra_surfaces_tested: c[counter::EXTRA_SURFACES_TESTED],
             pixels_skipped: (scene.pixel_count() as u32).saturating_sub(c[counter::PIXELS_TESTED]),

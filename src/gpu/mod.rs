@@ -31,6 +31,7 @@ pub mod frame_inputs;
 pub mod frame_memory;
 pub mod frame_report;
 pub mod gbuffer;
+mod izb_frame;
 pub mod light_setup;
 pub mod options;
 pub mod pipeline;
