@@ -114,13 +114,16 @@ fn scripted_window_moves_the_shadow_and_splits_the_methods() {
          screenshot {}\n\
          split volumes\n\
          screenshot {}\n\
+         light 40 10\nwait-truth 4\n\
+         screenshot {}\n\
          quit\n",
         d("lit"),
         d("turned"),
         d("split"),
         d("candidates"),
         d("error"),
-        d("volumes")
+        d("volumes"),
+        d("moved")
     );
     let args = ["default", "--resolution", "240x135", "--window", "960x600"];
     let Some(stats) = run_script(&tmp, &args, &script, &[]) else {
@@ -138,7 +141,7 @@ fn scripted_window_moves_the_shadow_and_splits_the_methods() {
         "{}",
         stats["errors"]
     );
-    assert_eq!(stats["screenshots"].as_array().unwrap().len(), 6);
+    assert_eq!(stats["screenshots"].as_array().unwrap().len(), 7);
 
     // Every screenshot holds render's files and a window that is not blank.
     let shots = ["lit", "turned", "split", "candidates", "error"];
@@ -262,6 +265,34 @@ fn scripted_window_moves_the_shadow_and_splits_the_methods() {
     assert_eq!(methods[1]["method"], "volumes");
     let mae = methods[1]["error_against_truth"]["mae"].as_f64().unwrap();
     assert!(mae < 0.1, "volumes' error against the truth is {mae}");
+
+    // `wait-truth` right after the light moved waits for the new view's
+    // truth (an earlier version took the previous view's samples, and the
+    // screenshot had no truth at all).
+    let r = report(&tmp.join("moved"));
+    assert_eq!(r["view"]["light_turn_deg"], serde_json::json!([40.0, 10.0]));
+    let e = &r["methods"][0]["error_against_truth"];
+    assert!(e["truth_spp"].as_u64().is_some_and(|spp| spp >= 4), "{e}");
+    let mae = e["mae"].as_f64().unwrap();
+    assert!(
+        mae < 0.1,
+        "izb32's error against the new view's truth is {mae}"
+    );
+
+    // An error view says why it is empty exactly when it has no truth.
+    let mut checked = 0;
+    for name in ["error", "volumes", "moved"] {
+        let r = report(&tmp.join(name));
+        let has_truth = !r["methods"][0]["error_against_truth"].is_null();
+        assert_eq!(
+            r["view"]["notice"].is_null(),
+            has_truth,
+            "{name}: {}",
+            r["view"]
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 3);
 }
 
 #[test]

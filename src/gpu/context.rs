@@ -14,6 +14,7 @@ use std::ffi::{c_void, CStr, CString};
 use std::mem::ManuallyDrop;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 pub use super::options::{frame_timeout, GpuOptions, FRAME_TIMEOUT};
 
@@ -42,20 +43,25 @@ impl DeviceInfo {
 
 /// What the device owns, destroyed in order when the last user drops it.
 pub struct DeviceShared {
-    // Kept alive for the function pointers of everything below.
-    _entry: ash::Entry,
+    /// The loader, kept for the function pointers of everything below:
+    /// unloaded last, and never while a poisoned device lives on.
+    entry: ManuallyDrop<ash::Entry>,
     pub instance: ash::Instance,
     pub device: ash::Device,
     pub physical_device: vk::PhysicalDevice,
-    pub queue: vk::Queue,
+    /// Used only under [`GpuContext`]'s pool lock (a queue is externally
+    /// synchronised), so not public.
+    queue: vk::Queue,
     pub queue_family: u32,
     pub allocator: ManuallyDrop<Mutex<Allocator>>,
     debug_instance: Option<ash::ext::debug_utils::Instance>,
     pub debug_device: Option<ash::ext::debug_utils::Device>,
     messenger: vk::DebugUtilsMessengerEXT,
     /// Validation messages since the device was created (the callback's
-    /// `user_data` points at this `Mutex`, boxed so its address is stable).
-    messages: Box<Mutex<Vec<String>>>,
+    /// `user_data` points at this `Mutex`, shared so its address is stable;
+    /// freed only after the messenger is destroyed, and never while a
+    /// poisoned device's messenger lives on).
+    messages: ManuallyDrop<Arc<Mutex<Vec<String>>>>,
     pub info: DeviceInfo,
     pub limits: vk::PhysicalDeviceLimits,
     /// Why the shadow-map baselines cannot draw on this device's
@@ -69,12 +75,38 @@ pub struct DeviceShared {
     /// still be running, so nothing it might touch is destroyed any more
     /// (every `Drop` leaks instead; the process exit reclaims it).
     poisoned: std::sync::atomic::AtomicBool,
+    /// Buffers created and descriptor sets allocated on the device so far
+    /// ([`Allocation`]).
+    allocations: [std::sync::atomic::AtomicU64; 2],
+}
+
+/// What [`DeviceShared::allocations`] counts.
+#[derive(Clone, Copy, Debug)]
+pub enum Allocation {
+    /// A `GpuBuffer`: one memory allocation, and for an upload or
+    /// read-back buffer one mapping.
+    Buffer,
+    /// A `DescriptorSet` (with its own pool).
+    DescriptorSet,
 }
 
 impl DeviceShared {
     /// Whether the device may still be executing abandoned work.
     pub fn is_poisoned(&self) -> bool {
         self.poisoned.load(std::sync::atomic::Ordering::Acquire)
+    }
+
+    /// Counts one allocation of `kind`.
+    pub(crate) fn count_allocation(&self, kind: Allocation) {
+        self.allocations[kind as usize].fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Buffers created and descriptor sets allocated on this device so
+    /// far: what a pass inside a host's frame must not add to per frame.
+    pub fn allocations(&self) -> [u64; 2] {
+        self.allocations
+            .each_ref()
+            .map(|a| a.load(Ordering::Relaxed))
     }
 
     /// Marks the device as possibly busy forever (see `poisoned`).
@@ -108,12 +140,15 @@ impl DeviceShared {
 impl Drop for DeviceShared {
     fn drop(&mut self) {
         if self.is_poisoned() {
+            // The device, its messenger (which may still call back into
+            // `messages`) and the loader's code stay: leaked, not freed.
             return;
         }
         // SAFETY: the last owner drops: every buffer, pipeline, pool and the
         // GpuContext hold an Arc to this, so they are gone; the device is not
         // poisoned, so after the idle wait nothing is in flight. The allocator
-        // is dropped once, before its device.
+        // is dropped once, before its device; the messages after the
+        // messenger; the loader after the instance; each exactly once.
         unsafe {
             let _ = self.device.device_wait_idle();
             ManuallyDrop::drop(&mut self.allocator);
@@ -122,6 +157,8 @@ impl Drop for DeviceShared {
                 debug.destroy_debug_utils_messenger(self.messenger, None);
             }
             self.instance.destroy_instance(None);
+            ManuallyDrop::drop(&mut self.messages);
+            ManuallyDrop::drop(&mut self.entry);
         }
     }
 }
@@ -219,7 +256,11 @@ pub(crate) fn load_entry() -> Result<ash::Entry, GpuError> {
     unsafe { ash::Entry::load() }.map_err(|e| GpuError::NoVulkan(format!("no Vulkan loader ({e})")))
 }
 
-fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance, GpuError> {
+fn create_instance(
+    entry: &ash::Entry,
+    validation: bool,
+    sync_validation: bool,
+) -> Result<ash::Instance, GpuError> {
     let app = vk::ApplicationInfo::default()
         .application_name(c"izb")
         .engine_name(c"izb")
@@ -242,10 +283,20 @@ fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance
         layers.push(VALIDATION_LAYER.as_ptr());
         extensions.push(ash::ext::debug_utils::NAME.as_ptr());
     }
-    let info = vk::InstanceCreateInfo::default()
+    let enabled = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+    let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled);
+    let sync = validation && sync_validation;
+    if sync {
+        // Provided by the validation layer.
+        extensions.push(ash::ext::validation_features::NAME.as_ptr());
+    }
+    let mut info = vk::InstanceCreateInfo::default()
         .application_info(&app)
         .enabled_layer_names(&layers)
         .enabled_extension_names(&extensions);
+    if sync {
+        info = info.push_next(&mut features);
+    }
     // SAFETY: `info` and the name arrays it points to outlive the call.
     unsafe { entry.create_instance(&info, None) }.map_err(|e| {
         GpuError::NoVulkan(format!(
@@ -257,7 +308,7 @@ fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance
 /// Lists the suitable devices, best first (the order `--device` indexes).
 pub fn list_devices() -> Result<Vec<DeviceInfo>, GpuError> {
     let entry = load_entry()?;
-    let instance = create_instance(&entry, false)?;
+    let instance = create_instance(&entry, false, false)?;
     let list = candidates(&instance).map(|c| c.into_iter().map(|c| c.info).collect());
     // SAFETY: nothing was created from this instance but the list.
     unsafe { instance.destroy_instance(None) };
@@ -268,7 +319,7 @@ impl GpuContext {
     /// Opens the chosen (or best) device.
     pub fn new(options: &GpuOptions) -> Result<Self, GpuError> {
         let entry = load_entry()?;
-        let instance = create_instance(&entry, options.validation)?;
+        let instance = create_instance(&entry, options.validation, options.sync_validation)?;
         let fail = |instance: &ash::Instance, e: GpuError| {
             // SAFETY: called on the failure paths of `new`, when nothing created
             // from the instance is alive any more.
@@ -297,7 +348,7 @@ impl GpuContext {
         }
         let chosen = list.swap_remove(index);
 
-        let messages: Box<Mutex<Vec<String>>> = Box::default();
+        let messages: Arc<Mutex<Vec<String>>> = Arc::default();
         let (debug_instance, messenger) = if options.validation {
             let debug = ash::ext::debug_utils::Instance::new(&entry, &instance);
             let info = messenger_info(&messages);
@@ -362,7 +413,7 @@ impl GpuContext {
             .validation
             .then(|| ash::ext::debug_utils::Device::new(&instance, &device));
         let shared = Arc::new(DeviceShared {
-            _entry: entry,
+            entry: ManuallyDrop::new(entry),
             instance,
             device,
             physical_device: chosen.physical,
@@ -372,8 +423,9 @@ impl GpuContext {
             debug_instance,
             debug_device,
             messenger,
-            messages,
+            messages: ManuallyDrop::new(messages),
             poisoned: Default::default(),
+            allocations: Default::default(),
             timestamp_period_ns: chosen
                 .timestamps
                 .then_some(chosen.limits.timestamp_period as f64),
@@ -401,18 +453,27 @@ impl GpuContext {
 
     /// Records commands with `record` into a fresh command buffer, submits
     /// them, and waits (at most [`frame_timeout`]). One submission at a
-    /// time: the pool's lock is held throughout. On a timeout or a lost
-    /// device the device is poisoned: the command buffer, its fence and the
-    /// caller's buffers are then leaked rather than freed under work that
-    /// may still be running.
-    pub fn submit_and_wait(
+    /// time: the pool's lock is held throughout. When the wait fails after
+    /// a submission (a timeout, a lost device, any other error) the device
+    /// is poisoned: the command buffer, its fence and every object the
+    /// commands use are then leaked rather than freed under work that may
+    /// still be running.
+    ///
+    /// # Safety
+    /// `record` records into the command buffer it is given, only on this
+    /// thread, and every object those commands use (buffers, sets,
+    /// pipelines, query pools, images) was made before this call and
+    /// outlives it: an object made and dropped inside `record` is gone
+    /// before the submission.
+    pub unsafe fn submit_and_wait(
         &self,
         record: impl FnOnce(vk::CommandBuffer) -> Result<(), GpuError>,
     ) -> Result<(), GpuError> {
         let pool = self.command_pool.lock().unwrap_or_else(|e| e.into_inner());
         let [now, most] = &self.submissions;
         most.fetch_max(now.fetch_add(1, Ordering::SeqCst) + 1, Ordering::SeqCst);
-        let result = self.submit_and_wait_locked(*pool, record);
+        // SAFETY: the caller's promise (`# Safety` above).
+        let result = unsafe { self.submit_and_wait_locked(*pool, record) };
         now.fetch_sub(1, Ordering::SeqCst);
         result
     }
@@ -424,7 +485,10 @@ impl GpuContext {
     }
 
     /// [`Self::submit_and_wait`] with the pool's lock held.
-    fn submit_and_wait_locked(
+    ///
+    /// # Safety
+    /// As [`Self::submit_and_wait`]; `pool` is the context's, locked.
+    unsafe fn submit_and_wait_locked(
         &self,
         pool: vk::CommandPool,
         record: impl FnOnce(vk::CommandBuffer) -> Result<(), GpuError>,
@@ -440,44 +504,130 @@ impl GpuContext {
         let result = (|| {
             let begin = vk::CommandBufferBeginInfo::default()
                 .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            let not_submitted = |e| Submission::NotSubmitted(GpuError::vk(e));
             // SAFETY: `cmd` was just allocated from the locked pool and is
             // in the initial state.
-            unsafe { device.begin_command_buffer(cmd, &begin) }.map_err(GpuError::vk)?;
-            record(cmd)?;
+            unsafe { device.begin_command_buffer(cmd, &begin) }.map_err(not_submitted)?;
+            // The caller records into `cmd` only (`# Safety`).
+            record(cmd).map_err(Submission::NotSubmitted)?;
             // SAFETY: `cmd` is recording (begun above, on this thread).
-            unsafe { device.end_command_buffer(cmd) }.map_err(GpuError::vk)?;
+            unsafe { device.end_command_buffer(cmd) }.map_err(not_submitted)?;
             // SAFETY: creating a fence needs only a live device.
             let fence = unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) }
-                .map_err(GpuError::vk)?;
+                .map_err(not_submitted)?;
             let cmds = [cmd];
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
             // SAFETY: the queue is used only under the pool's lock, held
             // here; `cmd` is executable and `fence` unsignalled.
-            let waited = unsafe { device.queue_submit(self.shared.queue, &submit, fence) }
-                // SAFETY: `fence` is alive until destroyed below.
-                .and_then(|_| unsafe {
-                    device.wait_for_fences(&[fence], true, timeout.as_nanos() as u64)
-                });
-            match waited {
-                // The work may still run and signal the fence: keep it.
-                Err(vk::Result::TIMEOUT) | Err(vk::Result::ERROR_DEVICE_LOST) => {}
-                // SAFETY: the wait returned (or the submit failed), so no
-                // queue operation still refers to the fence.
-                _ => unsafe { device.destroy_fence(fence, None) },
+            if let Err(e) = unsafe { device.queue_submit(self.shared.queue, &submit, fence) } {
+                // SAFETY: nothing was submitted, so nothing refers to the fence.
+                unsafe { device.destroy_fence(fence, None) };
+                return Err(Submission::NotSubmitted(GpuError::vk(e)));
             }
-            waited.map_err(|e| match e {
+            // SAFETY: `fence` is alive; it is destroyed only after a
+            // successful wait.
+            let waited =
+                unsafe { device.wait_for_fences(&[fence], true, timeout.as_nanos() as u64) };
+            let ended = Submission::after_wait(waited, timeout);
+            if ended.is_ok() {
+                // SAFETY: the wait succeeded: the submission is done.
+                unsafe { device.destroy_fence(fence, None) };
+            }
+            // Otherwise the work may still run and signal the fence: keep it.
+            ended
+        })();
+        match result {
+            Ok(()) | Err(Submission::NotSubmitted(_)) => {
+                // SAFETY: the fence wait succeeded or the buffer was never
+                // submitted, so `cmd` is not pending; the pool's lock is held.
+                unsafe { device.free_command_buffers(pool, &[cmd]) };
+            }
+            // The buffer may still be in flight: leak it rather than free
+            // it under the GPU (the device is unusable anyway).
+            Err(Submission::InFlight(_)) => self.shared.poison(),
+        }
+        result.map_err(|(Submission::NotSubmitted(e) | Submission::InFlight(e))| e)
+    }
+}
+
+/// How a submission ended when it failed: before the queue had it (its
+/// command buffer and fence can be freed), or after (they may be in use).
+enum Submission {
+    NotSubmitted(GpuError),
+    InFlight(GpuError),
+}
+
+impl Submission {
+    /// A fence wait's result as the submission's: any failure leaves the
+    /// work possibly running — a timeout, a lost device, and any other
+    /// error alike (an out-of-memory wait says nothing of the work).
+    fn after_wait(waited: Result<(), vk::Result>, timeout: Duration) -> Result<(), Submission> {
+        waited.map_err(|e| {
+            Submission::InFlight(match e {
                 vk::Result::TIMEOUT => GpuError::Timeout(timeout),
                 e => GpuError::vk(e),
             })
-        })();
-        // After a timeout the buffer may still be in flight: leak it rather
-        // than free it under the GPU (the device is unusable anyway).
-        match result {
-            Err(GpuError::Timeout(_)) | Err(GpuError::DeviceLost) => self.shared.poison(),
-            // SAFETY: the fence wait returned or the buffer was never
-            // submitted, so `cmd` is not pending; the pool's lock is held.
-            _ => unsafe { device.free_command_buffers(pool, &[cmd]) },
+        })
+    }
+}
+
+/// A context for the library's own unit tests, or `None` with a printed
+/// skip — a failure under `IZB_REQUIRE_GPU=1` (CI).
+#[cfg(test)]
+pub(crate) fn test_context() -> Option<GpuContext> {
+    match GpuContext::new(&GpuOptions::from_env()) {
+        Ok(c) => Some(c),
+        Err(e) if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("IZB_REQUIRE_GPU=1 but the Vulkan backend did not open: {e}")
         }
-        result
+        Err(e) => {
+            eprintln!("skipped: {e}");
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A poisoned device leaks its message list (its messenger may still
+    /// call back into it), a healthy one frees it; an earlier version
+    /// freed it, and unloaded the loader, under a poisoned device.
+    #[test]
+    fn a_poisoned_device_keeps_what_its_messenger_and_device_use() {
+        let mut checked = 0;
+        for poison in [false, true] {
+            let Some(context) = test_context() else {
+                return;
+            };
+            let messages = Arc::downgrade(&context.shared.messages);
+            if poison {
+                context.shared.poison();
+            }
+            drop(context);
+            assert_eq!(messages.upgrade().is_some(), poison, "poisoned: {poison}");
+            checked += 1;
+        }
+        assert_eq!(checked, 2);
+    }
+
+    /// Every failed wait keeps the fence and the command buffer and
+    /// poisons the device; an earlier version destroyed the fence on any
+    /// error but a timeout or a lost device.
+    #[test]
+    fn every_failed_wait_leaves_the_work_in_flight() {
+        let timeout = Duration::from_secs(1);
+        let errors = [
+            vk::Result::TIMEOUT,
+            vk::Result::ERROR_DEVICE_LOST,
+            vk::Result::ERROR_OUT_OF_HOST_MEMORY,
+            vk::Result::ERROR_OUT_OF_DEVICE_MEMORY,
+        ];
+        for e in errors {
+            let ended = Submission::after_wait(Err(e), timeout);
+            assert!(matches!(ended, Err(Submission::InFlight(_))), "{e:?}");
+        }
+        assert!(Submission::after_wait(Ok(()), timeout).is_ok());
     }
 }

@@ -65,7 +65,7 @@ pub struct GpuRenderer {
 
 /// The frame's device buffers ([`frame_allocation`]) and each binding's.
 struct FrameBuffers {
-    buffers: Vec<GpuBuffer>,
+    buffers: Vec<Arc<GpuBuffer>>,
     at: [usize; super::shared::BINDING_COUNT as usize],
 }
 
@@ -117,6 +117,11 @@ impl GpuRenderer {
     /// For the twin tests: shadow-map frames read their depth maps back.
     pub fn read_back_shadow_maps(&mut self, on: bool) {
         self.read_back_maps = on;
+    }
+
+    /// `FrameParams::heavy_entries` of every frame on this device.
+    pub(super) fn heavy_entries(&self) -> u32 {
+        self.heavy_entries
     }
 
     pub(super) fn shared(&self) -> &Arc<DeviceShared> {
@@ -174,14 +179,13 @@ impl GpuRenderer {
         let frame_buffers = FrameBuffers {
             buffers: buffer_descs
                 .into_iter()
-                .map(|d| GpuBuffer::new(shared, d))
+                .map(|d| GpuBuffer::new(shared, d).map(Arc::new))
                 .collect::<Result<_, _>>()?,
             at,
         };
         let fb = &frame_buffers;
-        let refs: [&GpuBuffer; super::shared::BINDING_COUNT as usize] =
-            std::array::from_fn(|b| fb.get(b as u32));
-        let set = DescriptorSet::new(shared, &self.layout, &refs)?;
+        let bound = std::array::from_fn(|b| fb.buffers[fb.at[b]].clone());
+        let set = DescriptorSet::new(shared, &self.layout, bound)?;
         let depth_target = match passes {
             FramePasses::ShadowMap(map) => Some(self.depth_target(map)?),
             _ => None,
@@ -305,14 +309,11 @@ impl GpuRenderer {
         let device = &shared.device;
         let start = Instant::now();
         let steps = StepMarks::new(shared)?;
-        self.context.submit_and_wait(|cmd| {
-            let mut rec = Recorder {
-                shared,
-                cmd,
-                layout: &self.layout,
-                set: set.set,
-                steps: None,
-            };
+        let record = |cmd| {
+            // SAFETY: `cmd` is recording on this thread (`submit_and_wait`);
+            // the kernels, the layout and the set live in `self` and this
+            // function, past the wait below.
+            let mut rec = unsafe { Recorder::new(shared, cmd, &self.layout, &set) };
             // SAFETY: `cmd` is recording; every buffer belongs to this frame and
             // lives until after its fence wait; copies stay within each buffer.
             unsafe {
@@ -342,7 +343,7 @@ impl GpuRenderer {
                 mark(0);
                 if rep + 1 == repeats {
                     steps.mark(cmd, "start");
-                    rec.steps = Some(&steps);
+                    rec.time_steps(&steps);
                 }
                 if let GBufferSource::Gpu = source {
                     super::gbuffer::gbuffer(&rec, &self.kernels, [w, h], edges.traced());
@@ -421,7 +422,12 @@ impl GpuRenderer {
                 );
             }
             Ok(())
-        })?;
+        };
+        // SAFETY: everything the commands use — the frame's buffers, the
+        // staging and read-back buffers, the set, the timestamp pools and
+        // the render targets — is owned by this function or `self` and
+        // outlives the call, which waits for the commands to finish.
+        unsafe { self.context.submit_and_wait(record) }?;
         let wall_seconds = start.elapsed().as_secs_f64();
         let millis = timestamps.millis(repeats)?;
         let step_millis = steps.millis()?;

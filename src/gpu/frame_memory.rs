@@ -302,7 +302,7 @@ pub(super) fn initial_cell_capacity(triangles: usize) -> u64 {
     (4 * triangles as u64).max(1 << 16)
 }
 
-pub(super) fn memory_by_pass(buffers: &[GpuBuffer]) -> Vec<PassMemory> {
+pub(super) fn memory_by_pass(buffers: &[std::sync::Arc<GpuBuffer>]) -> Vec<PassMemory> {
     group_by_pass(buffers.iter().map(|b| (b.desc.pass, b.desc.name, b.size())))
 }
 

@@ -38,6 +38,7 @@ pub mod pipeline;
 pub mod resolve;
 pub mod resources;
 pub mod shadow_map;
+pub mod shadow_pass;
 pub mod shadow_raster;
 pub mod shadow_rays;
 pub mod shadow_volumes;
@@ -218,40 +219,99 @@ impl Kernels {
 
 /// Records a frame's dispatches: binds the shared descriptor set, labels
 /// passes for debuggers, and puts a barrier between dependent dispatches.
+/// Its methods are safe because [`Recorder::new`] is not: its caller
+/// promises what every recorded command needs.
 pub struct Recorder<'a> {
-    pub shared: &'a context::DeviceShared,
-    pub cmd: vk::CommandBuffer,
-    pub layout: &'a BindingLayout,
-    pub set: vk::DescriptorSet,
+    shared: &'a context::DeviceShared,
+    cmd: vk::CommandBuffer,
+    layout: &'a BindingLayout,
+    set: &'a pipeline::DescriptorSet,
     /// Where to time each dispatch (the timed repetition of a frame).
-    pub steps: Option<&'a timestamps::StepMarks>,
+    steps: Option<&'a timestamps::StepMarks>,
 }
 
-impl Recorder<'_> {
+impl<'a> Recorder<'a> {
+    /// A recorder of `cmd` with `set` bound to every dispatch.
+    ///
+    /// # Safety
+    /// `cmd` is a command buffer of `shared`'s device in the recording
+    /// state, recorded by this thread alone while the recorder lives, and
+    /// executed only after recording ends. Every kernel dispatched through
+    /// the recorder, `layout` and `set` (which holds its buffers) stay
+    /// alive until the command buffer has finished executing.
+    pub unsafe fn new(
+        shared: &'a context::DeviceShared,
+        cmd: vk::CommandBuffer,
+        layout: &'a BindingLayout,
+        set: &'a pipeline::DescriptorSet,
+    ) -> Self {
+        // Bound once: every compute pipeline has this layout, so the set
+        // stays bound across pipeline binds (Vulkan spec, "Pipeline
+        // Layout Compatibility"). Each dispatch binding it again cost
+        // lavapipe about 1 µs of recording.
+        // SAFETY: the caller's promise: `cmd` is recording, `set` and
+        // `layout` outlive its execution.
+        unsafe {
+            shared.device.cmd_bind_descriptor_sets(
+                cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                layout.pipeline_layout,
+                0,
+                &[set.handle()],
+                &[],
+            );
+        }
+        Recorder {
+            shared,
+            cmd,
+            layout,
+            set,
+            steps: None,
+        }
+    }
+
+    /// Times every later dispatch with `steps`.
+    pub fn time_steps(&mut self, steps: &'a timestamps::StepMarks) {
+        self.steps = Some(steps);
+    }
+
     fn device(&self) -> &ash::Device {
         &self.shared.device
+    }
+
+    /// The command buffer, for the raster passes' own commands (recording
+    /// into it is `unsafe`; [`Recorder::new`]'s promise covers it).
+    pub(crate) fn cmd(&self) -> vk::CommandBuffer {
+        self.cmd
+    }
+
+    /// The device the command buffer belongs to.
+    pub(crate) fn shared(&self) -> &context::DeviceShared {
+        self.shared
+    }
+
+    /// The pipeline layout and set every pass binds.
+    pub(crate) fn binding(&self) -> (vk::PipelineLayout, vk::DescriptorSet) {
+        (self.layout.pipeline_layout, self.set.handle())
+    }
+
+    /// Marks the end of step `name` when the dispatches are timed.
+    pub(crate) fn mark(&self, name: &'static str) {
+        if let Some(steps) = self.steps {
+            steps.mark(self.cmd, name);
+        }
     }
 
     /// Dispatches `kernel` over `groups` workgroups.
     pub fn dispatch(&self, kernel: &ComputeKernel, groups: [u32; 3]) {
         let d = self.device();
-        // SAFETY: `self.cmd` is recording (inside `submit_and_wait`); the
-        // pipeline, layout and set outlive the frame's fence wait.
+        // SAFETY: `self.cmd` is recording and the kernel outlives its
+        // execution (`Recorder::new`'s promise); the set is bound there.
         unsafe {
             d.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-            d.cmd_bind_descriptor_sets(
-                self.cmd,
-                vk::PipelineBindPoint::COMPUTE,
-                self.layout.pipeline_layout,
-                0,
-                &[self.set],
-                &[],
-            );
             d.cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]);
         }
-        if let Some(steps) = self.steps {
-            steps.mark(self.cmd, kernel.name);
-        }
+        self.mark(kernel.name);
     }
 
     /// One thread per pixel in 8×8 tiles.
@@ -280,7 +340,8 @@ impl Recorder<'_> {
                     | vk::AccessFlags::TRANSFER_WRITE,
             )];
         let stages = vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER;
-        // SAFETY: `self.cmd` is recording; the barrier arrays outlive the call.
+        // SAFETY: `self.cmd` is recording (`Recorder::new`); the barrier
+        // arrays outlive the call.
         unsafe {
             self.device().cmd_pipeline_barrier(
                 self.cmd,

@@ -26,6 +26,10 @@ pub struct GpuOptions {
     /// Enable `VK_LAYER_KHRONOS_validation` and collect its messages; the
     /// device fails to open if the layer is missing.
     pub validation: bool,
+    /// With `validation`, its synchronization validation too
+    /// (`VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT`:
+    /// hazards between commands and submissions without a barrier).
+    pub sync_validation: bool,
     /// Evaluate's heavy-step threshold (`FrameParams::heavy_entries`, 0:
     /// off); `None`: the device's default (`frame_inputs::heavy_entries`).
     pub heavy_entries: Option<u32>,
@@ -33,11 +37,12 @@ pub struct GpuOptions {
 
 impl GpuOptions {
     /// Options from the environment: `IZB_VALIDATION=1` turns validation
-    /// on; `IZB_GPU_HEAVY_ENTRIES=N` sets the heavy-step threshold.
+    /// on, `IZB_SYNC_VALIDATION=1` its synchronization checks too; `IZB_GPU_HEAVY_ENTRIES=N` sets the heavy-step threshold.
     pub fn from_env() -> Self {
         GpuOptions {
             device_index: None,
             validation: std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1"),
+            sync_validation: std::env::var("IZB_SYNC_VALIDATION").is_ok_and(|v| v == "1"),
             heavy_entries: std::env::var("IZB_GPU_HEAVY_ENTRIES")
                 .ok()
                 .and_then(|v| v.parse().ok()),

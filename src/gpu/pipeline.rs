@@ -86,14 +86,12 @@ impl ComputeKernel {
         name: &'static str,
         spirv: &[u8],
     ) -> Result<Self, GpuError> {
-        let words: Vec<u32> = spirv
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
+        let words = spirv_words(name, spirv)?;
         let device = &shared.device;
         let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
         let module =
-            // SAFETY: `words` is the SPIR-V build.rs compiled (aligned u32s).
+            // SAFETY: `words` is whole SPIR-V words with its magic number
+            // (`spirv_words`); `module_info` outlives the call.
             unsafe { device.create_shader_module(&module_info, None) }.map_err(GpuError::vk)?;
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
@@ -117,6 +115,14 @@ impl ComputeKernel {
     }
 }
 
+/// SPIR-V bytes as the words a shader module takes: a whole number of
+/// words starting with the magic number, else an error naming the module
+/// (an earlier version cut a partial last word off silently).
+pub fn spirv_words(name: &str, spirv: &[u8]) -> Result<Vec<u32>, GpuError> {
+    ash::util::read_spv(&mut std::io::Cursor::new(spirv))
+        .map_err(|e| GpuError::Unsupported(format!("shader `{name}` is not SPIR-V: {e}")))
+}
+
 impl Drop for ComputeKernel {
     fn drop(&mut self) {
         if self.shared.is_poisoned() {
@@ -128,20 +134,27 @@ impl Drop for ComputeKernel {
     }
 }
 
-/// A descriptor pool holding the one set a frame binds.
+/// A descriptor pool holding the one set a frame binds, and the buffers
+/// the set points at: they live as long as the set, whatever order their
+/// owners drop in.
 pub struct DescriptorSet {
     shared: Arc<DeviceShared>,
     pool: vk::DescriptorPool,
-    pub set: vk::DescriptorSet,
+    set: vk::DescriptorSet,
+    _buffers: [Arc<GpuBuffer>; BINDINGS],
 }
+
+/// Bindings of the set (`shared::BINDING_COUNT`).
+const BINDINGS: usize = super::shared::BINDING_COUNT as usize;
 
 impl DescriptorSet {
     /// Allocates the set and points binding `b` at `buffers[b]`.
     pub fn new(
         shared: &Arc<DeviceShared>,
         layout: &BindingLayout,
-        buffers: &[&GpuBuffer; super::shared::BINDING_COUNT as usize],
+        buffers: [Arc<GpuBuffer>; BINDINGS],
     ) -> Result<Self, GpuError> {
+        shared.count_allocation(super::context::Allocation::DescriptorSet);
         let device = &shared.device;
         let sizes = [vk::DescriptorPoolSize::default()
             .ty(vk::DescriptorType::STORAGE_BUFFER)
@@ -184,14 +197,20 @@ impl DescriptorSet {
                     .buffer_info(info)
             })
             .collect();
-        // SAFETY: the set is not bound yet and every buffer outlives the
-        // frame that binds it (the frame owns both).
+        // SAFETY: the set is not bound yet; the set holds every buffer
+        // until it is destroyed.
         unsafe { device.update_descriptor_sets(&writes, &[]) };
         Ok(DescriptorSet {
             shared: shared.clone(),
             pool,
             set,
+            _buffers: buffers,
         })
+    }
+
+    /// The set's handle (binding it is `unsafe`, as every recording is).
+    pub fn handle(&self) -> vk::DescriptorSet {
+        self.set
     }
 }
 
@@ -203,5 +222,52 @@ impl Drop for DescriptorSet {
         // SAFETY: dropped after the frame's fence wait, so no command buffer
         // using the set is pending (a poisoned device returns above).
         unsafe { self.shared.device.destroy_descriptor_pool(self.pool, None) };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::resources::BufferDesc;
+
+    /// The set holds the buffers it points at: dropping their other
+    /// owners first frees nothing (an earlier version relied on the
+    /// frame's declaration order).
+    #[test]
+    fn a_descriptor_set_keeps_its_buffers() {
+        let Some(context) = crate::gpu::context::test_context() else {
+            return;
+        };
+        let shared = &context.shared;
+        let layout = BindingLayout::new(shared).unwrap();
+        let buffers: Vec<Arc<GpuBuffer>> = (0..BINDINGS)
+            .map(|_| {
+                let desc = BufferDesc::device("test", "bound", 16);
+                Arc::new(GpuBuffer::new(shared, desc).unwrap())
+            })
+            .collect();
+        let watch: Vec<_> = buffers.iter().map(Arc::downgrade).collect();
+        let set = DescriptorSet::new(shared, &layout, std::array::from_fn(|b| buffers[b].clone()))
+            .unwrap();
+        drop(buffers);
+        assert_eq!(
+            watch.iter().filter(|w| w.upgrade().is_some()).count(),
+            BINDINGS
+        );
+        drop(set);
+        assert_eq!(watch.iter().filter(|w| w.upgrade().is_some()).count(), 0);
+    }
+
+    #[test]
+    fn spirv_of_partial_words_or_without_its_magic_is_refused() {
+        let (_, bytes) = super::super::SPIRV_MODULES[0];
+        let words = spirv_words("gbuffer", bytes).unwrap();
+        assert_eq!(words.len() * 4, bytes.len());
+        let cut = spirv_words("gbuffer", &bytes[..bytes.len() - 1]).unwrap_err();
+        assert!(cut.to_string().contains("`gbuffer`"), "{cut}");
+        let mut wrong = bytes.to_vec();
+        wrong[0] ^= 1;
+        assert!(spirv_words("gbuffer", &wrong).is_err());
+        assert!(spirv_words("empty", &[]).is_err());
     }
 }

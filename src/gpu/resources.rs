@@ -58,6 +58,7 @@ impl GpuBuffer {
     /// device buffer larger than the device's storage-buffer range is an
     /// error that names it.
     pub fn new(shared: &Arc<DeviceShared>, desc: BufferDesc) -> Result<Self, GpuError> {
+        shared.count_allocation(super::context::Allocation::Buffer);
         let size = desc.size.max(4).next_multiple_of(4);
         if desc.domain == BufferDomain::Device
             && size > u64::from(shared.limits.max_storage_buffer_range)

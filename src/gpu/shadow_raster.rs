@@ -493,8 +493,8 @@ pub fn shadow_map(
     bias: RasterBias,
 ) {
     rec.begin_label("shadow_map");
-    let d = &rec.shared.device;
-    let cmd = rec.cmd;
+    let d = &rec.shared().device;
+    let cmd = rec.cmd();
     let side = target.extent[0];
     let (pipeline, clear) = match projection {
         Projection::Orthographic => (raster.orthographic, 1.0),
@@ -530,9 +530,9 @@ pub fn shadow_map(
             d.cmd_bind_descriptor_sets(
                 cmd,
                 vk::PipelineBindPoint::GRAPHICS,
-                rec.layout.pipeline_layout,
+                rec.binding().0,
                 0,
-                &[rec.set],
+                &[rec.binding().1],
                 &[],
             );
             d.cmd_set_viewport(cmd, 0, &viewport);
@@ -570,9 +570,7 @@ pub fn shadow_map(
             &regions,
         );
     }
-    if let Some(steps) = rec.steps {
-        steps.mark(cmd, "shadow_map");
-    }
+    rec.mark("shadow_map");
     rec.barrier();
     rec.end_label();
 }

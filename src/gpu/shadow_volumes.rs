@@ -161,8 +161,8 @@ pub fn shadow_volumes(
     let size = target.extent;
     rec.dispatch_pixels(&kernels.volume_depth, size);
     rec.barrier();
-    let d = &rec.shared.device;
-    let cmd = rec.cmd;
+    let d = &rec.shared().device;
+    let cmd = rec.cmd();
     let pixels = u64::from(size[0]) * u64::from(size[1]);
     let whole = vk::ImageSubresourceRange::default()
         .aspect_mask(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL)
@@ -223,9 +223,9 @@ pub fn shadow_volumes(
         d.cmd_bind_descriptor_sets(
             cmd,
             vk::PipelineBindPoint::GRAPHICS,
-            rec.layout.pipeline_layout,
+            rec.binding().0,
             0,
-            &[rec.set],
+            &[rec.binding().1],
             &[],
         );
         d.cmd_set_viewport(cmd, 0, &viewport);
@@ -245,9 +245,7 @@ pub fn shadow_volumes(
             &stencil_out,
         );
     }
-    if let Some(steps) = rec.steps {
-        steps.mark(cmd, "shadow_volumes");
-    }
+    rec.mark("shadow_volumes");
     rec.barrier();
     rec.end_label();
 }

@@ -9,6 +9,7 @@
 //! the origin (tried to 10⁸ radii) changes nothing.
 
 use super::{Light, Scene};
+use glam::DVec3;
 
 /// Smallest eye-relative radius (the farthest bounds corner from the eye):
 /// exact down to 3.2·10⁻⁹ (`default` scaled by 10⁻¹⁰); at 3.2·10⁻¹¹ the
@@ -54,7 +55,13 @@ pub const MAX_POINT_LIGHT_RADII: f64 = 1e4;
 /// Refuses `scene` when it lies outside the envelope, naming the quantity,
 /// its value and the limit.
 pub fn check(scene: &Scene) -> Result<(), String> {
-    let (lo, hi) = scene.bounds();
+    check_within(scene, scene.bounds())
+}
+
+/// [`check`] with the scene's bounds known (`Scene::bounds`): a view of a
+/// resident scene (`crate::gpu::shadow_pass`) is checked without a walk
+/// over its triangles.
+pub fn check_within(scene: &Scene, (lo, hi): (DVec3, DVec3)) -> Result<(), String> {
     let eye = scene.camera.eye;
     let eye_radius = (lo - eye).abs().max((hi - eye).abs()).length();
     if eye_radius < MIN_EYE_RADIUS {

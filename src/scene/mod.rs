@@ -260,6 +260,13 @@ impl Scene {
                 }
             )));
         }
+        self.validate_view(self.bounds())
+    }
+
+    /// What [`Self::validate`] checks of the view — resolution, camera,
+    /// light and its size, the precision envelope — with the triangles'
+    /// `bounds` known: a resident scene's new camera or light.
+    pub fn validate_view(&self, bounds: (DVec3, DVec3)) -> Result<(), SceneError> {
         spec::check_resolution(self.resolution).map_err(SceneError::Invalid)?;
         self.camera.validate().map_err(SceneError::Invalid)?;
         self.light.validate().map_err(SceneError::Invalid)?;
@@ -271,10 +278,11 @@ impl Scene {
         self.light
             .validate_size(spec_units)
             .map_err(SceneError::Invalid)?;
+        let (lo, hi) = bounds;
         self.light
-            .validate_sphere_size(radius, self.radius())
+            .validate_sphere_size(radius, (hi - lo).length() * 0.5)
             .map_err(SceneError::Invalid)?;
-        envelope::check(self).map_err(SceneError::Invalid)?;
+        envelope::check_within(self, bounds).map_err(SceneError::Invalid)?;
         Ok(())
     }
 

@@ -281,7 +281,16 @@ impl App {
                     return;
                 }
                 Action::WaitTruth(spp) => {
-                    if self.truth.as_ref().is_some_and(|t| t.spp >= spp) {
+                    // The actions before may have changed the view: its
+                    // truth is a new one (an earlier version counted the
+                    // previous view's samples and went on at once).
+                    self.sync_requests();
+                    let current = |t: &TruthUpdate| t.generation == self.truth_generation;
+                    if self
+                        .truth
+                        .as_ref()
+                        .is_some_and(|t| current(t) && t.spp >= spp)
+                    {
                         self.script.pop_front();
                         continue;
                     }

@@ -70,6 +70,21 @@ pub fn view_image(
     }
 }
 
+/// Why `view` shows no values at all, when it has nothing to show (an
+/// image of one flat colour would otherwise look like a broken view).
+pub fn view_notice(view: ViewKind, has_candidates: bool, has_truth: bool) -> Option<&'static str> {
+    match view {
+        ViewKind::Error if !has_truth => Some(
+            "error view: no truth yet — the ray-traced truth starts once the view is still \
+             and its frame is shown (scripts: wait-truth SPP)",
+        ),
+        ViewKind::Candidates if !has_candidates => {
+            Some("candidates view: this frame has no per-pixel candidate counts")
+        }
+        _ => None,
+    }
+}
+
 /// A black–red–yellow–white ramp over 0–1.
 pub fn heat(x: f32) -> [u8; 4] {
     let x = x.clamp(0.0, 1.0);
@@ -146,6 +161,18 @@ mod tests {
         assert_eq!(heat(0.0), [0, 0, 0, 255]);
         assert_eq!(heat(1.0), [255, 255, 255, 255]);
         assert_eq!(heat(1.0 / 3.0), [255, 0, 0, 255]);
+    }
+
+    #[test]
+    fn empty_views_say_why() {
+        let mut said = 0;
+        for view in [ViewKind::Error, ViewKind::Candidates] {
+            assert!(view_notice(view, false, false).is_some(), "{}", view.name());
+            assert_eq!(view_notice(view, true, true), None);
+            said += 1;
+        }
+        assert_eq!(view_notice(ViewKind::Shaded, false, false), None);
+        assert_eq!(said, 2);
     }
 
     #[test]

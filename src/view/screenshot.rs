@@ -74,6 +74,12 @@ pub fn write(
             "light_turn_deg": state.light_turn,
             "light_size": state.light_size,
             "overlay": state.overlay,
+            // Why the view is empty, as the window says over the image.
+            "notice": super::images::view_notice(
+                state.view,
+                shown.result.candidates.is_some(),
+                truth.is_some(),
+            ),
         },
         "window": {
             "size": [window.width(), window.height()],

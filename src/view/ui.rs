@@ -3,7 +3,7 @@
 //! divider, orbit and light drags; the overlay of pass times, work
 //! counters, memory and error; the magnifier's sample dots.
 
-use super::images::{frame_layout, mean_abs_error};
+use super::images::{frame_layout, mean_abs_error, view_notice};
 use super::state::{ViewKind, ViewState, IZB_METHODS, MAP_FAMILIES, MAP_SIDES, OTHER_METHODS};
 use super::worker::FrameResult;
 use crate::scene::{Light, Scene};
@@ -257,6 +257,16 @@ fn image_area(
             painter.image(only.id(), rect, full, Color32::WHITE);
         }
         [] => {}
+    }
+    let has_candidates = shown.result.candidates.is_some();
+    if let Some(notice) = view_notice(state.view, has_candidates, status.truth.is_some()) {
+        painter.text(
+            rect.center(),
+            egui::Align2::CENTER_CENTER,
+            notice,
+            egui::FontId::proportional(16.0),
+            Color32::LIGHT_GRAY,
+        );
     }
     // Drags: the divider when grabbed near it, else orbit (left button)
     // or light (right button or shift); scroll zooms.

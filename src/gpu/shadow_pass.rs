@@ -1,0 +1,519 @@
+//! The IZB as a pass of a frame the caller records (issue 29, its first
+//! part): resources made once, then per frame only commands and
+//! parameters — no buffer, descriptor set, mapping, submission, wait or
+//! read-back. The shape of shipped effect SDKs (AMD FidelityFX FSR2's
+//! context and dispatch, NVIDIA's GFSDK_ShadowLib: a context made once,
+//! per-frame parameters, a status for too many primitives).
+//!
+//! What this part does and does not do yet:
+//! - The scene is resident: its eye-relative vertices, normals, BVH and
+//!   LUT are uploaded once. The camera may turn and the light may move or
+//!   change size per frame; the eye may not move (the vertices are
+//!   relative to it), which [`ShadowPass::record`] refuses by name.
+//! - The G-buffer is the ray-cast one (`gbuffer.comp`), recorded as the
+//!   pass's first step; a host's raster G-buffer is the next part.
+//! - Edge pixels' per-sample surfaces are not traced: settings that ask
+//!   for them are refused (`--no-edge-surfaces` renders the same masks).
+//! - A frame whose cell list overruns stays exact the slow way
+//!   (`bin.comp`) and says so in its status; [`ShadowPass::grow`] makes
+//!   room between frames.
+//!
+//! Per frame the recording is: a barrier after the previous frame's work
+//! on the pass's buffers, the parameters and the light state's start
+//! written into the command buffer (`vkCmdUpdateBuffer`), the counters
+//! cleared, then `gbuffer`, `light_setup`, `bin`, `evaluate` and
+//! `resolve`, and the counters copied into the frame slot's status
+//! buffer. Afterwards the masks and the shaded image are in the pass's
+//! storage buffers, written by compute shaders and made visible to later
+//! compute-shader and transfer reads.
+
+use super::frame::GpuRenderer;
+use super::frame_inputs::{check_workgroups, frame_params, grid_budget_side, loop_budget};
+use super::frame_inputs::{SceneUpload, LLVMPIPE_LOOP_CAP};
+use super::frame_memory::FrameSizes;
+use super::frame_memory::{frame_buffer_descs, initial_cell_capacity, reset_pass_state};
+use super::pipeline::DescriptorSet;
+use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
+use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
+use super::{GpuError, Recorder};
+use crate::scene::{Camera, Light, Scene};
+use crate::settings::IzbSettings;
+use ash::vk;
+use glam::DVec3;
+use std::sync::Arc;
+
+const BINDINGS: usize = BINDING_COUNT as usize;
+
+// `vkCmdUpdateBuffer` writes at most 65 536 bytes, in whole words.
+const _: () =
+    assert!(size_of::<FrameParams>() <= 65536 && size_of::<FrameParams>().is_multiple_of(4));
+const _: () =
+    assert!(size_of::<LightState>() <= 65536 && size_of::<LightState>().is_multiple_of(4));
+
+/// What a pass is made for.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowPassConfig {
+    /// Sample mode, skips, cascades (edge surfaces off).
+    pub settings: IzbSettings,
+    /// Frames the host records before it waits for the oldest: each has
+    /// its own status buffer.
+    pub frames_in_flight: usize,
+    /// Entries of the cell list; `None`: max(4 × triangles, 2¹⁶).
+    pub cell_capacity: Option<u64>,
+}
+
+/// What may change between frames.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameView {
+    /// The camera; its eye must stay the scene's.
+    pub camera: Camera,
+    pub light: Light,
+    /// The light's size (`Scene::light_radius`); whether it is 0 must stay
+    /// as the scene had it (it decides the masks' layout).
+    pub light_radius: f64,
+}
+
+/// What a frame's status buffer says, read once the host knows the
+/// frame is done.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PassStatus {
+    /// Entries the cell list needed.
+    pub cell_entries: u64,
+    /// The list was smaller: the frame ran the slow exact way, and
+    /// [`ShadowPass::grow`] makes room for the next.
+    pub cell_list_overrun: bool,
+    /// A shader stopped at lavapipe's loop cap in this frame after this
+    /// many trips (0: none): its masks are cut short, and the frame must
+    /// not be used.
+    pub loop_cap_trips: u32,
+    /// Pixels shadow-tested.
+    pub shadow_tested: u32,
+}
+
+/// The IZB, resident on a device, recorded into the caller's command
+/// buffers.
+pub struct ShadowPass<'r> {
+    renderer: &'r GpuRenderer,
+    config: ShadowPassConfig,
+    /// The scene; its camera and light are the last recorded frame's.
+    scene: Scene,
+    bounds: (DVec3, DVec3),
+    triangles: u32,
+    max_cells: u64,
+    cell_capacity: u64,
+    buffers: [Arc<GpuBuffer>; BINDINGS],
+    set: DescriptorSet,
+    /// Per frame slot, the counters of its last frame (host-visible).
+    status: Vec<GpuBuffer>,
+}
+
+impl<'r> ShadowPass<'r> {
+    /// Makes the pass for `scene` on `renderer`'s device: every buffer,
+    /// the descriptor set, and the scene, BVH and LUT uploaded (this call
+    /// waits for the upload).
+    pub fn new(
+        renderer: &'r GpuRenderer,
+        scene: Scene,
+        config: ShadowPassConfig,
+    ) -> Result<Self, GpuError> {
+        let settings = config.settings;
+        if settings.uses_edge_surfaces(&scene) {
+            return Err(GpuError::Unsupported(
+                "the shadow pass does not trace edge pixels' per-sample surfaces yet: make it \
+                 with `edge_surfaces: false` (--no-edge-surfaces)"
+                    .into(),
+            ));
+        }
+        if config.frames_in_flight == 0 {
+            return Err(GpuError::Unsupported("frames_in_flight is 0".into()));
+        }
+        let shared = renderer.shared();
+        check_workgroups(&shared.limits, scene.resolution)?;
+        let upload = SceneUpload::new(&scene);
+        let triangles = upload.triangles.len();
+        if triangles >= super::shared::ID_MASK as usize {
+            return Err(GpuError::Unsupported(format!(
+                "{triangles} triangles: the GPU G-buffer holds ids below 2^{} - 1",
+                super::shared::ID_BITS
+            )));
+        }
+        let bvh = super::gbuffer::build_bvh(&upload.triangles)?;
+        let side = grid_budget_side(scene.pixel_count(), triangles, settings.cells);
+        if side > 0xFFFF {
+            return Err(GpuError::Unsupported(format!(
+                "--cells {side}: the GPU's cell budget is at most 65535² cells"
+            )));
+        }
+        let max_cells = crate::cascades::max_total_cells(side);
+        let cell_capacity = config
+            .cell_capacity
+            .unwrap_or_else(|| initial_cell_capacity(triangles));
+        let (lut, _) = crate::lut::tables_for(settings.light_samples(&scene));
+        let pixels = scene.pixel_count() as u64;
+        let descs = frame_buffer_descs(&FrameSizes {
+            pixels,
+            tiles: super::edge_surfaces::edge_tiles(scene.resolution),
+            receivers: pixels,
+            edge_surfaces: None,
+            triangles: triangles as u64,
+            vertices: upload.vertices.len() as u64,
+            bvh_nodes: bvh.nodes.len() as u64,
+            bvh_prims: bvh.prims.len() as u64,
+            max_cells,
+            cell_capacity,
+            lut_entries: lut.masks.len() as u64,
+            shadow_map_words: 0,
+            mask_halves: settings.mask_halves(&scene) as u64,
+        });
+        // One buffer per binding: a batch frame lets the bin's lists
+        // alias the BVH (`frame_memory::SHARED_BUFFERS`) and uploads the
+        // BVH again each frame; a resident one keeps both.
+        let made: Vec<Arc<GpuBuffer>> = descs
+            .into_iter()
+            .map(|d| GpuBuffer::new(shared, d).map(Arc::new))
+            .collect::<Result<_, _>>()?;
+        let buffers: [Arc<GpuBuffer>; BINDINGS] = std::array::from_fn(|b| made[b].clone());
+        let set = DescriptorSet::new(shared, &renderer.layout, buffers.clone())?;
+        let status = (0..config.frames_in_flight)
+            .map(|_| {
+                let desc = BufferDesc {
+                    name: "pass_status",
+                    pass: "frame",
+                    size: counter::WORDS as u64 * 4,
+                    domain: BufferDomain::Readback,
+                };
+                GpuBuffer::new(shared, desc)
+            })
+            .collect::<Result<_, _>>()?;
+        let as_bytes = |v: &[[f32; 3]]| bytemuck::cast_slice::<_, u8>(v).to_vec();
+        let uploads: Vec<(u32, Vec<u8>)> = vec![
+            (
+                binding::TRIANGLES,
+                bytemuck::cast_slice(&upload.corners).to_vec(),
+            ),
+            (binding::VERTICES, as_bytes(&upload.vertices)),
+            (binding::TRIANGLE_NORMALS, as_bytes(&upload.normals)),
+            (
+                binding::BVH_NODES,
+                bytemuck::cast_slice(&bvh.nodes).to_vec(),
+            ),
+            (
+                binding::BVH_PRIMS,
+                bytemuck::cast_slice(&bvh.prims).to_vec(),
+            ),
+            (binding::EDGE_LUT, bytemuck::cast_slice(&lut.masks).to_vec()),
+        ];
+        upload_into(renderer, &buffers, &uploads)?;
+        Ok(ShadowPass {
+            renderer,
+            config,
+            bounds: scene.bounds(),
+            scene,
+            triangles: triangles as u32,
+            max_cells,
+            cell_capacity,
+            buffers,
+            set,
+            status,
+        })
+    }
+
+    /// Frame slots (`ShadowPassConfig::frames_in_flight`).
+    pub fn frames_in_flight(&self) -> usize {
+        self.status.len()
+    }
+
+    /// The image's size.
+    pub fn resolution(&self) -> [u32; 2] {
+        self.scene.resolution
+    }
+
+    /// Entries of the cell list now.
+    pub fn cell_capacity(&self) -> u64 {
+        self.cell_capacity
+    }
+
+    /// Checks `view` against the scene (the eye, the light's kind of size,
+    /// the precision envelope) and takes it as the scene's.
+    fn take_view(&mut self, view: &FrameView) -> Result<(), GpuError> {
+        if view.camera.eye != self.scene.camera.eye {
+            return Err(GpuError::Unsupported(format!(
+                "the eye moved from {} to {}: the pass holds the scene's vertices relative to \
+                 its eye; make the pass again for the new eye",
+                self.scene.camera.eye, view.camera.eye
+            )));
+        }
+        if (view.light_radius > 0.0) != self.scene.has_area_light() {
+            return Err(GpuError::Unsupported(
+                "the light turned from point-like to area or back: the masks' layout follows \
+                 it; make the pass again"
+                    .into(),
+            ));
+        }
+        let scene = &mut self.scene;
+        let previous = (scene.camera, scene.light, scene.light_radius);
+        (scene.camera, scene.light, scene.light_radius) =
+            (view.camera, view.light, view.light_radius);
+        let checked = scene.validate_view(self.bounds);
+        if let Err(e) = checked {
+            (scene.camera, scene.light, scene.light_radius) = previous;
+            return Err(GpuError::Unsupported(format!(
+                "this view cannot be rendered: {e}"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Records frame `slot`'s shadow pass for `view` into `cmd`.
+    ///
+    /// # Safety
+    /// `cmd` is a command buffer of this pass's device in the recording
+    /// state, recorded on this thread, submitted to a queue of the device's
+    /// compute family after every earlier frame of this pass (frames
+    /// execute in submission order: a barrier at the start orders each
+    /// after the one before); slot `slot`'s previous frame has finished
+    /// executing, and the pass outlives this frame's execution.
+    pub unsafe fn record(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        slot: usize,
+        view: &FrameView,
+    ) -> Result<(), GpuError> {
+        if slot >= self.status.len() {
+            return Err(GpuError::Unsupported(format!(
+                "frame slot {slot}: the pass has {} frames in flight",
+                self.status.len()
+            )));
+        }
+        self.take_view(view)?;
+        let renderer = self.renderer;
+        let shared = renderer.shared();
+        let settings = self.config.settings;
+        let scene = &self.scene;
+        let [w, h] = scene.resolution;
+        let params = frame_params(
+            scene,
+            settings,
+            self.triangles as usize,
+            self.max_cells,
+            self.cell_capacity,
+            loop_budget(&shared.info.name),
+            renderer.heavy_entries(),
+        );
+        let device = &shared.device;
+        let buffer = |b: u32| self.buffers[b as usize].buffer;
+        // SAFETY: the caller's promise covers `cmd`, and the set, layout
+        // and kernels live in the pass and its renderer.
+        let rec = unsafe { Recorder::new(shared, cmd, &renderer.layout, &self.set) };
+        rec.begin_label("izb_shadow_pass");
+        // The previous frame's reads and writes of every buffer are done
+        // before this frame's.
+        rec.barrier();
+        // SAFETY: `cmd` is recording; both writes lie within their
+        // buffers (sizes asserted above).
+        unsafe {
+            device.cmd_update_buffer(cmd, buffer(binding::FRAME), 0, bytemuck::bytes_of(&params));
+            let start = LightState::reset();
+            device.cmd_update_buffer(cmd, buffer(binding::LIGHT), 0, bytemuck::bytes_of(&start));
+        }
+        reset_pass_state(device, cmd, buffer, false);
+        rec.barrier();
+        super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false);
+        super::light_setup::light_setup(&rec, &renderer.kernels, [w, h]);
+        let gather = settings.skips.behind_receivers.then_some(w * h);
+        let kernels = &renderer.kernels;
+        super::bin::bin(&rec, kernels, self.triangles, self.max_cells, gather);
+        let heavy = (params.heavy_entries != 0).then_some((
+            params.heavy_capacity,
+            super::evaluate::heavy_workgroups(&shared.info),
+        ));
+        let halves = settings.mask_halves(scene);
+        super::evaluate::evaluate(&rec, kernels, [w, h], heavy, halves);
+        super::resolve::resolve(&rec, kernels, [w, h]);
+        let status = &self.status[slot];
+        let region = [vk::BufferCopy::default().size(status.size())];
+        let to_host = [vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::HOST_READ)];
+        // SAFETY: `cmd` is recording; the status buffer is the counters'
+        // size and the slot's previous frame is done (the caller).
+        unsafe {
+            device.cmd_copy_buffer(cmd, buffer(binding::COUNTERS), status.buffer, &region);
+            device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &to_host,
+                &[],
+                &[],
+            );
+        }
+        rec.end_label();
+        Ok(())
+    }
+
+    /// What slot `slot`'s last frame wrote to its status buffer.
+    ///
+    /// # Safety
+    /// That frame has finished executing (the host waited for its fence)
+    /// and no frame of the slot is executing now.
+    pub unsafe fn status(&self, slot: usize) -> Result<PassStatus, GpuError> {
+        let bytes = self.status[slot].mapped()?;
+        let c: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[..counter::WORDS * 4]);
+        Ok(PassStatus {
+            cell_entries: u64::from(c[counter::CELL_ENTRIES]),
+            cell_list_overrun: c[counter::CAPACITY_EXCEEDED] != 0,
+            loop_cap_trips: c[counter::LOOP_BUDGET_EXCEEDED],
+            shadow_tested: c[counter::SHADOW_TESTED],
+        })
+    }
+
+    /// Makes the cell list hold `status`'s need when it overran (a new
+    /// buffer and descriptor set); whether it grew. A frame slot's status
+    /// says the need of its own frame.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing (the old list and set are freed
+    /// here).
+    pub unsafe fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
+        if !status.cell_list_overrun || status.cell_entries <= self.cell_capacity {
+            return Ok(false);
+        }
+        let shared = self.renderer.shared();
+        let desc = BufferDesc::device("bin", "cell_triangles", status.cell_entries * 4);
+        let grown = Arc::new(GpuBuffer::new(shared, desc)?);
+        let mut buffers = self.buffers.clone();
+        buffers[binding::CELL_TRIANGLES as usize] = grown;
+        self.set = DescriptorSet::new(shared, &self.renderer.layout, buffers.clone())?;
+        self.buffers = buffers;
+        self.cell_capacity = status.cell_entries;
+        Ok(true)
+    }
+
+    /// The masks, the second mask halves (empty with one) and the shaded
+    /// pixels of the last frame, copied back — for tests and tools: it
+    /// allocates, submits and waits.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing.
+    pub unsafe fn read_back(&self) -> Result<PassImages, GpuError> {
+        let halves = self.config.settings.mask_halves(&self.scene);
+        let pixels = self.scene.pixel_count();
+        let wanted = [binding::MASKS, binding::MASKS_HIGH, binding::SHADED];
+        let words = [pixels, pixels * (halves - 1), pixels];
+        let [masks, masks_high, shaded] = read_back(self.renderer, &self.buffers, wanted, words)?;
+        Ok(PassImages {
+            masks,
+            masks_high,
+            shaded,
+        })
+    }
+
+    /// `LLVMPIPE_LOOP_CAP` as a status's refusal.
+    pub fn loop_cap_error(&self, status: &PassStatus) -> Option<GpuError> {
+        (status.loop_cap_trips != 0).then(|| GpuError::LoopCap {
+            device: self.renderer.context.info().name.clone(),
+            cap: LLVMPIPE_LOOP_CAP,
+            trips: status.loop_cap_trips,
+        })
+    }
+}
+
+/// A frame's images as [`ShadowPass::read_back`] copies them.
+pub struct PassImages {
+    pub masks: Vec<u32>,
+    pub masks_high: Vec<u32>,
+    /// Packed RGBA8 shaded pixels (`resolve.comp`).
+    pub shaded: Vec<u32>,
+}
+
+/// Copies `uploads` (binding, bytes) into the pass's buffers through
+/// staging buffers, and waits.
+fn upload_into(
+    renderer: &GpuRenderer,
+    buffers: &[Arc<GpuBuffer>; BINDINGS],
+    uploads: &[(u32, Vec<u8>)],
+) -> Result<(), GpuError> {
+    let shared = renderer.shared();
+    let mut staged = Vec::new();
+    for (b, bytes) in uploads.iter().filter(|(_, bytes)| !bytes.is_empty()) {
+        let desc = BufferDesc {
+            name: "staging",
+            pass: "upload",
+            size: bytes.len() as u64,
+            domain: BufferDomain::Upload,
+        };
+        let mut staging = GpuBuffer::new(shared, desc)?;
+        staging.mapped_mut()?[..bytes.len()].copy_from_slice(bytes);
+        staged.push((staging, *b));
+    }
+    let record = |cmd| {
+        for (staging, b) in &staged {
+            let region = [vk::BufferCopy::default().size(staging.size())];
+            let to = buffers[*b as usize].buffer;
+            // SAFETY: `cmd` is recording; each copy fits both buffers.
+            unsafe {
+                shared
+                    .device
+                    .cmd_copy_buffer(cmd, staging.buffer, to, &region)
+            };
+        }
+        Ok(())
+    };
+    // SAFETY: the staging and device buffers outlive the call, which
+    // waits for the copies.
+    unsafe { renderer.context.submit_and_wait(record) }
+}
+
+/// The first `words[k]` words of binding `bindings[k]`'s buffer, copied
+/// back (waits).
+fn read_back<const N: usize>(
+    renderer: &GpuRenderer,
+    buffers: &[Arc<GpuBuffer>; BINDINGS],
+    bindings: [u32; N],
+    words: [usize; N],
+) -> Result<[Vec<u32>; N], GpuError> {
+    let shared = renderer.shared();
+    let readbacks: Vec<GpuBuffer> = (0..N)
+        .map(|k| {
+            let desc = BufferDesc {
+                name: "readback",
+                pass: "readback",
+                size: words[k] as u64 * 4,
+                domain: BufferDomain::Readback,
+            };
+            GpuBuffer::new(shared, desc)
+        })
+        .collect::<Result<_, _>>()?;
+    let record = |cmd| {
+        let d = &shared.device;
+        for (k, rb) in readbacks.iter().enumerate().filter(|&(k, _)| words[k] > 0) {
+            let region = [vk::BufferCopy::default().size(words[k] as u64 * 4)];
+            let from = buffers[bindings[k] as usize].buffer;
+            // SAFETY: `cmd` is recording; the copy fits both buffers.
+            unsafe { d.cmd_copy_buffer(cmd, from, rb.buffer, &region) };
+        }
+        let to_host = [vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::HOST_READ)];
+        let stages = (
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::HOST,
+        );
+        let none = vk::DependencyFlags::empty();
+        // SAFETY: `cmd` is recording; `to_host` outlives the call.
+        unsafe { d.cmd_pipeline_barrier(cmd, stages.0, stages.1, none, &to_host, &[], &[]) };
+        Ok(())
+    };
+    // The copies read what earlier frames wrote: the barrier at the end of
+    // every frame (`resolve`) made it visible to transfers.
+    // SAFETY: the read-back and device buffers outlive the call, which
+    // waits for the copies.
+    unsafe { renderer.context.submit_and_wait(record) }?;
+    let mut out: [Vec<u32>; N] = std::array::from_fn(|_| Vec::new());
+    for (k, rb) in readbacks.iter().enumerate() {
+        out[k] = bytemuck::pod_collect_to_vec(&rb.mapped()?[..words[k] * 4]);
+    }
+    Ok(out)
+}

@@ -1,0 +1,244 @@
+//! The IZB as a pass recorded into the caller's command buffers
+//! (`izb::gpu::shadow_pass`): made once, then per frame only commands —
+//! no buffer, descriptor set, mapping, wait or read-back — with masks
+//! bit-identical to `GpuRenderer::render`'s for the same view, a cell
+//! list that overruns staying exact and growing between frames, and bad
+//! views refused by name. With `IZB_VALIDATION=1` the device runs the
+//! validation layer with synchronization validation, and any message
+//! fails the test. No Vulkan device: the test prints that it skipped,
+//! unless `IZB_REQUIRE_GPU=1`.
+
+mod common;
+
+use common::gpu::{assert_no_validation_messages, own_renderer};
+use glam::{DMat3, DVec3};
+use izb::cpu::{IzbSettings, SampleMode};
+use izb::gpu::shadow_pass::{FrameView, ShadowPass, ShadowPassConfig};
+use izb::gpu::{GBufferSource, GpuError, GpuOptions, GpuRenderer};
+use izb::scene::{self, Light, Scene};
+use std::time::Instant;
+
+/// Frames recorded per mode.
+const FRAMES: usize = 30;
+/// Every this many frames, the pass's masks are compared with `render`'s.
+const COMPARE_EVERY: usize = 10;
+
+fn pass_renderer() -> Option<GpuRenderer> {
+    let mut options = GpuOptions::from_env();
+    options.sync_validation = options.validation;
+    own_renderer(&options)
+}
+
+fn settings(mode: SampleMode) -> IzbSettings {
+    IzbSettings {
+        mode,
+        edge_surfaces: false,
+        ..Default::default()
+    }
+}
+
+/// Frame `k`'s view: the light turned by 2° a frame about the camera's
+/// up axis, the camera turned by 0.2° a frame about its eye.
+fn view_at(scene: &Scene, k: usize) -> FrameView {
+    let up = scene.camera.up.normalize();
+    let light_turn = DMat3::from_axis_angle(up, (2.0 * k as f64).to_radians());
+    let look_turn = DMat3::from_axis_angle(up, (0.2 * k as f64).to_radians());
+    let light = match scene.light {
+        Light::Directional { direction } => Light::Directional {
+            direction: light_turn * direction,
+        },
+        Light::Point { position } => Light::Point {
+            position: light_turn * position,
+        },
+    };
+    let mut camera = scene.camera;
+    camera.target = camera.eye + look_turn * (camera.target - camera.eye);
+    FrameView {
+        camera,
+        light,
+        light_radius: scene.light_radius,
+    }
+}
+
+fn scene_at(scene: &Scene, view: &FrameView) -> Scene {
+    let mut s = scene.clone();
+    (s.camera, s.light, s.light_radius) = (view.camera, view.light, view.light_radius);
+    s
+}
+
+/// Records frame `k` into its own submission and waits (the test's
+/// host: one frame at a time, slots alternating).
+fn run_frame(r: &GpuRenderer, pass: &mut ShadowPass, k: usize, view: &FrameView) -> f64 {
+    let slot = k % pass.frames_in_flight();
+    let mut micros = 0.0;
+    let record = |cmd| {
+        let start = Instant::now();
+        // SAFETY: `cmd` is recording on this thread and is submitted to
+        // the pass's device after every earlier frame; the wait below
+        // ends every earlier frame, and the pass outlives this one.
+        let recorded = unsafe { pass.record(cmd, slot, view) };
+        micros = start.elapsed().as_secs_f64() * 1e6;
+        recorded
+    };
+    // SAFETY: the pass and its buffers outlive the call, which waits.
+    unsafe { r.context.submit_and_wait(record) }.unwrap();
+    micros
+}
+
+#[test]
+fn a_resident_pass_records_frames_equal_to_render_allocating_nothing() {
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([96, 54])
+        .unwrap();
+    let mut compared = 0;
+    for mode in [SampleMode::Exact32, SampleMode::Lut32] {
+        let s = settings(mode);
+        let config = ShadowPassConfig {
+            settings: s,
+            frames_in_flight: 2,
+            cell_capacity: None,
+        };
+        let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+        let mut record_us = Vec::new();
+        let (mut buffers, mut sets) = (0, 0);
+        for k in 0..FRAMES {
+            let view = view_at(&scene, k);
+            let before = r.context.shared.allocations();
+            record_us.push(run_frame(&r, &mut pass, k, &view));
+            let after = r.context.shared.allocations();
+            buffers += after[0] - before[0];
+            sets += after[1] - before[1];
+            // SAFETY: the frame's submission was waited for.
+            let status = unsafe { pass.status(k % 2) }.unwrap();
+            assert!(
+                !status.cell_list_overrun && status.loop_cap_trips == 0,
+                "{status:?}"
+            );
+            if k % COMPARE_EVERY == 0 {
+                // SAFETY: nothing of the pass is executing.
+                let images = unsafe { pass.read_back() }.unwrap();
+                let moved = scene_at(&scene, &view);
+                let batch = r.render(&moved, s, GBufferSource::Gpu).unwrap();
+                assert_eq!(images.masks, batch.masks, "{mode:?}, frame {k}");
+                assert_eq!(status.shadow_tested, batch.report.counters.shadow_tested);
+                compared += 1;
+            }
+        }
+        record_us.sort_by(f64::total_cmp);
+        println!(
+            "{mode:?}: {FRAMES} frames, record median {:.1} µs (max {:.1}); buffers {buffers}, \
+             descriptor sets {sets} made while recording",
+            record_us[FRAMES / 2],
+            record_us[FRAMES - 1]
+        );
+        assert_eq!(
+            (buffers, sets),
+            (0, 0),
+            "{mode:?}: allocations inside frames"
+        );
+        assert_no_validation_messages(&r, "shadow pass");
+    }
+    assert_eq!(compared, 2 * FRAMES / COMPARE_EVERY);
+}
+
+#[test]
+fn an_overrun_frame_is_exact_says_so_and_the_pass_grows() {
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([96, 54])
+        .unwrap();
+    let s = settings(SampleMode::Exact32);
+    let config = ShadowPassConfig {
+        settings: s,
+        frames_in_flight: 1,
+        cell_capacity: Some(64),
+    };
+    let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+    let view = view_at(&scene, 0);
+    let batch = r
+        .render(&scene_at(&scene, &view), s, GBufferSource::Gpu)
+        .unwrap();
+    let mut frames = 0;
+    for k in 0..2 {
+        run_frame(&r, &mut pass, k, &view);
+        // SAFETY: the frame was waited for; nothing is executing.
+        let (status, images) = unsafe { (pass.status(0).unwrap(), pass.read_back().unwrap()) };
+        assert_eq!(status.cell_list_overrun, k == 0, "frame {k}: {status:?}");
+        assert_eq!(
+            status.cell_entries,
+            u64::from(batch.report.counters.cell_entries)
+        );
+        assert_eq!(images.masks, batch.masks, "frame {k}'s masks");
+        // SAFETY: nothing of the pass is executing.
+        let grew = unsafe { pass.grow(&status) }.unwrap();
+        assert_eq!(grew, k == 0);
+        frames += 1;
+    }
+    assert_eq!(
+        pass.cell_capacity(),
+        u64::from(batch.report.counters.cell_entries)
+    );
+    assert_eq!(frames, 2);
+    assert_no_validation_messages(&r, "shadow pass overrun");
+}
+
+#[test]
+fn bad_views_and_configurations_are_refused_by_name() {
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([64, 36])
+        .unwrap();
+    let edge = ShadowPassConfig {
+        settings: IzbSettings {
+            edge_surfaces: true,
+            ..IzbSettings::default()
+        },
+        frames_in_flight: 2,
+        cell_capacity: None,
+    };
+    let refused = ShadowPass::new(&r, scene.clone(), edge).err().unwrap();
+    assert!(refused.to_string().contains("edge_surfaces"), "{refused}");
+    let config = ShadowPassConfig {
+        settings: settings(SampleMode::Lut32),
+        ..edge
+    };
+    let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+    let good = view_at(&scene, 1);
+    let mut moved_eye = good;
+    moved_eye.camera.eye += DVec3::new(0.5, 0.0, 0.0);
+    let mut far_light = good;
+    far_light.light = Light::Point {
+        position: DVec3::splat(1e12),
+    };
+    let mut area = good;
+    area.light_radius = 0.05;
+    let cases: [(&FrameView, usize, &str); 4] = [
+        (&moved_eye, 0, "the eye moved"),
+        (&far_light, 0, "point light"),
+        (&area, 0, "area"),
+        (&good, 2, "frame slot 2"),
+    ];
+    let mut checked = 0;
+    for (view, slot, said) in cases {
+        let mut error = None;
+        let record = |cmd| {
+            // SAFETY: as in `run_frame`.
+            error = unsafe { pass.record(cmd, slot, view) }.err();
+            Ok(())
+        };
+        // SAFETY: the pass outlives the call, which waits.
+        unsafe { r.context.submit_and_wait(record) }.unwrap();
+        let e: GpuError = error.unwrap_or_else(|| panic!("{said}: recorded"));
+        assert!(e.to_string().contains(said), "{said}: {e}");
+        checked += 1;
+    }
+    assert_eq!(checked, cases.len());
+    // The refused views left the scene's view as it was: a good frame
+    // still records.
+    run_frame(&r, &mut pass, 0, &good);
+    assert_no_validation_messages(&r, "refused views");
+}
