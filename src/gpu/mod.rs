@@ -20,6 +20,8 @@
 //! light view and grid are fitted on the GPU). [`frame::GpuRenderer`] runs
 //! it; [`context`] opens the device, [`resources`] and [`pipeline`] own the
 //! Vulkan objects, [`shared`] mirrors `shaders/common.glsl`.
+//! [`shadow_pass`] records the same five passes into a caller's command
+//! buffer with every resource made once (`paper-notes/embedding.md`).
 
 pub mod bin;
 pub mod context;
