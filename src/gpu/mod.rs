@@ -46,6 +46,7 @@ pub mod shadow_rays;
 pub mod shadow_volumes;
 pub mod shared;
 mod timestamps;
+mod validation_messages;
 
 pub use context::{list_devices, DeviceInfo, GpuContext, GpuOptions};
 pub use frame::{GBufferSource, GpuRenderer};
