@@ -406,21 +406,8 @@ impl GpuRenderer {
                 // SAFETY: as above; each read-back buffer is its source's size.
                 unsafe { device.cmd_copy_buffer(cmd, fb.get(*b).buffer, rb.buffer, &region) };
             }
-            let to_host = [vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::HOST_READ)];
-            // SAFETY: `cmd` is recording; `to_host` outlives the call.
-            unsafe {
-                device.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::HOST,
-                    vk::DependencyFlags::empty(),
-                    &to_host,
-                    &[],
-                    &[],
-                );
-            }
+            // SAFETY: `cmd` is recording.
+            unsafe { super::transfers_visible_to_host(device, cmd) };
             Ok(())
         };
         // SAFETY: everything the commands use — the frame's buffers, the

@@ -88,13 +88,7 @@ impl GpuRenderer {
         let bvh = super::gbuffer::frame_bvh(source, triangles)?;
         let bvh_build_seconds = bvh_start.elapsed().as_secs_f64();
 
-        let side = grid_budget_side(pixels, triangles.len(), settings.cells);
-        if side > 0xFFFF {
-            return Err(GpuError::Unsupported(format!(
-                "--cells {side}: the GPU's cell budget is at most 65535² cells"
-            )));
-        }
-        let max_cells = crate::cascades::max_total_cells(side);
+        let max_cells = max_cells(pixels, triangles.len(), settings)?;
         let mut capacity =
             fixed_cell_capacity.unwrap_or_else(|| initial_cell_capacity(triangles.len()));
         let mut edge_capacity = initial_edge_capacity(pixels as u64);
@@ -146,4 +140,20 @@ impl GpuRenderer {
             }),
         }
     }
+}
+
+/// The cells an IZB frame of `pixels` and `triangles` may use, every
+/// cascade's pyramid together: the light setup's largest budget.
+pub(super) fn max_cells(
+    pixels: usize,
+    triangles: usize,
+    settings: IzbSettings,
+) -> Result<u64, GpuError> {
+    let side = grid_budget_side(pixels, triangles, settings.cells);
+    if side > 0xFFFF {
+        return Err(GpuError::Unsupported(format!(
+            "--cells {side}: the GPU's cell budget is at most 65535² cells"
+        )));
+    }
+    Ok(crate::cascades::max_total_cells(side))
 }

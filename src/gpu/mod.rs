@@ -220,6 +220,29 @@ impl Kernels {
     }
 }
 
+/// Records a barrier that makes every earlier transfer write visible to
+/// the host (read-backs and status copies, read after the host's wait).
+///
+/// # Safety
+/// `cmd` is a command buffer of `device` in the recording state.
+pub(crate) unsafe fn transfers_visible_to_host(device: &ash::Device, cmd: vk::CommandBuffer) {
+    let to_host = [vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+        .dst_access_mask(vk::AccessFlags::HOST_READ)];
+    // SAFETY: the caller's promise; `to_host` outlives the call.
+    unsafe {
+        device.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::HOST,
+            vk::DependencyFlags::empty(),
+            &to_host,
+            &[],
+            &[],
+        );
+    }
+}
+
 /// Records a frame's dispatches: binds the shared descriptor set, labels
 /// passes for debuggers, and puts a barrier between dependent dispatches.
 /// Its methods are safe because [`Recorder::new`] is not: its caller

@@ -27,9 +27,8 @@
 //! storage buffers, written by compute shaders and made visible to later
 //! compute-shader and transfer reads.
 
-use super::frame::GpuRenderer;
-use super::frame_inputs::{check_workgroups, frame_params, grid_budget_side, loop_budget};
-use super::frame_inputs::{SceneUpload, LLVMPIPE_LOOP_CAP};
+use super::frame::{GBufferSource, GpuRenderer};
+use super::frame_inputs::{frame_params, loop_budget, LLVMPIPE_LOOP_CAP};
 use super::frame_memory::FrameSizes;
 use super::frame_memory::{frame_buffer_descs, initial_cell_capacity, reset_pass_state};
 use super::pipeline::DescriptorSet;
@@ -128,23 +127,10 @@ impl<'r> ShadowPass<'r> {
             return Err(GpuError::Unsupported("frames_in_flight is 0".into()));
         }
         let shared = renderer.shared();
-        check_workgroups(&shared.limits, scene.resolution)?;
-        let upload = SceneUpload::new(&scene);
+        let upload = renderer.prepare_frame(&scene, GBufferSource::Gpu)?;
         let triangles = upload.triangles.len();
-        if triangles >= super::shared::ID_MASK as usize {
-            return Err(GpuError::Unsupported(format!(
-                "{triangles} triangles: the GPU G-buffer holds ids below 2^{} - 1",
-                super::shared::ID_BITS
-            )));
-        }
         let bvh = super::gbuffer::build_bvh(&upload.triangles)?;
-        let side = grid_budget_side(scene.pixel_count(), triangles, settings.cells);
-        if side > 0xFFFF {
-            return Err(GpuError::Unsupported(format!(
-                "--cells {side}: the GPU's cell budget is at most 65535² cells"
-            )));
-        }
-        let max_cells = crate::cascades::max_total_cells(side);
+        let max_cells = super::izb_frame::max_cells(scene.pixel_count(), triangles, settings)?;
         let cell_capacity = config
             .cell_capacity
             .unwrap_or_else(|| initial_cell_capacity(triangles));
@@ -332,22 +318,11 @@ impl<'r> ShadowPass<'r> {
         super::resolve::resolve(&rec, kernels, [w, h]);
         let status = &self.status[slot];
         let region = [vk::BufferCopy::default().size(status.size())];
-        let to_host = [vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-            .dst_access_mask(vk::AccessFlags::HOST_READ)];
         // SAFETY: `cmd` is recording; the status buffer is the counters'
         // size and the slot's previous frame is done (the caller).
         unsafe {
             device.cmd_copy_buffer(cmd, buffer(binding::COUNTERS), status.buffer, &region);
-            device.cmd_pipeline_barrier(
-                cmd,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::HOST,
-                vk::DependencyFlags::empty(),
-                &to_host,
-                &[],
-                &[],
-            );
+            super::transfers_visible_to_host(device, cmd);
         }
         rec.end_label();
         Ok(())
@@ -494,16 +469,8 @@ fn read_back<const N: usize>(
             // SAFETY: `cmd` is recording; the copy fits both buffers.
             unsafe { d.cmd_copy_buffer(cmd, from, rb.buffer, &region) };
         }
-        let to_host = [vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-            .dst_access_mask(vk::AccessFlags::HOST_READ)];
-        let stages = (
-            vk::PipelineStageFlags::TRANSFER,
-            vk::PipelineStageFlags::HOST,
-        );
-        let none = vk::DependencyFlags::empty();
-        // SAFETY: `cmd` is recording; `to_host` outlives the call.
-        unsafe { d.cmd_pipeline_barrier(cmd, stages.0, stages.1, none, &to_host, &[], &[]) };
+        // SAFETY: `cmd` is recording.
+        unsafe { super::transfers_visible_to_host(d, cmd) };
         Ok(())
     };
     // The copies read what earlier frames wrote: the barrier at the end of
