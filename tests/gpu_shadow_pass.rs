@@ -153,7 +153,7 @@ fn an_overrun_frame_is_exact_says_so_and_the_pass_grows() {
     let s = settings(SampleMode::Exact32);
     let config = ShadowPassConfig {
         settings: s,
-        frames_in_flight: 1,
+        frames_in_flight: 2,
         cell_capacity: Some(64),
     };
     let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
@@ -161,27 +161,24 @@ fn an_overrun_frame_is_exact_says_so_and_the_pass_grows() {
     let batch = r
         .render(&scene_at(&scene, &view), s, GBufferSource::Gpu)
         .unwrap();
+    let need = u64::from(batch.report.counters.cell_entries);
+    // The old list is released once both slots have recorded after the
+    // growth: still held after frame 1 (slot 1), gone after frame 2.
+    let retired_after = [1, 1, 0];
     let mut frames = 0;
-    for k in 0..2 {
+    for (k, retired) in retired_after.into_iter().enumerate() {
         run_frame(&r, &mut pass, k, &view);
         // SAFETY: the frame was waited for; nothing is executing.
-        let (status, images) = unsafe { (pass.status(0).unwrap(), pass.read_back().unwrap()) };
+        let (status, images) = unsafe { (pass.status(k % 2).unwrap(), pass.read_back().unwrap()) };
         assert_eq!(status.cell_list_overrun, k == 0, "frame {k}: {status:?}");
-        assert_eq!(
-            status.cell_entries,
-            u64::from(batch.report.counters.cell_entries)
-        );
+        assert_eq!(status.cell_entries, need);
         assert_eq!(images.masks, batch.masks, "frame {k}'s masks");
-        // SAFETY: nothing of the pass is executing.
-        let grew = unsafe { pass.grow(&status) }.unwrap();
-        assert_eq!(grew, k == 0);
+        assert_eq!(pass.grow(&status).unwrap(), k == 0);
+        assert_eq!(pass.retired_sets(), retired, "after frame {k}");
         frames += 1;
     }
-    assert_eq!(
-        pass.cell_capacity(),
-        u64::from(batch.report.counters.cell_entries)
-    );
-    assert_eq!(frames, 2);
+    assert_eq!(pass.cell_capacity(), need);
+    assert_eq!(frames, 3);
     assert_no_validation_messages(&r, "shadow pass overrun");
 }
 

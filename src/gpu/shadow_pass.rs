@@ -16,7 +16,8 @@
 //!   for them are refused (`--no-edge-surfaces` renders the same masks).
 //! - A frame whose cell list overruns stays exact the slow way
 //!   (`bin.comp`) and says so in its status; [`ShadowPass::grow`] makes
-//!   room between frames.
+//!   room between frames, releasing the old list once every frame slot
+//!   has recorded again.
 //!
 //! Per frame the recording is: a barrier after the previous frame's work
 //! on the pass's buffers, the parameters and the light state's start
@@ -104,7 +105,22 @@ pub struct ShadowPass<'r> {
     set: DescriptorSet,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
+    /// Sets replaced by `grow` that frames in flight may still use.
+    retired: Vec<Retired>,
 }
+
+/// A descriptor set replaced by [`ShadowPass::grow`] (it holds its
+/// buffers), kept until every frame slot has recorded again: each slot's
+/// previous frame, which may have used it, is then known done
+/// ([`ShadowPass::record`]'s promise).
+struct Retired {
+    _set: DescriptorSet,
+    /// Bit s: slot s has not recorded since.
+    slots_pending: u64,
+}
+
+/// Most frame slots (a bit each in `Retired::slots_pending`).
+const MAX_FRAMES_IN_FLIGHT: usize = 63;
 
 impl<'r> ShadowPass<'r> {
     /// Makes the pass for `scene` on `renderer`'s device: every buffer,
@@ -123,8 +139,11 @@ impl<'r> ShadowPass<'r> {
                     .into(),
             ));
         }
-        if config.frames_in_flight == 0 {
-            return Err(GpuError::Unsupported("frames_in_flight is 0".into()));
+        if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&config.frames_in_flight) {
+            return Err(GpuError::Unsupported(format!(
+                "frames_in_flight is {}: from 1 to {MAX_FRAMES_IN_FLIGHT}",
+                config.frames_in_flight
+            )));
         }
         let shared = renderer.shared();
         let upload = renderer.prepare_frame(&scene, GBufferSource::Gpu)?;
@@ -201,6 +220,7 @@ impl<'r> ShadowPass<'r> {
             buffers,
             set,
             status,
+            retired: Vec::new(),
         })
     }
 
@@ -272,6 +292,12 @@ impl<'r> ShadowPass<'r> {
             )));
         }
         self.take_view(view)?;
+        // This slot's previous frame is done (the caller): what only it
+        // still held is released.
+        for retired in &mut self.retired {
+            retired.slots_pending &= !(1u64 << slot);
+        }
+        self.retired.retain(|r| r.slots_pending != 0);
         let renderer = self.renderer;
         let shared = renderer.shared();
         let settings = self.config.settings;
@@ -346,12 +372,10 @@ impl<'r> ShadowPass<'r> {
 
     /// Makes the cell list hold `status`'s need when it overran (a new
     /// buffer and descriptor set); whether it grew. A frame slot's status
-    /// says the need of its own frame.
-    ///
-    /// # Safety
-    /// No frame of this pass is executing (the old list and set are freed
-    /// here).
-    pub unsafe fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
+    /// says the need of its own frame. Frames in flight may still use the
+    /// old list and set: they are released once every slot has recorded
+    /// again (Granite's per-frame destroy lists).
+    pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
         if !status.cell_list_overrun || status.cell_entries <= self.cell_capacity {
             return Ok(false);
         }
@@ -360,10 +384,21 @@ impl<'r> ShadowPass<'r> {
         let grown = Arc::new(GpuBuffer::new(shared, desc)?);
         let mut buffers = self.buffers.clone();
         buffers[binding::CELL_TRIANGLES as usize] = grown;
-        self.set = DescriptorSet::new(shared, &self.renderer.layout, buffers.clone())?;
+        let set = DescriptorSet::new(shared, &self.renderer.layout, buffers.clone())?;
+        let old = std::mem::replace(&mut self.set, set);
+        self.retired.push(Retired {
+            _set: old,
+            slots_pending: (1u64 << self.status.len()) - 1,
+        });
         self.buffers = buffers;
         self.cell_capacity = status.cell_entries;
         Ok(true)
+    }
+
+    /// Descriptor sets (with their buffers) replaced by [`Self::grow`]
+    /// and not released yet.
+    pub fn retired_sets(&self) -> usize {
+        self.retired.len()
     }
 
     /// The masks, the second mask halves (empty with one) and the shaded
