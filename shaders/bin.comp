@@ -25,12 +25,14 @@
 //                   ends at each cell's first entry, with no cursor array),
 //                   and each cell's cover triangle among the best floors.
 // When the total exceeds the capacity, bin_scan raises C_CAPACITY_EXCEEDED
-// and STEP_SCATTER scatters nothing: each triangle placed in cells goes once
+// and STEP_SCATTER scatters nothing. With frame.overrun_exact (a frame
+// nobody reruns) each triangle placed in cells goes once
 // into the overflow list instead, tagged with those cascades, and evaluate
 // skips the grid. Every pixel then tests every triangle of its cascade: the
 // frame stays exact, the slow way (a triangle that cannot shadow a sample
 // only ORs in an empty mask), and C_CELL_ENTRIES is the need the host grows
-// the list to for the next frame. No frame reads a corrupt grid.
+// the list to for the next frame; without it the frame's masks are
+// incomplete and the host reruns it. No frame reads a corrupt grid.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -294,13 +296,14 @@ void main() {
     if (valid) t = light_view_triangle(id);
     // Uniform over the dispatch: bin_scan wrote it before this step.
     bool overrun = counters[C_CAPACITY_EXCEEDED] != 0u;
+    bool slow_exact = overrun && frame.overrun_exact != 0u;
     uint placed_in = 0u;
     for (uint k = 0u; k < light.cascade_count; ++k) {
         Footprint f;
         bool cells = valid && placement_in(t, k, f) == PLACEMENT_CELLS;
-        if (overrun) {
+        if (slow_exact) {
             placed_in |= cells ? 1u << k : 0u;
-        } else {
+        } else if (!overrun) {
             walk_rectangles(t, k, f, cells);
         }
     }

@@ -114,6 +114,10 @@ shared_struct! {
         /// Extra surfaces the G-buffer rows below the image hold (the
         /// `edge_surfaces` pass's slots).
         pub edge_capacity: u32 => "uint edge_capacity",
+        /// 1: a cell-list overrun sends every placed triangle through the
+        /// overflow list (exact, slow: a frame nobody reruns); 0: the
+        /// frame is rerun with room, its overrun masks are not used.
+        pub overrun_exact: u32 => "uint overrun_exact",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area

@@ -324,7 +324,7 @@ impl FrameEdges {
                     None => FrameEdges::None,
                 }
             }
-            (FramePasses::Izb { edge_capacity }, super::GBufferSource::Gpu) if use_them => {
+            (FramePasses::Izb { edge_capacity, .. }, super::GBufferSource::Gpu) if use_them => {
                 FrameEdges::Traced {
                     capacity: edge_capacity,
                 }

@@ -206,6 +206,9 @@ impl GpuRenderer {
             self.heavy_entries,
         );
         params.mask_halves = halves as u32;
+        if let FramePasses::Izb { overrun_exact, .. } = passes {
+            params.overrun_exact = u32::from(overrun_exact);
+        }
         if let Some(slots) = edges.slots() {
             params.receiver_rows = receiver_rows;
             params.edge_surfaces = 1;

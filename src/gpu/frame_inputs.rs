@@ -241,6 +241,7 @@ pub(super) fn frame_params(
         edge_surfaces: 0,
         covered_boxes: 0,
         edge_capacity: 0,
+        overrun_exact: 0,
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
         second_pattern: *crate::lut::paired_patterns(1).0,

@@ -433,8 +433,13 @@ pub(super) fn read_back_gbuffer(
 #[derive(Clone, Copy, Debug)]
 pub(super) enum FramePasses {
     /// bin, evaluate, resolve; `edge_capacity`: the slots of edge surfaces
-    /// the `edge_surfaces` pass may cast (a frame with them).
-    Izb { edge_capacity: u64 },
+    /// the `edge_surfaces` pass may cast (a frame with them);
+    /// `overrun_exact`: `FrameParams::overrun_exact` (a frame that is not
+    /// rerun after a cell-list overrun).
+    Izb {
+        edge_capacity: u64,
+        overrun_exact: bool,
+    },
     /// The shadow-map baseline: raster (and for `vsm`/`msm` the blur),
     /// lookup (and the contact march).
     ShadowMap(ShadowMapSettings),

@@ -95,7 +95,13 @@ impl GpuRenderer {
         let mut frames_run = 0;
         loop {
             frames_run += 1;
-            let passes = FramePasses::Izb { edge_capacity };
+            // A frame that will be rerun after an overrun skips the slow
+            // exact way (on lavapipe hairball's Paired64 frame took past
+            // the 600 s limit with it).
+            let passes = FramePasses::Izb {
+                edge_capacity,
+                overrun_exact: fixed_cell_capacity.is_some(),
+            };
             let out = self.run_frame(
                 scene, settings, source, &upload, &bvh, max_cells, capacity, passes,
             )?;

@@ -303,7 +303,7 @@ impl<'r> ShadowPass<'r> {
         let settings = self.config.settings;
         let scene = &self.scene;
         let [w, h] = scene.resolution;
-        let params = frame_params(
+        let mut params = frame_params(
             scene,
             settings,
             self.triangles as usize,
@@ -312,6 +312,8 @@ impl<'r> ShadowPass<'r> {
             loop_budget(&shared.info.name),
             renderer.heavy_entries(),
         );
+        // Nothing reruns a recorded frame: an overrun stays exact.
+        params.overrun_exact = 1;
         let device = &shared.device;
         let buffer = |b: u32| self.buffers[b as usize].buffer;
         // SAFETY: the caller's promise covers `cmd`, and the set, layout
