@@ -29,6 +29,15 @@ pub fn heavy_workgroups(device: &super::context::DeviceInfo) -> u32 {
     }
 }
 
+/// `evaluate`'s `heavy` argument for a frame of `params` on `device`:
+/// the queue's length and the workgroups, or `None` when the step is off.
+pub fn heavy_step(
+    params: &super::shared::FrameParams,
+    device: &super::context::DeviceInfo,
+) -> Option<(u32, u32)> {
+    (params.heavy_entries != 0).then(|| (params.heavy_capacity, heavy_workgroups(device)))
+}
+
 /// Records the pass; `heavy`: (the heavy step's queue length,
 /// `FrameParams::heavy_capacity`, and its workgroups) when the step runs;
 /// `halves`: 2 for `MODE_PAIRED64` under an area light. The second half

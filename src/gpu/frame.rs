@@ -232,17 +232,7 @@ impl GpuRenderer {
             if bytes.is_empty() {
                 return Ok(());
             }
-            let mut staging = GpuBuffer::new(
-                shared,
-                BufferDesc {
-                    name: "staging",
-                    pass: "upload",
-                    size: bytes.len() as u64,
-                    domain: BufferDomain::Upload,
-                },
-            )?;
-            staging.mapped_mut()?[..bytes.len()].copy_from_slice(bytes);
-            uploads.push((staging, b));
+            uploads.push((GpuBuffer::staging(shared, bytes)?, b));
             Ok(())
         };
         stage(binding::FRAME, bytemuck::bytes_of(&params))?;
@@ -360,10 +350,7 @@ impl GpuRenderer {
                         let n = triangles.len() as u32;
                         super::bin::bin(&rec, &self.kernels, n, max_cells, gather);
                         mark(3);
-                        let heavy = (params.heavy_entries != 0).then_some((
-                            params.heavy_capacity,
-                            super::evaluate::heavy_workgroups(&shared.info),
-                        ));
+                        let heavy = super::evaluate::heavy_step(&params, &shared.info);
                         let rows = [w, receiver_rows];
                         super::evaluate::evaluate(&rec, &self.kernels, rows, heavy, halves);
                         mark(4);

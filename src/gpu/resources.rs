@@ -53,6 +53,20 @@ pub struct GpuBuffer {
 }
 
 impl GpuBuffer {
+    /// An upload buffer holding `bytes`, to be copied into a device
+    /// buffer.
+    pub fn staging(shared: &Arc<DeviceShared>, bytes: &[u8]) -> Result<Self, GpuError> {
+        let desc = BufferDesc {
+            name: "staging",
+            pass: "upload",
+            size: bytes.len() as u64,
+            domain: BufferDomain::Upload,
+        };
+        let mut staging = GpuBuffer::new(shared, desc)?;
+        staging.mapped_mut()?[..bytes.len()].copy_from_slice(bytes);
+        Ok(staging)
+    }
+
     /// Creates the buffer. Sizes are rounded up to 4 bytes (Vulkan forbids
     /// empty buffers; an empty scene still binds its triangle buffer), and a
     /// device buffer larger than the device's storage-buffer range is an

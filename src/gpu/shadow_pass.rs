@@ -101,6 +101,8 @@ pub struct ShadowPass<'r> {
     triangles: u32,
     max_cells: u64,
     cell_capacity: u64,
+    /// `FrameParams::loop_budget` on this device.
+    loop_budget: u32,
     buffers: [Arc<GpuBuffer>; BINDINGS],
     set: DescriptorSet,
     /// Per frame slot, the counters of its last frame (host-visible).
@@ -217,6 +219,7 @@ impl<'r> ShadowPass<'r> {
             triangles: triangles as u32,
             max_cells,
             cell_capacity,
+            loop_budget: loop_budget(&shared.info.name),
             buffers,
             set,
             status,
@@ -309,7 +312,7 @@ impl<'r> ShadowPass<'r> {
             self.triangles as usize,
             self.max_cells,
             self.cell_capacity,
-            loop_budget(&shared.info.name),
+            self.loop_budget,
             renderer.heavy_entries(),
         );
         // Nothing reruns a recorded frame: an overrun stays exact.
@@ -337,10 +340,7 @@ impl<'r> ShadowPass<'r> {
         let gather = settings.skips.behind_receivers.then_some(w * h);
         let kernels = &renderer.kernels;
         super::bin::bin(&rec, kernels, self.triangles, self.max_cells, gather);
-        let heavy = (params.heavy_entries != 0).then_some((
-            params.heavy_capacity,
-            super::evaluate::heavy_workgroups(&shared.info),
-        ));
+        let heavy = super::evaluate::heavy_step(&params, &shared.info);
         let halves = settings.mask_halves(scene);
         super::evaluate::evaluate(&rec, kernels, [w, h], heavy, halves);
         super::resolve::resolve(&rec, kernels, [w, h]);
@@ -450,15 +450,7 @@ fn upload_into(
     let shared = renderer.shared();
     let mut staged = Vec::new();
     for (b, bytes) in uploads.iter().filter(|(_, bytes)| !bytes.is_empty()) {
-        let desc = BufferDesc {
-            name: "staging",
-            pass: "upload",
-            size: bytes.len() as u64,
-            domain: BufferDomain::Upload,
-        };
-        let mut staging = GpuBuffer::new(shared, desc)?;
-        staging.mapped_mut()?[..bytes.len()].copy_from_slice(bytes);
-        staged.push((staging, *b));
+        staged.push((GpuBuffer::staging(shared, bytes)?, *b));
     }
     let record = |cmd| {
         for (staging, b) in &staged {

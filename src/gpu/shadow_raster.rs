@@ -201,12 +201,10 @@ pub(super) fn depth_pipeline(
     desc: &DepthPipelineDesc,
 ) -> Result<vk::Pipeline, GpuError> {
     let device = &shared.device;
-    let words: Vec<u32> = spirv
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
+    let words = super::pipeline::spirv_words(desc.name, spirv)?;
     let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
-    // SAFETY: `words` is the SPIR-V build.rs compiled.
+    // SAFETY: `words` is whole SPIR-V words with its magic number
+    // (`spirv_words`); `module_info` outlives the call.
     let module =
         unsafe { device.create_shader_module(&module_info, None) }.map_err(GpuError::vk)?;
     let stages = [vk::PipelineShaderStageCreateInfo::default()
