@@ -505,7 +505,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 88, "members of the five shared structs");
+        assert_eq!(checked, 89, "members of the five shared structs");
     }
 
     #[test]
