@@ -88,6 +88,11 @@ type Defines = &'static [(&'static str, &'static str)];
 /// dispatch. A pass with several steps is one file compiled once per step.
 const SHADERS: &[(&str, &str, Defines)] = &[
     ("gbuffer", "gbuffer.comp", &[]),
+    (
+        "gbuffer_from_visibility",
+        "gbuffer_from_visibility.comp",
+        &[],
+    ),
     ("edge_surfaces", "edge_surfaces.comp", &[]),
     (
         "light_setup_receivers",

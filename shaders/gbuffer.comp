@@ -28,6 +28,7 @@ layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 
 #include "bvh_closest_hit.glsl"
 #include "surface_hit.glsl"
+#include "gbuffer_store.glsl"
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
@@ -39,33 +40,8 @@ void main() {
     uint best = closest_hit(d, best_t);
 
     if (best == NO_HIT) {
-        g_id_flags[i] = ID_MASK;   // a miss
-        g_position[i] = vec3(0.0);
-        g_axis_x[i] = vec3(0.0);
-        g_axis_y[i] = vec3(0.0);
+        store_miss(i);   // a miss
         return;
     }
-    // The triangle's normal as the host computed it in f64: one from the
-    // f32 vertices (error ~ε·|v|/|edge|) flipped 1.06e-4 of the deckchair's
-    // samples at 960×540 in the tangent-plane test, which compares heights
-    // against 2^-8 of a µQuad.
-    vec3 n = triangle_normals[best];
-    uint flags = FLAG_HIT;
-    if (dot(n, d) > 0.0) {
-        n = -n;
-        flags |= FLAG_NORMAL_FLIPPED;
-    }
-    best_t = plane_t(best, n, d, best_t);
-    vec3 p = d * best_t;
-    if (faces_light(p, n)) flags |= FLAG_SHADOW_TESTED;
-    vec3 ex, ey;
-    if (microquad_axes(d, best_t, n, ex, ey)) flags |= FLAG_AXES_CLAMPED;
-
-    g_id_flags[i] = (flags << ID_BITS) | best;
-    g_position[i] = p;
-    g_axis_x[i] = ex;
-    g_axis_y[i] = ey;
-    count_add(C_HITS, 1u);
-    count_add(C_SHADOW_TESTED, (flags & FLAG_SHADOW_TESTED) != 0u ? 1u : 0u);
-    count_add(C_CLAMPED, (flags & FLAG_AXES_CLAMPED) != 0u ? 1u : 0u);
+    store_surface(i, best, d, best_t);
 }

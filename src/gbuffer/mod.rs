@@ -8,6 +8,9 @@
 //! tangent plane, the base of its shadow frustum).
 
 pub mod edge_surfaces;
+mod visibility;
+
+pub use visibility::{gbuffer_from_visibility, VisibilityGBuffer};
 
 use crate::bvh::SceneBvh;
 use crate::scene::{CameraFrame, Light, Scene};

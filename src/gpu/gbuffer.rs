@@ -144,3 +144,16 @@ pub fn gbuffer(rec: &Recorder, kernels: &Kernels, size: [u32; 2], edge_surfaces:
     }
     rec.end_label();
 }
+
+/// Records the G-buffer from the host's visibility buffer
+/// (`shaders/gbuffer_from_visibility.comp`, the twin of
+/// [`crate::gbuffer::gbuffer_from_visibility`]): one thread per pixel,
+/// each entry from its centre ray and the triangle the host's raster saw.
+/// The caller has bound the host-image set holding the visibility buffer
+/// ([`Recorder::bind_host_images`]).
+pub fn gbuffer_from_visibility(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+    rec.begin_label("gbuffer_from_visibility");
+    rec.dispatch_pixels(&kernels.gbuffer_from_visibility, size);
+    rec.barrier();
+    rec.end_label();
+}

@@ -33,6 +33,7 @@ pub mod frame_inputs;
 pub mod frame_memory;
 pub mod frame_report;
 pub mod gbuffer;
+pub mod host_images;
 mod izb_frame;
 pub mod light_setup;
 pub mod options;
@@ -127,8 +128,9 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 26] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 27] = [
     ("gbuffer", spirv!("gbuffer")),
+    ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
     ("edge_surfaces", spirv!("edge_surfaces")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
@@ -159,6 +161,8 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 26] = [
 /// The compiled pipelines of every pass.
 pub struct Kernels {
     pub gbuffer: ComputeKernel,
+    /// The G-buffer from the host's visibility buffer (the shadow pass).
+    pub gbuffer_from_visibility: ComputeKernel,
     pub edge_surfaces: ComputeKernel,
     pub light_setup_receivers: ComputeKernel,
     pub light_setup_frame: ComputeKernel,
@@ -193,6 +197,10 @@ impl Kernels {
         let k = |name, spirv| ComputeKernel::new(shared, layout, name, spirv);
         Ok(Kernels {
             gbuffer: k("gbuffer", spirv!("gbuffer"))?,
+            gbuffer_from_visibility: k(
+                "gbuffer_from_visibility",
+                spirv!("gbuffer_from_visibility"),
+            )?,
             edge_surfaces: k("edge_surfaces", spirv!("edge_surfaces"))?,
             light_setup_receivers: k("light_setup_receivers", spirv!("light_setup_receivers"))?,
             light_setup_frame: k("light_setup_frame", spirv!("light_setup_frame"))?,
@@ -303,6 +311,28 @@ impl<'a> Recorder<'a> {
 
     fn device(&self) -> &ash::Device {
         &self.shared.device
+    }
+
+    /// Binds a host-image set (`HOST_SET`, [`host_images`]) for the
+    /// dispatches after it.
+    ///
+    /// # Safety
+    /// `set` is a host-image set of this device, written, whose images and
+    /// views stay alive, in the layouts it names, until the command buffer
+    /// has finished executing.
+    pub(crate) unsafe fn bind_host_images(&self, set: vk::DescriptorSet) {
+        // SAFETY: `Recorder::new`'s promise covers the command buffer and
+        // the layout; the caller's covers `set`.
+        unsafe {
+            self.device().cmd_bind_descriptor_sets(
+                self.cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                self.layout.pipeline_layout,
+                shared::host_image::SET,
+                &[set],
+                &[],
+            );
+        }
     }
 
     /// The command buffer, for the raster passes' own commands (recording

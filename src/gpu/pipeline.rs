@@ -10,10 +10,15 @@ use super::GpuError;
 use ash::vk;
 use std::sync::Arc;
 
-/// The descriptor set layout and pipeline layout shared by every pass.
+/// The descriptor set layouts and pipeline layout shared by every pass:
+/// set 0, the frame's storage buffers; set 1 (`HOST_SET`), the host's
+/// images the shadow pass reads (`super::host_images`), which only
+/// `gbuffer_from_visibility` uses — a pipeline that does not use a set
+/// needs nothing bound there, so the batch frame binds set 0 alone.
 pub struct BindingLayout {
     shared: Arc<DeviceShared>,
     pub set_layout: vk::DescriptorSetLayout,
+    pub host_images_layout: vk::DescriptorSetLayout,
     pub pipeline_layout: vk::PipelineLayout,
 }
 
@@ -30,25 +35,45 @@ impl BindingLayout {
                     .stage_flags(vk::ShaderStageFlags::COMPUTE | vk::ShaderStageFlags::VERTEX)
             })
             .collect();
-        let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
         let device = &shared.device;
-        let set_layout =
+        let create = |bindings: &[vk::DescriptorSetLayoutBinding]| {
+            let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(bindings);
             // SAFETY: `info` and the bindings it points to outlive the call.
-            unsafe { device.create_descriptor_set_layout(&info, None) }.map_err(GpuError::vk)?;
-        let layouts = [set_layout];
+            unsafe { device.create_descriptor_set_layout(&info, None) }.map_err(GpuError::vk)
+        };
+        let set_layout = create(&bindings)?;
+        let host_bindings = [vk::DescriptorSetLayoutBinding::default()
+            .binding(super::shared::host_image::VISIBILITY)
+            .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
+            .descriptor_count(1)
+            .stage_flags(vk::ShaderStageFlags::COMPUTE)];
+        let host_images_layout = match create(&host_bindings) {
+            Ok(l) => l,
+            Err(e) => {
+                // SAFETY: created above, used by nothing yet.
+                unsafe { device.destroy_descriptor_set_layout(set_layout, None) };
+                return Err(e);
+            }
+        };
+        const _: () = assert!(super::shared::host_image::SET == 1);
+        let layouts = [set_layout, host_images_layout];
         let info = vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts);
-        // SAFETY: `set_layout` was created just above on this device.
+        // SAFETY: both set layouts were created just above on this device.
         let pipeline_layout = match unsafe { device.create_pipeline_layout(&info, None) } {
             Ok(l) => l,
             Err(e) => {
                 // SAFETY: created above, used by nothing (the pipeline layout failed).
-                unsafe { device.destroy_descriptor_set_layout(set_layout, None) };
+                unsafe {
+                    device.destroy_descriptor_set_layout(set_layout, None);
+                    device.destroy_descriptor_set_layout(host_images_layout, None);
+                }
                 return Err(GpuError::vk(e));
             }
         };
         Ok(BindingLayout {
             shared: shared.clone(),
             set_layout,
+            host_images_layout,
             pipeline_layout,
         })
     }
@@ -67,6 +92,7 @@ impl Drop for BindingLayout {
             let d = &self.shared.device;
             d.destroy_pipeline_layout(self.pipeline_layout, None);
             d.destroy_descriptor_set_layout(self.set_layout, None);
+            d.destroy_descriptor_set_layout(self.host_images_layout, None);
         }
     }
 }

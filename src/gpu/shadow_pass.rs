@@ -10,8 +10,11 @@
 //!   LUT are uploaded once. The camera may turn and the light may move or
 //!   change size per frame; the eye may not move (the vertices are
 //!   relative to it), which [`ShadowPass::record`] refuses by name.
-//! - The G-buffer is the ray-cast one (`gbuffer.comp`), recorded as the
-//!   pass's first step; a host's raster G-buffer is the next part.
+//! - The G-buffer is the pass's first step, from one of two producers
+//!   ([`GBufferInput`]): the ray-cast one (`gbuffer.comp`, over a BVH
+//!   built once), or the host's visibility buffer (`R32_UINT` triangle
+//!   ids, `gbuffer_from_visibility.comp`), read under the state contract
+//!   of [`super::host_images`]. A depth + normal G-buffer is the next part.
 //! - Edge pixels' per-sample surfaces are not traced: settings that ask
 //!   for them are refused (`--no-edge-surfaces` renders the same masks).
 //! - A frame whose cell list overruns stays exact the slow way
@@ -32,6 +35,7 @@ use super::frame::{GBufferSource, GpuRenderer};
 use super::frame_inputs::{frame_params, loop_budget, LLVMPIPE_LOOP_CAP};
 use super::frame_memory::FrameSizes;
 use super::frame_memory::{frame_buffer_descs, initial_cell_capacity, reset_pass_state};
+use super::host_images::{HostImage, HostImageSets};
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
@@ -60,6 +64,21 @@ pub struct ShadowPassConfig {
     pub frames_in_flight: usize,
     /// Entries of the cell list; `None`: max(4 × triangles, 2¹⁶).
     pub cell_capacity: Option<u64>,
+    /// Where the G-buffer comes from.
+    pub gbuffer: GBufferInput,
+}
+
+/// The G-buffer's producer, the pass's first step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GBufferInput {
+    /// Primary rays cast through a BVH of the scene (built once).
+    RayCast,
+    /// The host's visibility buffer, [`FrameView::visibility`]: per pixel
+    /// the id of the scene triangle it sees (the scene's triangle order),
+    /// `0xFFFFFFFF` for none. Each entry follows from the pixel's centre
+    /// ray and that triangle's plane, as the ray cast derives it from its
+    /// hit; no BVH is built.
+    Visibility,
 }
 
 /// What may change between frames.
@@ -71,6 +90,10 @@ pub struct FrameView {
     /// The light's size (`Scene::light_radius`); whether it is 0 must stay
     /// as the scene had it (it decides the masks' layout).
     pub light_radius: f64,
+    /// The host's visibility buffer, with [`GBufferInput::Visibility`]
+    /// (and only then); its declared state, its barrier and the layout
+    /// it is left in: [`super::host_images`].
+    pub visibility: Option<HostImage>,
 }
 
 /// What a frame's status buffer says, read once the host knows the
@@ -88,6 +111,10 @@ pub struct PassStatus {
     pub loop_cap_trips: u32,
     /// Pixels shadow-tested.
     pub shadow_tested: u32,
+    /// Pixels of the host's visibility buffer stored as misses because
+    /// their id named no triangle of the pass, or a triangle whose plane
+    /// their centre ray does not cross in front of the eye.
+    pub visibility_rejected: u32,
 }
 
 /// The IZB, resident on a device, recorded into the caller's command
@@ -105,6 +132,8 @@ pub struct ShadowPass<'r> {
     loop_budget: u32,
     buffers: [Arc<GpuBuffer>; BINDINGS],
     set: DescriptorSet,
+    /// Per frame slot, the set of the host's images (visibility input).
+    host_sets: Option<HostImageSets>,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
     /// Sets replaced by `grow` that frames in flight may still use.
@@ -150,7 +179,10 @@ impl<'r> ShadowPass<'r> {
         let shared = renderer.shared();
         let upload = renderer.prepare_frame(&scene, GBufferSource::Gpu)?;
         let triangles = upload.triangles.len();
-        let bvh = super::gbuffer::build_bvh(&upload.triangles)?;
+        let bvh = match config.gbuffer {
+            GBufferInput::RayCast => super::gbuffer::build_bvh(&upload.triangles)?,
+            GBufferInput::Visibility => super::gbuffer::GpuBvh::EMPTY,
+        };
         let max_cells = super::izb_frame::max_cells(scene.pixel_count(), triangles, settings)?;
         let cell_capacity = config
             .cell_capacity
@@ -181,6 +213,14 @@ impl<'r> ShadowPass<'r> {
             .collect::<Result<_, _>>()?;
         let buffers: [Arc<GpuBuffer>; BINDINGS] = std::array::from_fn(|b| made[b].clone());
         let set = DescriptorSet::new(shared, &renderer.layout, buffers.clone())?;
+        let host_sets = match config.gbuffer {
+            GBufferInput::RayCast => None,
+            GBufferInput::Visibility => Some(HostImageSets::new(
+                shared,
+                &renderer.layout,
+                config.frames_in_flight,
+            )?),
+        };
         let status = (0..config.frames_in_flight)
             .map(|_| {
                 let desc = BufferDesc {
@@ -222,6 +262,7 @@ impl<'r> ShadowPass<'r> {
             loop_budget: loop_budget(&shared.info.name),
             buffers,
             set,
+            host_sets,
             status,
             retired: Vec::new(),
         })
@@ -294,6 +335,20 @@ impl<'r> ShadowPass<'r> {
                 self.status.len()
             )));
         }
+        let visibility = match (self.config.gbuffer, view.visibility) {
+            (GBufferInput::RayCast, None) => None,
+            (GBufferInput::Visibility, Some(v)) => {
+                v.check_visibility(self.scene.resolution)?;
+                Some(v)
+            }
+            (input, given) => {
+                return Err(GpuError::Unsupported(format!(
+                    "the pass was made for the {input:?} G-buffer input, and the frame {} a \
+                     visibility buffer",
+                    if given.is_some() { "gives" } else { "lacks" }
+                )))
+            }
+        };
         self.take_view(view)?;
         // This slot's previous frame is done (the caller): what only it
         // still held is released.
@@ -335,7 +390,22 @@ impl<'r> ShadowPass<'r> {
         }
         reset_pass_state(device, cmd, buffer, false);
         rec.barrier();
-        super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false);
+        match (visibility, &self.host_sets) {
+            (Some(image), Some(sets)) => {
+                // SAFETY: `cmd` is recording (the caller); the host
+                // declared the image (checked above) and keeps it alive
+                // through the frame (`FrameView::visibility`'s contract);
+                // the slot's previous frame, the last user of its set, is
+                // done (the caller).
+                unsafe {
+                    super::host_images::acquire(device, cmd, &image);
+                    sets.write(slot, &image);
+                    rec.bind_host_images(sets.handle(slot));
+                }
+                super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
+            }
+            _ => super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false),
+        }
         super::light_setup::light_setup(&rec, &renderer.kernels, [w, h]);
         let gather = settings.skips.behind_receivers.then_some(w * h);
         let kernels = &renderer.kernels;
@@ -369,6 +439,7 @@ impl<'r> ShadowPass<'r> {
             cell_list_overrun: c[counter::CAPACITY_EXCEEDED] != 0,
             loop_cap_trips: c[counter::LOOP_BUDGET_EXCEEDED],
             shadow_tested: c[counter::SHADOW_TESTED],
+            visibility_rejected: c[counter::VISIBILITY_REJECTED],
         })
     }
 
@@ -412,13 +483,20 @@ impl<'r> ShadowPass<'r> {
     pub unsafe fn read_back(&self) -> Result<PassImages, GpuError> {
         let halves = self.config.settings.mask_halves(&self.scene);
         let pixels = self.scene.pixel_count();
-        let wanted = [binding::MASKS, binding::MASKS_HIGH, binding::SHADED];
-        let words = [pixels, pixels * (halves - 1), pixels];
-        let [masks, masks_high, shaded] = read_back(self.renderer, &self.buffers, wanted, words)?;
+        let wanted = [
+            binding::MASKS,
+            binding::MASKS_HIGH,
+            binding::SHADED,
+            binding::G_ID_FLAGS,
+        ];
+        let words = [pixels, pixels * (halves - 1), pixels, pixels];
+        let [masks, masks_high, shaded, gbuffer_words] =
+            read_back(self.renderer, &self.buffers, wanted, words)?;
         Ok(PassImages {
             masks,
             masks_high,
             shaded,
+            gbuffer_words,
         })
     }
 
@@ -438,6 +516,9 @@ pub struct PassImages {
     pub masks_high: Vec<u32>,
     /// Packed RGBA8 shaded pixels (`resolve.comp`).
     pub shaded: Vec<u32>,
+    /// The G-buffer's words: triangle id below `ID_BITS`, flags above
+    /// (`ID_MASK` for a miss).
+    pub gbuffer_words: Vec<u32>,
 }
 
 /// Copies `uploads` (binding, bytes) into the pass's buffers through

@@ -4,8 +4,8 @@
 //! under the names the passes use, and the host-side helpers of its words.
 
 pub use izb_contract::{
-    binding, counter, mode, BvhNode, CascadeGrid, FrameParams, GpuTriangle, GpuTriangleCorners,
-    LightState,
+    binding, counter, host_image, mode, BvhNode, CascadeGrid, FrameParams, GpuTriangle,
+    GpuTriangleCorners, LightState,
 };
 
 /// Number of descriptor bindings.

@@ -1,0 +1,142 @@
+//! The G-buffer from a host's visibility buffer — per pixel the id of the
+//! triangle its raster saw (Burns & Hunt 2013) — the CPU twin of the
+//! shadow pass's `gbuffer_from_visibility.comp`.
+//!
+//! A visibility buffer names the surface but not where on it the pixel's
+//! centre lies; that follows exactly from the centre ray and the
+//! triangle's plane, t = (n·A)/(n·D) — the same refinement the ray-cast
+//! G-buffer applies to its hit — so a raster that sees the triangle the ray
+//! cast sees gives the same entry, with no depth-buffer quantisation.
+
+use super::{
+    faces_light, facing_normal, microquad_axes, GBuffer, PixelSurface, SurfaceHit, NO_HIT,
+};
+use crate::scene::Scene;
+
+/// [`gbuffer_from_visibility`]'s G-buffer, and how many pixels it stored
+/// as misses because their id named no triangle (other than
+/// [`NO_HIT`]) or a triangle whose plane the centre ray does not cross in
+/// front of the eye.
+pub struct VisibilityGBuffer {
+    pub gbuffer: GBuffer,
+    pub rejected: usize,
+}
+
+/// The G-buffer of `scene`'s view from `visibility`, row-major, one
+/// triangle id per pixel (the scene's triangle order; [`NO_HIT`] for
+/// none). An error names a buffer of the wrong size.
+pub fn gbuffer_from_visibility(
+    scene: &Scene,
+    visibility: &[u32],
+) -> Result<VisibilityGBuffer, String> {
+    let [w, h] = scene.resolution;
+    if visibility.len() != scene.pixel_count() {
+        return Err(format!(
+            "the visibility buffer holds {} ids; the view is {w}x{h}",
+            visibility.len()
+        ));
+    }
+    let triangles = scene.eye_relative_triangles();
+    let frame = scene.camera.frame(scene.resolution);
+    let light = scene.light.relative_to(scene.camera.eye);
+    let mut g = GBuffer::with_capacity(w, h);
+    let mut rejected = 0;
+    for (i, &id) in visibility.iter().enumerate() {
+        let (x, y) = ((i % w as usize) as f64, (i / w as usize) as f64);
+        let (px, py) = (x + 0.5, y + 0.5);
+        let surface = (id != NO_HIT).then(|| {
+            let tri = triangles.get(id as usize)?;
+            let d = frame.direction(px, py);
+            let normal = facing_normal(tri, d);
+            let t = normal.dot(tri[0]) / normal.dot(d);
+            if !(t > 0.0 && t.is_finite()) {
+                return None;
+            }
+            let hit = SurfaceHit {
+                triangle: id,
+                t,
+                position: d * t,
+                normal,
+            };
+            let (axis_x, axis_y, axes_clamped) = microquad_axes(&frame, px, py, &hit);
+            Some(PixelSurface {
+                hit,
+                axis_x,
+                axis_y,
+                axes_clamped,
+                shadow_tested: faces_light(&light, hit.position, hit.normal),
+            })
+        });
+        rejected += usize::from(matches!(surface, Some(None)));
+        g.push(surface.flatten().as_ref());
+    }
+    Ok(VisibilityGBuffer {
+        gbuffer: g,
+        rejected,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::SceneBvh;
+
+    /// The longer µQuad axis of entry `i` (tolerances scale with it).
+    fn footprint(g: &GBuffer, i: usize) -> f64 {
+        let [x, y] = [g.axis_x[i], g.axis_y[i]].map(|a| f64::from(a.length()));
+        x.max(y)
+    }
+
+    /// The ray-cast G-buffer's ids fed back as a visibility buffer give
+    /// the ray cast's entries: the same ids and flags everywhere, points
+    /// within a few ulps of the µQuad (the ray cast's t comes from its
+    /// hit test, this one's from the plane), and the same stats.
+    #[test]
+    fn the_ray_cast_ids_give_the_ray_cast_g_buffer() {
+        let mut checked = 0;
+        for name in ["default", "city"] {
+            let scene = crate::scene::load(name)
+                .unwrap()
+                .with_resolution([64, 36])
+                .unwrap();
+            let bvh = SceneBvh::build(&scene);
+            let cast = super::super::gbuffer(&scene, &bvh);
+            let v = gbuffer_from_visibility(&scene, &cast.triangle_id).unwrap();
+            assert_eq!(v.rejected, 0, "{name}");
+            let g = &v.gbuffer;
+            assert_eq!(g.triangle_id, cast.triangle_id, "{name}");
+            assert_eq!(g.flags, cast.flags, "{name}");
+            for i in 0..g.position.len() {
+                let scale = footprint(&cast, i).max(f64::MIN_POSITIVE);
+                let off = (g.position[i] - cast.position[i]).as_dvec3().length();
+                assert!(
+                    off <= 1e-3 * scale,
+                    "{name} pixel {i}: {off} off, µQuad {scale}"
+                );
+            }
+            assert_eq!(g.stats.shadow_tested, cast.stats.shadow_tested);
+            checked += 1;
+        }
+        assert_eq!(checked, 2);
+    }
+
+    /// An id past the scene's triangles is a rejected miss, `NO_HIT` a
+    /// plain miss, and a buffer of the wrong size a named error.
+    #[test]
+    fn bad_ids_are_rejected_misses() {
+        let scene = crate::scene::load("default")
+            .unwrap()
+            .with_resolution([16, 9])
+            .unwrap();
+        let n = scene.triangles.len() as u32;
+        let mut ids = vec![NO_HIT; 16 * 9];
+        ids[3] = n;
+        ids[4] = n + 1000;
+        let v = gbuffer_from_visibility(&scene, &ids).unwrap();
+        assert_eq!(v.rejected, 2);
+        assert_eq!(v.gbuffer.stats.hits, 0);
+        assert!(v.gbuffer.triangle_id.iter().all(|&t| t == NO_HIT));
+        let e = gbuffer_from_visibility(&scene, &ids[1..]).err().unwrap();
+        assert!(e.contains("143 ids") && e.contains("16x9"), "{e}");
+    }
+}

@@ -1,0 +1,226 @@
+//! The host's images a frame of the shadow pass reads, and the state
+//! contract around them (issue 29's point 2). The host declares each
+//! image — what it is and the layout, stage and access its last write
+//! left it in — and the pass records the one barrier that makes that write
+//! visible to its compute shader and moves the image into the layout it
+//! reads it in, as FidelityFX FSR2's dispatch takes resources whose current
+//! state the host declares, and kajiya's render graph imports an image
+//! with its access at import.
+//!
+//! The contract, per frame that reads an image:
+//! - before: the image in [`HostImage::layout`], its last write in the
+//!   stage and access of [`HostImage::written_by`] (submitted earlier on
+//!   the same queue, or earlier in the same command buffer);
+//! - during: read by compute shaders (`COMPUTE_SHADER`, `SHADER_READ`);
+//! - after: in [`HostImage::layout_after`]. A later write of the host's
+//!   needs a barrier from the pass's read scope (a layout transition
+//!   out of it is one).
+//!
+//! Descriptors: one set per frame slot (set `HOST_SET`), allocated once
+//! from a pool of their own and written when the slot records, when the
+//! slot's previous frame is known done — so a host may hand a different
+//! image each frame (a swapchain-sized ring, a resized target) without
+//! any allocation.
+
+use super::context::DeviceShared;
+use super::pipeline::BindingLayout;
+use super::shared::host_image;
+use super::GpuError;
+use ash::vk;
+use std::sync::Arc;
+
+/// One of the host's images as a frame reads it: what it is and the
+/// state the host leaves it in before the frame.
+#[derive(Clone, Copy, Debug)]
+pub struct HostImage {
+    pub image: vk::Image,
+    /// A 2D view of the image's first mip level and array layer, in
+    /// `format`, with the colour aspect.
+    pub view: vk::ImageView,
+    pub format: vk::Format,
+    pub extent: [u32; 2],
+    /// The usage the image was created with (the pass samples it:
+    /// `SAMPLED`).
+    pub usage: vk::ImageUsageFlags,
+    /// Its layout when the frame's commands start executing.
+    pub layout: vk::ImageLayout,
+    /// The stage and access of the host's last write before the frame:
+    /// the source scope of the pass's barrier. Empty flags: nothing to
+    /// wait for (already visible to compute-shader reads).
+    pub written_by: (vk::PipelineStageFlags, vk::AccessFlags),
+}
+
+impl HostImage {
+    /// The layout a frame leaves the image in (and reads it in):
+    /// `GENERAL` when given `GENERAL`, else `SHADER_READ_ONLY_OPTIMAL`.
+    pub fn layout_after(&self) -> vk::ImageLayout {
+        if self.layout == vk::ImageLayout::GENERAL {
+            vk::ImageLayout::GENERAL
+        } else {
+            vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL
+        }
+    }
+
+    /// Checks the declaration of a visibility buffer for a `resolution`
+    /// image: `R32_UINT`, the same size, sampled usage, contents defined.
+    pub fn check_visibility(&self, resolution: [u32; 2]) -> Result<(), GpuError> {
+        let problem = if self.format != vk::Format::R32_UINT {
+            Some(format!(
+                "its format is {:?}; a visibility buffer is R32_UINT (per pixel a triangle \
+                 id, {:#x} for none)",
+                self.format,
+                izb_contract::word::NO_HIT
+            ))
+        } else if self.extent != resolution {
+            Some(format!(
+                "it is {}x{}; the pass renders {}x{}",
+                self.extent[0], self.extent[1], resolution[0], resolution[1]
+            ))
+        } else if !self.usage.contains(vk::ImageUsageFlags::SAMPLED) {
+            Some(format!(
+                "its usage {:?} lacks SAMPLED (the pass reads it with texelFetch)",
+                self.usage
+            ))
+        } else if matches!(
+            self.layout,
+            vk::ImageLayout::UNDEFINED | vk::ImageLayout::PREINITIALIZED
+        ) {
+            Some(format!(
+                "its layout is {:?}: a transition from it discards the contents",
+                self.layout
+            ))
+        } else if self.image == vk::Image::null() || self.view == vk::ImageView::null() {
+            Some("its image or view is a null handle".into())
+        } else {
+            None
+        };
+        match problem {
+            Some(p) => Err(GpuError::Unsupported(format!(
+                "the host's visibility buffer cannot be read: {p}"
+            ))),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Records the barrier before a frame reads `image`: the host's last write
+/// made visible to compute-shader reads, the image moved from its
+/// declared layout to [`HostImage::layout_after`].
+///
+/// # Safety
+/// `cmd` is a command buffer of `device` in the recording state;
+/// `image` is a live image of that device declared truthfully (its
+/// layout when this barrier executes is `image.layout`).
+pub(crate) unsafe fn acquire(device: &ash::Device, cmd: vk::CommandBuffer, image: &HostImage) {
+    let (mut src_stage, src_access) = image.written_by;
+    if src_stage.is_empty() {
+        src_stage = vk::PipelineStageFlags::TOP_OF_PIPE;
+    }
+    let barrier = [vk::ImageMemoryBarrier::default()
+        .src_access_mask(src_access)
+        .dst_access_mask(vk::AccessFlags::SHADER_READ)
+        .old_layout(image.layout)
+        .new_layout(image.layout_after())
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .image(image.image)
+        .subresource_range(
+            vk::ImageSubresourceRange::default()
+                .aspect_mask(vk::ImageAspectFlags::COLOR)
+                .level_count(1)
+                .layer_count(1),
+        )];
+    // SAFETY: the caller's promise; `barrier` outlives the call.
+    unsafe {
+        device.cmd_pipeline_barrier(
+            cmd,
+            src_stage,
+            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &barrier,
+        );
+    }
+}
+
+/// One host-image descriptor set (`HOST_SET`) per frame slot, from a pool
+/// made for exactly them; all freed on drop.
+pub(crate) struct HostImageSets {
+    shared: Arc<DeviceShared>,
+    pool: vk::DescriptorPool,
+    sets: Vec<vk::DescriptorSet>,
+}
+
+impl HostImageSets {
+    /// Allocates `slots` sets.
+    pub fn new(
+        shared: &Arc<DeviceShared>,
+        layout: &BindingLayout,
+        slots: usize,
+    ) -> Result<Self, GpuError> {
+        shared.count_allocation(super::context::Allocation::DescriptorSet);
+        let device = &shared.device;
+        let sizes = [vk::DescriptorPoolSize::default()
+            .ty(vk::DescriptorType::SAMPLED_IMAGE)
+            .descriptor_count(slots as u32 * host_image::BINDING_COUNT)];
+        let info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(slots as u32)
+            .pool_sizes(&sizes);
+        // SAFETY: `info` and its pool sizes outlive the call.
+        let pool = unsafe { device.create_descriptor_pool(&info, None) }.map_err(GpuError::vk)?;
+        let layouts = vec![layout.host_images_layout; slots];
+        let alloc = vk::DescriptorSetAllocateInfo::default()
+            .descriptor_pool(pool)
+            .set_layouts(&layouts);
+        // SAFETY: `pool` was created above for exactly these sets.
+        match unsafe { device.allocate_descriptor_sets(&alloc) } {
+            Ok(sets) => Ok(HostImageSets {
+                shared: shared.clone(),
+                pool,
+                sets,
+            }),
+            Err(e) => {
+                // SAFETY: created above; its allocation failed, so nothing uses it.
+                unsafe { device.destroy_descriptor_pool(pool, None) };
+                Err(GpuError::vk(e))
+            }
+        }
+    }
+
+    /// Points slot `slot`'s set at `visibility`, read in its
+    /// [`HostImage::layout_after`].
+    ///
+    /// # Safety
+    /// No submitted frame that binds slot `slot`'s set is pending, and
+    /// `visibility.view` is a live view of this device's.
+    pub unsafe fn write(&self, slot: usize, visibility: &HostImage) {
+        let info = [vk::DescriptorImageInfo::default()
+            .image_view(visibility.view)
+            .image_layout(visibility.layout_after())];
+        let write = [vk::WriteDescriptorSet::default()
+            .dst_set(self.sets[slot])
+            .dst_binding(host_image::VISIBILITY)
+            .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
+            .image_info(&info)];
+        // SAFETY: the caller's promise: the set is not in use.
+        unsafe { self.shared.device.update_descriptor_sets(&write, &[]) };
+    }
+
+    /// Slot `slot`'s set (binding it is `unsafe`, as every recording is).
+    pub fn handle(&self, slot: usize) -> vk::DescriptorSet {
+        self.sets[slot]
+    }
+}
+
+impl Drop for HostImageSets {
+    fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
+        // SAFETY: the pass that owns the sets is dropped with the GPU idle
+        // for its frames (its documented contract), so no pending command
+        // buffer binds them (a poisoned device returns above).
+        unsafe { self.shared.device.destroy_descriptor_pool(self.pool, None) };
+    }
+}
