@@ -3,7 +3,7 @@
 // GPU twin of `izb::gbuffer::gbuffer_from_visibility`.
 //
 // A renderer that rasterises a visibility buffer (per pixel the id of the
-// triangle it sees; Burns & Hunt 2013) already knows each pixel's surface:
+// triangle it sees; Burns and Hunt 2013) already knows each pixel's surface:
 // the G-buffer entry follows from the pixel's centre ray and that
 // triangle's plane, exactly as the ray-cast `gbuffer.comp` derives it from
 // its BVH hit (`gbuffer_store.glsl`), with no depth-buffer quantisation in

@@ -1,5 +1,5 @@
 //! The G-buffer from a host's visibility buffer — per pixel the id of the
-//! triangle its raster saw (Burns & Hunt 2013) — the CPU twin of the
+//! triangle its raster saw (Burns and Hunt 2013) — the CPU twin of the
 //! shadow pass's `gbuffer_from_visibility.comp`.
 //!
 //! A visibility buffer names the surface but not where on it the pixel's

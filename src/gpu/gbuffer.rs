@@ -150,7 +150,7 @@ pub fn gbuffer(rec: &Recorder, kernels: &Kernels, size: [u32; 2], edge_surfaces:
 /// [`crate::gbuffer::gbuffer_from_visibility`]): one thread per pixel,
 /// each entry from its centre ray and the triangle the host's raster saw.
 /// The caller has bound the host-image set holding the visibility buffer
-/// ([`Recorder::bind_host_images`]).
+/// (`Recorder::bind_host_images`).
 pub fn gbuffer_from_visibility(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
     rec.begin_label("gbuffer_from_visibility");
     rec.dispatch_pixels(&kernels.gbuffer_from_visibility, size);

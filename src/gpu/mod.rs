@@ -4,6 +4,7 @@
 //! | pass | GPU module | shader | CPU twin |
 //! |---|---|---|---|
 //! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
+//! | 0, host input | [`gbuffer::gbuffer_from_visibility`] | `gbuffer_from_visibility.comp` | [`crate::gbuffer::gbuffer_from_visibility`] |
 //! | 1 | [`light_setup`] | `light_setup.comp` | [`mod@crate::cpu::light_setup`] |
 //! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
 //! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |

@@ -9,6 +9,7 @@
 #![allow(dead_code)]
 
 pub mod gpu;
+pub mod shadow_pass;
 
 use izb::scene::{Scene, SceneError};
 use serde_json::{json, Value};

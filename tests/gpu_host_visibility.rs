@@ -1,0 +1,195 @@
+//! The shadow pass fed the host's visibility buffer
+//! (`izb::gpu::shadow_pass::GBufferInput::Visibility`): an `R32_UINT`
+//! image of triangle ids the test host fills before each frame in the same
+//! command buffer, read under the declared-state contract of
+//! `izb::gpu::host_images`. With `IZB_VALIDATION=1` the device runs the
+//! validation layer with synchronization validation, and any message
+//! fails the test. No Vulkan device: the test prints that it skipped,
+//! unless `IZB_REQUIRE_GPU=1`.
+
+mod common;
+
+use ash::vk;
+use common::gpu::assert_no_validation_messages;
+use common::shadow_pass::{
+    pass_renderer, run_visibility_frame, scene_at, settings, view_at, VisibilityImage,
+};
+use izb::cpu::SampleMode;
+use izb::gpu::host_images::HostImage;
+use izb::gpu::shadow_pass::{FrameView, GBufferInput, ShadowPass, ShadowPassConfig};
+use izb::gpu::GBufferSource;
+use izb::scene;
+
+/// A pass fed the host's visibility buffer: the GPU ray cast's ids of each
+/// frame's view, copied into an `R32_UINT` image before the pass in the
+/// same command buffer, give `render`'s masks bit for bit (the same
+/// triangle, the same plane) while the camera and light move; the pass's
+/// G-buffer matches its CPU twin (`gbuffer_from_visibility`) entry by
+/// entry; nothing is allocated while recording and the validation layer,
+/// with synchronization validation, stays silent about the declared
+/// layouts and barriers.
+#[test]
+fn a_host_visibility_buffer_gives_render_s_masks_bit_for_bit() {
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([96, 54])
+        .unwrap();
+    let mut compared = 0;
+    for mode in [SampleMode::Exact32, SampleMode::Lut32] {
+        let s = settings(mode);
+        let config = ShadowPassConfig {
+            settings: s,
+            frames_in_flight: 2,
+            cell_capacity: None,
+            gbuffer: GBufferInput::Visibility,
+        };
+        let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+        let mut image = VisibilityImage::new(&r.context.shared, scene.resolution);
+        for k in 0..VISIBILITY_FRAMES {
+            let view = view_at(&scene, 3 * k);
+            let moved = scene_at(&scene, &view);
+            let batch = r.render(&moved, s, GBufferSource::Gpu).unwrap();
+            let ids = &batch.gbuffer.triangle_id;
+            let (_, made) = run_visibility_frame(&r, &mut pass, &mut image, k, &view, ids).unwrap();
+            assert_eq!(
+                made,
+                [0, 0],
+                "{mode:?} frame {k}: allocations while recording"
+            );
+            // SAFETY: the frame was waited for; nothing is executing.
+            let (status, images) =
+                unsafe { (pass.status(k % 2).unwrap(), pass.read_back().unwrap()) };
+            assert_eq!(status.visibility_rejected, 0, "{status:?}");
+            assert_eq!(status.shadow_tested, batch.report.counters.shadow_tested);
+            assert_eq!(images.masks, batch.masks, "{mode:?} frame {k}: masks");
+            let twin = izb::gbuffer::gbuffer_from_visibility(&moved, ids).unwrap();
+            assert_eq!(twin.rejected, 0);
+            let mut differ = 0;
+            for (i, &word) in images.gbuffer_words.iter().enumerate() {
+                let (id, f) = izb::gpu::shared::unpack_id_flags(word);
+                let f = f & !izb::gpu::shared::FLAG_NORMAL_FLIPPED;
+                assert_eq!(id, twin.gbuffer.triangle_id[i], "pixel {i}");
+                differ += usize::from(f != twin.gbuffer.flags[i]);
+            }
+            // f32 against f64: a pixel whose N·L is within rounding of 0
+            // may be shadow-tested on one side only.
+            let pixels = images.gbuffer_words.len();
+            assert!(differ * 1000 <= pixels, "{differ} of {pixels} flags differ");
+            compared += 1;
+        }
+        assert_no_validation_messages(&r, "visibility input");
+    }
+    assert_eq!(compared, 2 * VISIBILITY_FRAMES);
+}
+
+/// Frames of the visibility test per mode.
+const VISIBILITY_FRAMES: usize = 4;
+
+/// Bad visibility inputs are refused by name at record time, before any
+/// command — a wrong format, size or usage, an undefined layout, a
+/// visibility buffer to a ray-cast pass or none to a visibility pass —
+/// and ids that name no triangle are stored as misses and counted, never
+/// read out of bounds.
+#[test]
+fn bad_visibility_inputs_are_refused_or_counted() {
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([64, 36])
+        .unwrap();
+    let config = ShadowPassConfig {
+        settings: settings(SampleMode::Lut32),
+        frames_in_flight: 2,
+        cell_capacity: None,
+        gbuffer: GBufferInput::Visibility,
+    };
+    let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+    let mut image = VisibilityImage::new(&r.context.shared, scene.resolution);
+    let view = view_at(&scene, 0);
+    let batch = r
+        .render(&scene, config.settings, GBufferSource::Gpu)
+        .unwrap();
+    let mut ids = batch.gbuffer.triangle_id.clone();
+    let triangles = scene.triangles.len() as u32;
+    let hits: Vec<usize> = (0..ids.len()).filter(|&i| ids[i] != u32::MAX).collect();
+    for &i in hits.iter().step_by(7) {
+        ids[i] = triangles + i as u32;
+    }
+    let bad = hits.iter().step_by(7).count() as u32;
+    run_visibility_frame(&r, &mut pass, &mut image, 0, &view, &ids).unwrap();
+    // SAFETY: the frame was waited for.
+    let status = unsafe { pass.status(0) }.unwrap();
+    assert_eq!(status.visibility_rejected, bad);
+    assert!(bad > 10);
+    assert_no_validation_messages(&r, "out-of-range ids");
+
+    let good = HostImage {
+        image: image.image,
+        view: image.view,
+        format: vk::Format::R32_UINT,
+        extent: scene.resolution,
+        usage: VisibilityImage::USAGE,
+        layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        written_by: (vk::PipelineStageFlags::empty(), vk::AccessFlags::empty()),
+    };
+    let with = |change: &dyn Fn(&mut HostImage)| {
+        let mut v = good;
+        change(&mut v);
+        FrameView {
+            visibility: Some(v),
+            ..view
+        }
+    };
+    let cases: [(FrameView, &str); 5] = [
+        (with(&|v| v.format = vk::Format::R32_SFLOAT), "R32_UINT"),
+        (with(&|v| v.extent = [32, 36]), "32x36"),
+        (
+            with(&|v| v.usage = vk::ImageUsageFlags::STORAGE),
+            "lacks SAMPLED",
+        ),
+        (
+            with(&|v| v.layout = vk::ImageLayout::UNDEFINED),
+            "UNDEFINED",
+        ),
+        (
+            FrameView {
+                visibility: None,
+                ..view
+            },
+            "lacks a visibility buffer",
+        ),
+    ];
+    let mut checked = 0;
+    for (view, said) in &cases {
+        let mut error = None;
+        let record = |cmd| {
+            // SAFETY: as in `run_frame`; the image is alive.
+            error = unsafe { pass.record(cmd, 1, view) }.err();
+            Ok(())
+        };
+        // SAFETY: the pass and image outlive the call, which waits.
+        unsafe { r.context.submit_and_wait(record) }.unwrap();
+        let e = error.unwrap_or_else(|| panic!("{said}: recorded"));
+        assert!(e.to_string().contains(said), "{said}: {e}");
+        checked += 1;
+    }
+    assert_eq!(checked, cases.len());
+    let ray_cast = ShadowPassConfig {
+        gbuffer: GBufferInput::RayCast,
+        ..config
+    };
+    let mut ray_pass = ShadowPass::new(&r, scene.clone(), ray_cast).unwrap();
+    let given = with(&|_| {});
+    let mut error = None;
+    let record = |cmd| {
+        // SAFETY: as in `run_frame`.
+        error = unsafe { ray_pass.record(cmd, 0, &given) }.err();
+        Ok(())
+    };
+    // SAFETY: the pass outlives the call, which waits.
+    unsafe { r.context.submit_and_wait(record) }.unwrap();
+    let e = error.expect("a ray-cast pass took a visibility buffer");
+    assert!(e.to_string().contains("gives a visibility buffer"), "{e}");
+    assert_no_validation_messages(&r, "refused visibility inputs");
+}
