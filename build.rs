@@ -142,6 +142,22 @@ const SHADERS: &[(&str, &str, Defines)] = &[
         &[("STEP_HEAVY", "1"), ("MASK_HALF_HIGH", "1")],
     ),
     ("resolve", "resolve.comp", &[]),
+    ("export_masks", "export_images.comp", &[("STEP_MASKS", "1")]),
+    (
+        "export_masks_paired",
+        "export_images.comp",
+        &[("STEP_MASKS", "1"), ("MASKS_PAIRED", "1")],
+    ),
+    (
+        "export_lit_r16",
+        "export_images.comp",
+        &[("STEP_LIT", "1"), ("LIT_FORMAT", "r16")],
+    ),
+    (
+        "export_lit_r8",
+        "export_images.comp",
+        &[("STEP_LIT", "1"), ("LIT_FORMAT", "r8")],
+    ),
     ("shadow_map", "shadow_map.vert", &[]),
     ("shadow_blur_x", "shadow_blur.comp", &[("STEP_X", "1")]),
     ("shadow_blur_y", "shadow_blur.comp", &[("STEP_Y", "1")]),

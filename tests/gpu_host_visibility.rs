@@ -12,10 +12,10 @@ mod common;
 use ash::vk;
 use common::gpu::assert_no_validation_messages;
 use common::shadow_pass::{
-    pass_renderer, run_visibility_frame, scene_at, settings, view_at, VisibilityImage,
+    pass_renderer, run_visibility_frame, scene_at, settings, view_at, HostTestImage,
 };
 use izb::cpu::SampleMode;
-use izb::gpu::host_images::HostImage;
+use izb::gpu::host_images::{FrameImages, HostImage};
 use izb::gpu::shadow_pass::{FrameView, GBufferInput, ShadowPass, ShadowPassConfig};
 use izb::gpu::GBufferSource;
 use izb::scene;
@@ -45,7 +45,7 @@ fn a_host_visibility_buffer_gives_render_s_masks_bit_for_bit() {
             gbuffer: GBufferInput::Visibility,
         };
         let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
-        let mut image = VisibilityImage::new(&r.context.shared, scene.resolution);
+        let mut image = HostTestImage::visibility(&r.context.shared, scene.resolution);
         for k in 0..VISIBILITY_FRAMES {
             let view = view_at(&scene, 3 * k);
             let moved = scene_at(&scene, &view);
@@ -105,7 +105,7 @@ fn bad_visibility_inputs_are_refused_or_counted() {
         gbuffer: GBufferInput::Visibility,
     };
     let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
-    let mut image = VisibilityImage::new(&r.context.shared, scene.resolution);
+    let mut image = HostTestImage::visibility(&r.context.shared, scene.resolution);
     let view = view_at(&scene, 0);
     let batch = r
         .render(&scene, config.settings, GBufferSource::Gpu)
@@ -129,7 +129,7 @@ fn bad_visibility_inputs_are_refused_or_counted() {
         view: image.view,
         format: vk::Format::R32_UINT,
         extent: scene.resolution,
-        usage: VisibilityImage::USAGE,
+        usage: HostTestImage::USAGE,
         layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         written_by: (vk::PipelineStageFlags::empty(), vk::AccessFlags::empty()),
     };
@@ -137,7 +137,10 @@ fn bad_visibility_inputs_are_refused_or_counted() {
         let mut v = good;
         change(&mut v);
         FrameView {
-            visibility: Some(v),
+            images: FrameImages {
+                visibility: Some(v),
+                ..FrameImages::default()
+            },
             ..view
         }
     };
@@ -154,7 +157,7 @@ fn bad_visibility_inputs_are_refused_or_counted() {
         ),
         (
             FrameView {
-                visibility: None,
+                images: FrameImages::default(),
                 ..view
             },
             "lacks a visibility buffer",

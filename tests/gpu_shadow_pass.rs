@@ -10,10 +10,13 @@
 
 mod common;
 
+use ash::vk;
 use common::gpu::assert_no_validation_messages;
-use common::shadow_pass::{pass_renderer, run_frame, scene_at, settings, view_at};
+use common::shadow_pass::{pass_renderer, run_frame, scene_at, settings, view_at, HostTestImage};
 use glam::DVec3;
-use izb::cpu::{IzbSettings, SampleMode};
+use izb::cpu::{export_images, IzbSettings, SampleMode};
+use izb::gpu::host_images::{FrameImages, HostImage};
+use izb::gpu::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use izb::gpu::shadow_pass::{FrameView, GBufferInput, ShadowPass, ShadowPassConfig};
 use izb::gpu::{GBufferSource, GpuError};
 use izb::scene::{self, Light};
@@ -179,4 +182,181 @@ fn bad_views_and_configurations_are_refused_by_name() {
     // still records.
     run_frame(&r, &mut pass, 0, &good);
     assert_no_validation_messages(&r, "refused views");
+}
+
+/// The pass writes the host's output images — the masks (`R32_UINT`, or
+/// `R32G32_UINT` with `Paired64`'s two halves under an area light) and the
+/// lit fraction (`R16_UNORM`, `R8_UNORM`) — equal to the CPU twin's
+/// (`izb::cpu::export_images`) of `render`'s masks and G-buffer, over two
+/// frames per case (the second declares the layout and the copy-out read
+/// the first left); bad output declarations are refused by name.
+#[test]
+fn the_pass_writes_the_host_s_mask_and_lit_fraction_images() {
+    let Some(r) = pass_renderer() else { return };
+    let shared = &r.context.shared;
+    let point = scene::load("default")
+        .unwrap()
+        .with_resolution([64, 36])
+        .unwrap();
+    let mut area = point.clone();
+    area.light_radius = 0.02;
+    let cases = [
+        (
+            &point,
+            SampleMode::Exact32,
+            vk::Format::R32_UINT,
+            vk::Format::R16_UNORM,
+            16,
+        ),
+        (
+            &area,
+            SampleMode::Paired64,
+            vk::Format::R32G32_UINT,
+            vk::Format::R8_UNORM,
+            8,
+        ),
+    ];
+    let mut checked = 0;
+    for (scene, mode, mask_format, lit_format, bits) in cases {
+        let s = settings(mode);
+        let config = ShadowPassConfig {
+            settings: s,
+            frames_in_flight: 2,
+            cell_capacity: None,
+            gbuffer: GBufferInput::RayCast,
+        };
+        let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+        let halves = s.mask_halves(scene);
+        assert_eq!(halves, 1 + usize::from(mode == SampleMode::Paired64));
+        let pixels = scene.pixel_count();
+        let mut masks_out = HostTestImage::output(shared, scene.resolution, mask_format);
+        let mut lit_out = HostTestImage::output(shared, scene.resolution, lit_format);
+        for k in 0..2 {
+            let view = view_at(scene, 5 * k);
+            let copy = |bytes| {
+                let desc = BufferDesc {
+                    name: "copy out",
+                    pass: "test",
+                    size: bytes as u64,
+                    domain: BufferDomain::Readback,
+                };
+                GpuBuffer::new(shared, desc).unwrap()
+            };
+            let (masks_copy, lit_copy) = (copy(pixels * 4 * halves), copy(pixels * bits / 8));
+            let record = |cmd| {
+                let view = FrameView {
+                    images: FrameImages {
+                        masks: Some(masks_out.as_output()),
+                        lit_fraction: Some(lit_out.as_output()),
+                        ..FrameImages::default()
+                    },
+                    ..view
+                };
+                // SAFETY: as in `run_frame`; the images and copies outlive
+                // the submission, which the call waits for.
+                unsafe {
+                    pass.record(cmd, k % 2, &view)?;
+                    masks_out.record_copy_out(cmd, &masks_copy);
+                    lit_out.record_copy_out(cmd, &lit_copy);
+                }
+                Ok(())
+            };
+            // SAFETY: everything recorded outlives the call, which waits.
+            unsafe { r.context.submit_and_wait(record) }.unwrap();
+            let batch = r
+                .render(&scene_at(scene, &view), s, GBufferSource::Gpu)
+                .unwrap();
+            assert_eq!(batch.masks_high.len(), pixels * (halves - 1));
+            let twin = export_images(&batch.masks, &batch.masks_high, &batch.gbuffer, bits as u32);
+            let words: Vec<u32> = bytemuck::pod_collect_to_vec(masks_copy.mapped().unwrap());
+            assert_eq!(
+                words[..pixels * halves],
+                twin.masks[..],
+                "{mode:?} frame {k}: masks"
+            );
+            let lit: Vec<u16> = match bits {
+                16 => bytemuck::pod_collect_to_vec(&lit_copy.mapped().unwrap()[..pixels * 2]),
+                _ => lit_copy.mapped().unwrap()[..pixels]
+                    .iter()
+                    .map(|&b| u16::from(b))
+                    .collect(),
+            };
+            // UNORM conversion may round a tie (k/64 · 255 never is one,
+            // 16/32 · 65535 is) either way: one code at most.
+            let off = lit
+                .iter()
+                .zip(&twin.lit_fraction)
+                .filter(|(g, c)| g != c)
+                .inspect(|(g, c)| assert!(g.abs_diff(**c) <= 1, "{mode:?}: {g} against {c}"))
+                .count();
+            let partial = twin
+                .lit_fraction
+                .iter()
+                .filter(|&&c| c != 0 && c != (1 << bits) - 1);
+            assert!(partial.count() > 0, "{mode:?}: no penumbra to compare");
+            println!("{mode:?} frame {k}: lit codes at a rounding tie {off} of {pixels}");
+            checked += 1;
+        }
+        assert_no_validation_messages(&r, "output images");
+    }
+    assert_eq!(checked, 4);
+
+    // Bad declarations, refused before any command.
+    let scene = &point;
+    let config = ShadowPassConfig {
+        settings: settings(SampleMode::Lut32),
+        frames_in_flight: 1,
+        cell_capacity: None,
+        gbuffer: GBufferInput::RayCast,
+    };
+    let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+    let masks_out = HostTestImage::output(shared, scene.resolution, vk::Format::R32_UINT);
+    let good = masks_out.as_output();
+    let bad = |change: &dyn Fn(&mut HostImage), lit: bool| {
+        let mut image = good;
+        change(&mut image);
+        let images = if lit {
+            FrameImages {
+                lit_fraction: Some(image),
+                ..FrameImages::default()
+            }
+        } else {
+            FrameImages {
+                masks: Some(image),
+                ..FrameImages::default()
+            }
+        };
+        FrameView {
+            images,
+            ..view_at(scene, 0)
+        }
+    };
+    let refusals = [
+        (
+            bad(&|i| i.format = vk::Format::R32G32_UINT, false),
+            "R32_UINT",
+        ),
+        (
+            bad(&|i| i.usage = vk::ImageUsageFlags::SAMPLED, false),
+            "lacks STORAGE",
+        ),
+        (bad(&|i| i.extent = [64, 35], false), "64x35"),
+        (bad(&|_| {}, true), "lit fraction image cannot be written"),
+    ];
+    let mut refused = 0;
+    for (view, said) in &refusals {
+        let mut error = None;
+        let record = |cmd| {
+            // SAFETY: as in `run_frame`.
+            error = unsafe { pass.record(cmd, 0, view) }.err();
+            Ok(())
+        };
+        // SAFETY: the pass outlives the call, which waits.
+        unsafe { r.context.submit_and_wait(record) }.unwrap();
+        let e = error.unwrap_or_else(|| panic!("{said}: recorded"));
+        assert!(e.to_string().contains(said), "{said}: {e}");
+        refused += 1;
+    }
+    assert_eq!(refused, refusals.len());
+    assert_no_validation_messages(&r, "refused outputs");
 }

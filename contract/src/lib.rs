@@ -95,8 +95,14 @@ shared_constants! {
         /// The visibility buffer: per pixel the id of the triangle it
         /// sees, `NO_HIT` for none (`R32_UINT`, a sampled image).
         VISIBILITY = 0;
+        /// The masks out (a storage image): `R32_UINT`, or `R32G32_UINT`
+        /// with a second mask half (`MODE_PAIRED64` under an area light).
+        MASKS = 1;
+        /// The lit fraction out (a storage image, `R16_UNORM` or
+        /// `R8_UNORM`).
+        LIT = 2;
         /// Bindings of the set.
-        BINDING_COUNT = 1;
+        BINDING_COUNT = 3;
     }
 }
 

@@ -14,6 +14,7 @@
 pub mod bin;
 pub mod evaluate;
 pub mod evaluate_stats;
+mod export_images;
 pub mod footprint;
 pub mod light_samples;
 pub mod light_setup;
@@ -25,6 +26,7 @@ pub use crate::cascades::CascadeCount;
 pub use crate::settings::{IzbSettings, PassSeconds, PassTimes, SampleMode};
 pub use crate::skips::Skips;
 pub use evaluate::{MaskRule, FULL};
+pub use export_images::{export_images, ExportedImages};
 pub use light_setup::{light_setup, GridRequest, LightSetup};
 
 use crate::bvh::SceneBvh;

@@ -1,5 +1,6 @@
-//! The host's images a frame of the shadow pass reads, and the state
-//! contract around them (issue 29's point 2). The host declares each
+//! The host's images a frame of the shadow pass reads or writes, and the
+//! state contract around them (issue 29's point 2): the visibility buffer
+//! in, the masks and the lit fraction out. The host declares each
 //! image — what it is and the layout, stage and access its last write
 //! left it in — and the pass records the one barrier that makes that write
 //! visible to its compute shader and moves the image into the layout it
@@ -7,14 +8,19 @@
 //! state the host declares, and kajiya's render graph imports an image
 //! with its access at import.
 //!
-//! The contract, per frame that reads an image:
-//! - before: the image in [`HostImage::layout`], its last write in the
-//!   stage and access of [`HostImage::written_by`] (submitted earlier on
-//!   the same queue, or earlier in the same command buffer);
-//! - during: read by compute shaders (`COMPUTE_SHADER`, `SHADER_READ`);
-//! - after: in [`HostImage::layout_after`]. A later write of the host's
-//!   needs a barrier from the pass's read scope (a layout transition
-//!   out of it is one).
+//! The contract, per frame and image:
+//! - before: the image in [`HostImage::layout`], the host's last access
+//!   of it in the stage and access of [`HostImage::written_by`]
+//!   (submitted earlier on the same queue, or earlier in the same command
+//!   buffer): for an input its last write, for an output its last read or
+//!   write (an output's contents are discarded: `UNDEFINED` is allowed);
+//! - during: an input read by compute shaders (`COMPUTE_SHADER`,
+//!   `SHADER_READ`), an output written by them (`COMPUTE_SHADER`,
+//!   `SHADER_WRITE`), every pixel of it;
+//! - after: in [`HostImage::layout_after`] — an input
+//!   `SHADER_READ_ONLY_OPTIMAL` (or `GENERAL` if given `GENERAL`), an
+//!   output `GENERAL`. The host's next access needs a barrier from the
+//!   pass's scope above (a layout transition out of it is one).
 //!
 //! Descriptors: one set per frame slot (set `HOST_SET`), allocated once
 //! from a pool of their own and written when the slot records, when the
@@ -50,14 +56,82 @@ pub struct HostImage {
     pub written_by: (vk::PipelineStageFlags, vk::AccessFlags),
 }
 
+/// The host's images of one frame.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameImages {
+    /// In: per pixel the scene triangle it sees (`R32_UINT`, sampled),
+    /// with the pass's `GBufferInput::Visibility` and only then.
+    pub visibility: Option<HostImage>,
+    /// Out: the masks (`R32_UINT`; `R32G32_UINT` with two mask halves),
+    /// a storage image.
+    pub masks: Option<HostImage>,
+    /// Out: the lit fraction (`R16_UNORM` or `R8_UNORM`), a storage image:
+    /// 1 − hidden / samples where shadow-tested, 0 on a surface facing
+    /// away from the light, 1 where no surface is seen.
+    pub lit_fraction: Option<HostImage>,
+}
+
+/// Whether the pass reads or writes an image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageUse {
+    Read,
+    Write,
+}
+
 impl HostImage {
-    /// The layout a frame leaves the image in (and reads it in):
-    /// `GENERAL` when given `GENERAL`, else `SHADER_READ_ONLY_OPTIMAL`.
+    /// The layout a frame leaves an input in (and reads it in): `GENERAL`
+    /// when given `GENERAL`, else `SHADER_READ_ONLY_OPTIMAL`.
     pub fn layout_after(&self) -> vk::ImageLayout {
         if self.layout == vk::ImageLayout::GENERAL {
             vk::ImageLayout::GENERAL
         } else {
             vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL
+        }
+    }
+
+    /// The layout a frame leaves the image in for `usage`: an output is
+    /// written as a storage image, in `GENERAL`.
+    pub fn layout_after_use(&self, usage: ImageUse) -> vk::ImageLayout {
+        match usage {
+            ImageUse::Read => self.layout_after(),
+            ImageUse::Write => vk::ImageLayout::GENERAL,
+        }
+    }
+
+    /// Checks an output image: one of `formats`, the pass's resolution,
+    /// `STORAGE` usage, non-null handles (any layout: its contents are
+    /// replaced).
+    fn check_output(
+        &self,
+        what: &str,
+        formats: &[vk::Format],
+        resolution: [u32; 2],
+    ) -> Result<(), GpuError> {
+        let problem = if !formats.contains(&self.format) {
+            Some(format!(
+                "its format is {:?}; it must be {formats:?}",
+                self.format
+            ))
+        } else if self.extent != resolution {
+            Some(format!(
+                "it is {}x{}; the pass renders {}x{}",
+                self.extent[0], self.extent[1], resolution[0], resolution[1]
+            ))
+        } else if !self.usage.contains(vk::ImageUsageFlags::STORAGE) {
+            Some(format!(
+                "its usage {:?} lacks STORAGE (the pass writes it with imageStore)",
+                self.usage
+            ))
+        } else if self.image == vk::Image::null() || self.view == vk::ImageView::null() {
+            Some("its image or view is a null handle".into())
+        } else {
+            None
+        };
+        match problem {
+            Some(p) => Err(GpuError::Unsupported(format!(
+                "the host's {what} image cannot be written: {p}"
+            ))),
+            None => Ok(()),
         }
     }
 
@@ -103,24 +177,72 @@ impl HostImage {
     }
 }
 
-/// Records the barrier before a frame reads `image`: the host's last write
-/// made visible to compute-shader reads, the image moved from its
-/// declared layout to [`HostImage::layout_after`].
+impl FrameImages {
+    /// Checks a frame's images for a pass that does (`wants_visibility`)
+    /// or does not read a visibility buffer, renders `resolution` and
+    /// keeps `mask_halves` mask halves; each problem named.
+    pub fn check(
+        &self,
+        wants_visibility: bool,
+        resolution: [u32; 2],
+        mask_halves: usize,
+    ) -> Result<(), GpuError> {
+        match (wants_visibility, &self.visibility) {
+            (true, Some(v)) => v.check_visibility(resolution)?,
+            (false, None) => {}
+            (wants, given) => {
+                return Err(GpuError::Unsupported(format!(
+                    "the pass was made for the {} G-buffer input, and the frame {} a \
+                     visibility buffer",
+                    if wants { "Visibility" } else { "RayCast" },
+                    if given.is_some() { "gives" } else { "lacks" }
+                )))
+            }
+        }
+        if let Some(m) = &self.masks {
+            let format = if mask_halves == 2 {
+                vk::Format::R32G32_UINT
+            } else {
+                vk::Format::R32_UINT
+            };
+            m.check_output("masks", &[format], resolution)?;
+        }
+        if let Some(l) = &self.lit_fraction {
+            let formats = [vk::Format::R16_UNORM, vk::Format::R8_UNORM];
+            l.check_output("lit fraction", &formats, resolution)?;
+        }
+        Ok(())
+    }
+}
+
+/// Records the barrier before a frame uses `image`: the host's last
+/// access made available and the image moved from its declared layout to
+/// the one it is used in ([`HostImage::layout_after_use`]), visible to
+/// compute-shader reads or writes.
 ///
 /// # Safety
 /// `cmd` is a command buffer of `device` in the recording state;
 /// `image` is a live image of that device declared truthfully (its
 /// layout when this barrier executes is `image.layout`).
-pub(crate) unsafe fn acquire(device: &ash::Device, cmd: vk::CommandBuffer, image: &HostImage) {
+pub(crate) unsafe fn acquire(
+    device: &ash::Device,
+    cmd: vk::CommandBuffer,
+    image: &HostImage,
+    usage: ImageUse,
+) {
     let (mut src_stage, src_access) = image.written_by;
     if src_stage.is_empty() {
         src_stage = vk::PipelineStageFlags::TOP_OF_PIPE;
     }
+    let dst_access = match usage {
+        ImageUse::Read => vk::AccessFlags::SHADER_READ,
+        ImageUse::Write => vk::AccessFlags::SHADER_WRITE,
+    };
     let barrier = [vk::ImageMemoryBarrier::default()
         .src_access_mask(src_access)
-        .dst_access_mask(vk::AccessFlags::SHADER_READ)
+        .dst_access_mask(dst_access)
         .old_layout(image.layout)
-        .new_layout(image.layout_after())
+        .new_layout(image.layout_after_use(usage))
         .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
         .image(image.image)
@@ -161,9 +283,15 @@ impl HostImageSets {
     ) -> Result<Self, GpuError> {
         shared.count_allocation(super::context::Allocation::DescriptorSet);
         let device = &shared.device;
-        let sizes = [vk::DescriptorPoolSize::default()
-            .ty(vk::DescriptorType::SAMPLED_IMAGE)
-            .descriptor_count(slots as u32 * host_image::BINDING_COUNT)];
+        let slots_u32 = slots as u32;
+        let sizes = [
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::SAMPLED_IMAGE)
+                .descriptor_count(slots_u32),
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(2 * slots_u32),
+        ];
         let info = vk::DescriptorPoolCreateInfo::default()
             .max_sets(slots as u32)
             .pool_sizes(&sizes);
@@ -188,23 +316,44 @@ impl HostImageSets {
         }
     }
 
-    /// Points slot `slot`'s set at `visibility`, read in its
-    /// [`HostImage::layout_after`].
+    /// Points slot `slot`'s set at `images` (those present; a binding
+    /// left unwritten is never used by the frame's dispatches).
     ///
     /// # Safety
     /// No submitted frame that binds slot `slot`'s set is pending, and
-    /// `visibility.view` is a live view of this device's.
-    pub unsafe fn write(&self, slot: usize, visibility: &HostImage) {
-        let info = [vk::DescriptorImageInfo::default()
-            .image_view(visibility.view)
-            .image_layout(visibility.layout_after())];
-        let write = [vk::WriteDescriptorSet::default()
-            .dst_set(self.sets[slot])
-            .dst_binding(host_image::VISIBILITY)
-            .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
-            .image_info(&info)];
+    /// every view in `images` is a live view of this device's.
+    pub unsafe fn write(&self, slot: usize, images: &FrameImages) {
+        let bound = [
+            (host_image::VISIBILITY, images.visibility, ImageUse::Read),
+            (host_image::MASKS, images.masks, ImageUse::Write),
+            (host_image::LIT, images.lit_fraction, ImageUse::Write),
+        ];
+        let infos: Vec<(u32, [vk::DescriptorImageInfo; 1], ImageUse)> = bound
+            .iter()
+            .filter_map(|&(binding, image, usage)| {
+                let image = image?;
+                let info = vk::DescriptorImageInfo::default()
+                    .image_view(image.view)
+                    .image_layout(image.layout_after_use(usage));
+                Some((binding, [info], usage))
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = infos
+            .iter()
+            .map(|(binding, info, usage)| {
+                let kind = match usage {
+                    ImageUse::Read => vk::DescriptorType::SAMPLED_IMAGE,
+                    ImageUse::Write => vk::DescriptorType::STORAGE_IMAGE,
+                };
+                vk::WriteDescriptorSet::default()
+                    .dst_set(self.sets[slot])
+                    .dst_binding(*binding)
+                    .descriptor_type(kind)
+                    .image_info(info)
+            })
+            .collect();
         // SAFETY: the caller's promise: the set is not in use.
-        unsafe { self.shared.device.update_descriptor_sets(&write, &[]) };
+        unsafe { self.shared.device.update_descriptor_sets(&writes, &[]) };
     }
 
     /// Slot `slot`'s set (binding it is `unsafe`, as every recording is).

@@ -9,6 +9,7 @@
 //! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
 //! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |
 //! | 4 | [`resolve`] | `resolve.comp` | [`crate::cpu::resolve`], [`crate::output::shade_pixel`] |
+//! | 5, host output | [`export_images`] | `export_images.comp` | [`crate::cpu::export_images`] |
 //!
 //! The baselines' passes sit beside them: [`shadow_map`] (depth-only
 //! passes on the hardware rasteriser, orthographic and perspective,
@@ -29,6 +30,7 @@ pub mod context;
 mod device_candidates;
 mod edge_surfaces;
 pub mod evaluate;
+pub mod export_images;
 pub mod frame;
 pub mod frame_inputs;
 pub mod frame_memory;
@@ -38,6 +40,7 @@ pub mod host_images;
 mod izb_frame;
 pub mod light_setup;
 pub mod options;
+mod pass_copies;
 pub mod pipeline;
 pub mod resolve;
 pub mod resources;
@@ -129,7 +132,7 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 27] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 31] = [
     ("gbuffer", spirv!("gbuffer")),
     ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
     ("edge_surfaces", spirv!("edge_surfaces")),
@@ -149,6 +152,10 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 27] = [
     ("evaluate_high", spirv!("evaluate_high")),
     ("evaluate_heavy_high", spirv!("evaluate_heavy_high")),
     ("resolve", spirv!("resolve")),
+    ("export_masks", spirv!("export_masks")),
+    ("export_masks_paired", spirv!("export_masks_paired")),
+    ("export_lit_r16", spirv!("export_lit_r16")),
+    ("export_lit_r8", spirv!("export_lit_r8")),
     ("shadow_map", spirv!("shadow_map")),
     ("shadow_blur_x", spirv!("shadow_blur_x")),
     ("shadow_blur_y", spirv!("shadow_blur_y")),
@@ -182,6 +189,13 @@ pub struct Kernels {
     pub evaluate_high: ComputeKernel,
     pub evaluate_heavy_high: ComputeKernel,
     pub resolve: ComputeKernel,
+    /// The shadow pass's copies into the host's images
+    /// ([`export_images`]): masks of one or two halves, the lit fraction
+    /// as `R16_UNORM` or `R8_UNORM`.
+    pub export_masks: ComputeKernel,
+    pub export_masks_paired: ComputeKernel,
+    pub export_lit_r16: ComputeKernel,
+    pub export_lit_r8: ComputeKernel,
     pub shadow_blur_x: ComputeKernel,
     pub shadow_blur_y: ComputeKernel,
     pub shadow_lookup: ComputeKernel,
@@ -219,6 +233,10 @@ impl Kernels {
             evaluate_high: k("evaluate_high", spirv!("evaluate_high"))?,
             evaluate_heavy_high: k("evaluate_heavy_high", spirv!("evaluate_heavy_high"))?,
             resolve: k("resolve", spirv!("resolve"))?,
+            export_masks: k("export_masks", spirv!("export_masks"))?,
+            export_masks_paired: k("export_masks_paired", spirv!("export_masks_paired"))?,
+            export_lit_r16: k("export_lit_r16", spirv!("export_lit_r16"))?,
+            export_lit_r8: k("export_lit_r8", spirv!("export_lit_r8"))?,
             shadow_blur_x: k("shadow_blur_x", spirv!("shadow_blur_x"))?,
             shadow_blur_y: k("shadow_blur_y", spirv!("shadow_blur_y"))?,
             shadow_lookup: k("shadow_lookup", spirv!("shadow_lookup"))?,

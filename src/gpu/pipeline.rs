@@ -42,11 +42,20 @@ impl BindingLayout {
             unsafe { device.create_descriptor_set_layout(&info, None) }.map_err(GpuError::vk)
         };
         let set_layout = create(&bindings)?;
-        let host_bindings = [vk::DescriptorSetLayoutBinding::default()
-            .binding(super::shared::host_image::VISIBILITY)
-            .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
-            .descriptor_count(1)
-            .stage_flags(vk::ShaderStageFlags::COMPUTE)];
+        use super::shared::host_image;
+        let host_binding = |binding, kind| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(binding)
+                .descriptor_type(kind)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::COMPUTE)
+        };
+        let host_bindings = [
+            host_binding(host_image::VISIBILITY, vk::DescriptorType::SAMPLED_IMAGE),
+            host_binding(host_image::MASKS, vk::DescriptorType::STORAGE_IMAGE),
+            host_binding(host_image::LIT, vk::DescriptorType::STORAGE_IMAGE),
+        ];
+        const _: () = assert!(host_image::BINDING_COUNT == 3);
         let host_images_layout = match create(&host_bindings) {
             Ok(l) => l,
             Err(e) => {

@@ -25,17 +25,22 @@
 //! Per frame the recording is: a barrier after the previous frame's work
 //! on the pass's buffers, the parameters and the light state's start
 //! written into the command buffer (`vkCmdUpdateBuffer`), the counters
-//! cleared, then `gbuffer`, `light_setup`, `bin`, `evaluate` and
-//! `resolve`, and the counters copied into the frame slot's status
-//! buffer. Afterwards the masks and the shaded image are in the pass's
-//! storage buffers, written by compute shaders and made visible to later
-//! compute-shader and transfer reads.
+//! cleared, the host's images acquired (one barrier each, from the state
+//! the host declares: [`super::host_images`]), then `gbuffer` (or
+//! `gbuffer_from_visibility`), `light_setup`, `bin`, `evaluate`,
+//! `resolve` and `export_images` (into the host's mask and lit-fraction
+//! images, when given), and the counters copied into the frame slot's
+//! status buffer. Afterwards the masks and the shaded image are also in
+//! the pass's storage buffers, written by compute shaders and made
+//! visible to later compute-shader and transfer reads; the output images
+//! are in `GENERAL`, written by compute shaders.
 
 use super::frame::{GBufferSource, GpuRenderer};
 use super::frame_inputs::{frame_params, loop_budget, LLVMPIPE_LOOP_CAP};
 use super::frame_memory::FrameSizes;
 use super::frame_memory::{frame_buffer_descs, initial_cell_capacity, reset_pass_state};
-use super::host_images::{HostImage, HostImageSets};
+use super::host_images::{FrameImages, HostImageSets, ImageUse};
+use super::pass_copies::{read_back, upload_into};
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
@@ -73,7 +78,7 @@ pub struct ShadowPassConfig {
 pub enum GBufferInput {
     /// Primary rays cast through a BVH of the scene (built once).
     RayCast,
-    /// The host's visibility buffer, [`FrameView::visibility`]: per pixel
+    /// The host's visibility buffer, `FrameView::images.visibility`: per pixel
     /// the id of the scene triangle it sees (the scene's triangle order),
     /// `0xFFFFFFFF` for none. Each entry follows from the pixel's centre
     /// ray and that triangle's plane, as the ray cast derives it from its
@@ -90,10 +95,11 @@ pub struct FrameView {
     /// The light's size (`Scene::light_radius`); whether it is 0 must stay
     /// as the scene had it (it decides the masks' layout).
     pub light_radius: f64,
-    /// The host's visibility buffer, with [`GBufferInput::Visibility`]
-    /// (and only then); its declared state, its barrier and the layout
-    /// it is left in: [`super::host_images`].
-    pub visibility: Option<HostImage>,
+    /// The host's images: the visibility buffer in (with
+    /// [`GBufferInput::Visibility`], and only then), the masks and lit
+    /// fraction out (optional); their declared state, barriers and the
+    /// layouts they are left in: [`super::host_images`].
+    pub images: FrameImages,
 }
 
 /// What a frame's status buffer says, read once the host knows the
@@ -132,8 +138,8 @@ pub struct ShadowPass<'r> {
     loop_budget: u32,
     buffers: [Arc<GpuBuffer>; BINDINGS],
     set: DescriptorSet,
-    /// Per frame slot, the set of the host's images (visibility input).
-    host_sets: Option<HostImageSets>,
+    /// Per frame slot, the set of the host's images.
+    host_sets: HostImageSets,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
     /// Sets replaced by `grow` that frames in flight may still use.
@@ -213,14 +219,7 @@ impl<'r> ShadowPass<'r> {
             .collect::<Result<_, _>>()?;
         let buffers: [Arc<GpuBuffer>; BINDINGS] = std::array::from_fn(|b| made[b].clone());
         let set = DescriptorSet::new(shared, &renderer.layout, buffers.clone())?;
-        let host_sets = match config.gbuffer {
-            GBufferInput::RayCast => None,
-            GBufferInput::Visibility => Some(HostImageSets::new(
-                shared,
-                &renderer.layout,
-                config.frames_in_flight,
-            )?),
-        };
+        let host_sets = HostImageSets::new(shared, &renderer.layout, config.frames_in_flight)?;
         let status = (0..config.frames_in_flight)
             .map(|_| {
                 let desc = BufferDesc {
@@ -322,7 +321,11 @@ impl<'r> ShadowPass<'r> {
     /// compute family after every earlier frame of this pass (frames
     /// execute in submission order: a barrier at the start orders each
     /// after the one before); slot `slot`'s previous frame has finished
-    /// executing, and the pass outlives this frame's execution.
+    /// executing, and the pass outlives this frame's execution. Each
+    /// image in `view.images` is a live image and view of this device,
+    /// declared truthfully ([`super::host_images::HostImage`]: its layout
+    /// and last access when the frame starts executing), alive until the
+    /// frame has executed.
     pub unsafe fn record(
         &mut self,
         cmd: vk::CommandBuffer,
@@ -335,20 +338,10 @@ impl<'r> ShadowPass<'r> {
                 self.status.len()
             )));
         }
-        let visibility = match (self.config.gbuffer, view.visibility) {
-            (GBufferInput::RayCast, None) => None,
-            (GBufferInput::Visibility, Some(v)) => {
-                v.check_visibility(self.scene.resolution)?;
-                Some(v)
-            }
-            (input, given) => {
-                return Err(GpuError::Unsupported(format!(
-                    "the pass was made for the {input:?} G-buffer input, and the frame {} a \
-                     visibility buffer",
-                    if given.is_some() { "gives" } else { "lacks" }
-                )))
-            }
-        };
+        let images = view.images;
+        let wants_visibility = self.config.gbuffer == GBufferInput::Visibility;
+        let halves = self.config.settings.mask_halves(&self.scene);
+        images.check(wants_visibility, self.scene.resolution, halves)?;
         self.take_view(view)?;
         // This slot's previous frame is done (the caller): what only it
         // still held is released.
@@ -390,21 +383,30 @@ impl<'r> ShadowPass<'r> {
         }
         reset_pass_state(device, cmd, buffer, false);
         rec.barrier();
-        match (visibility, &self.host_sets) {
-            (Some(image), Some(sets)) => {
-                // SAFETY: `cmd` is recording (the caller); the host
-                // declared the image (checked above) and keeps it alive
-                // through the frame (`FrameView::visibility`'s contract);
-                // the slot's previous frame, the last user of its set, is
-                // done (the caller).
-                unsafe {
-                    super::host_images::acquire(device, cmd, &image);
-                    sets.write(slot, &image);
-                    rec.bind_host_images(sets.handle(slot));
+        let host = [
+            (images.visibility, ImageUse::Read),
+            (images.masks, ImageUse::Write),
+            (images.lit_fraction, ImageUse::Write),
+        ];
+        if host.iter().any(|(image, _)| image.is_some()) {
+            // SAFETY: `cmd` is recording (the caller); the host declared
+            // the images (checked above) and keeps them alive through the
+            // frame (`record`'s contract); the slot's previous frame, the
+            // last user of its set, is done (the caller).
+            unsafe {
+                for (image, usage) in &host {
+                    if let Some(image) = image {
+                        super::host_images::acquire(device, cmd, image, *usage);
+                    }
                 }
-                super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
+                self.host_sets.write(slot, &images);
+                rec.bind_host_images(self.host_sets.handle(slot));
             }
-            _ => super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false),
+        }
+        if wants_visibility {
+            super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
+        } else {
+            super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false);
         }
         super::light_setup::light_setup(&rec, &renderer.kernels, [w, h]);
         let gather = settings.skips.behind_receivers.then_some(w * h);
@@ -414,6 +416,7 @@ impl<'r> ShadowPass<'r> {
         let halves = settings.mask_halves(scene);
         super::evaluate::evaluate(&rec, kernels, [w, h], heavy, halves);
         super::resolve::resolve(&rec, kernels, [w, h]);
+        super::export_images::export_images(&rec, kernels, [w, h], &images, halves);
         let status = &self.status[slot];
         let region = [vk::BufferCopy::default().size(status.size())];
         // SAFETY: `cmd` is recording; the status buffer is the counters'
@@ -519,78 +522,4 @@ pub struct PassImages {
     /// The G-buffer's words: triangle id below `ID_BITS`, flags above
     /// (`ID_MASK` for a miss).
     pub gbuffer_words: Vec<u32>,
-}
-
-/// Copies `uploads` (binding, bytes) into the pass's buffers through
-/// staging buffers, and waits.
-fn upload_into(
-    renderer: &GpuRenderer,
-    buffers: &[Arc<GpuBuffer>; BINDINGS],
-    uploads: &[(u32, Vec<u8>)],
-) -> Result<(), GpuError> {
-    let shared = renderer.shared();
-    let mut staged = Vec::new();
-    for (b, bytes) in uploads.iter().filter(|(_, bytes)| !bytes.is_empty()) {
-        staged.push((GpuBuffer::staging(shared, bytes)?, *b));
-    }
-    let record = |cmd| {
-        for (staging, b) in &staged {
-            let region = [vk::BufferCopy::default().size(staging.size())];
-            let to = buffers[*b as usize].buffer;
-            // SAFETY: `cmd` is recording; each copy fits both buffers.
-            unsafe {
-                shared
-                    .device
-                    .cmd_copy_buffer(cmd, staging.buffer, to, &region)
-            };
-        }
-        Ok(())
-    };
-    // SAFETY: the staging and device buffers outlive the call, which
-    // waits for the copies.
-    unsafe { renderer.context.submit_and_wait(record) }
-}
-
-/// The first `words[k]` words of binding `bindings[k]`'s buffer, copied
-/// back (waits).
-fn read_back<const N: usize>(
-    renderer: &GpuRenderer,
-    buffers: &[Arc<GpuBuffer>; BINDINGS],
-    bindings: [u32; N],
-    words: [usize; N],
-) -> Result<[Vec<u32>; N], GpuError> {
-    let shared = renderer.shared();
-    let readbacks: Vec<GpuBuffer> = (0..N)
-        .map(|k| {
-            let desc = BufferDesc {
-                name: "readback",
-                pass: "readback",
-                size: words[k] as u64 * 4,
-                domain: BufferDomain::Readback,
-            };
-            GpuBuffer::new(shared, desc)
-        })
-        .collect::<Result<_, _>>()?;
-    let record = |cmd| {
-        let d = &shared.device;
-        for (k, rb) in readbacks.iter().enumerate().filter(|&(k, _)| words[k] > 0) {
-            let region = [vk::BufferCopy::default().size(words[k] as u64 * 4)];
-            let from = buffers[bindings[k] as usize].buffer;
-            // SAFETY: `cmd` is recording; the copy fits both buffers.
-            unsafe { d.cmd_copy_buffer(cmd, from, rb.buffer, &region) };
-        }
-        // SAFETY: `cmd` is recording.
-        unsafe { super::transfers_visible_to_host(d, cmd) };
-        Ok(())
-    };
-    // The copies read what earlier frames wrote: the barrier at the end of
-    // every frame (`resolve`) made it visible to transfers.
-    // SAFETY: the read-back and device buffers outlive the call, which
-    // waits for the copies.
-    unsafe { renderer.context.submit_and_wait(record) }?;
-    let mut out: [Vec<u32>; N] = std::array::from_fn(|_| Vec::new());
-    for (k, rb) in readbacks.iter().enumerate() {
-        out[k] = bytemuck::pod_collect_to_vec(&rb.mapped()?[..words[k] * 4]);
-    }
-    Ok(out)
 }

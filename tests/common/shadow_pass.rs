@@ -10,7 +10,7 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 use izb::cpu::{IzbSettings, SampleMode};
 use izb::gpu::context::DeviceShared;
-use izb::gpu::host_images::HostImage;
+use izb::gpu::host_images::{FrameImages, HostImage};
 use izb::gpu::resources::GpuBuffer;
 use izb::gpu::shadow_pass::{FrameView, ShadowPass};
 use izb::gpu::{GpuError, GpuOptions, GpuRenderer};
@@ -52,7 +52,7 @@ pub fn view_at(scene: &Scene, k: usize) -> FrameView {
         camera,
         light,
         light_radius: scene.light_radius,
-        visibility: None,
+        images: FrameImages::default(),
     }
 }
 
@@ -81,25 +81,44 @@ pub fn run_frame(r: &GpuRenderer, pass: &mut ShadowPass, k: usize, view: &FrameV
     micros
 }
 
-/// The host's `R32_UINT` visibility image of the tests below: made once,
-/// filled by a copy recorded before each frame, freed after the device
-/// has idled (the renderer's submissions wait).
-pub struct VisibilityImage {
+/// An image of the test host's: the `R32_UINT` visibility buffer (filled
+/// by a copy recorded before each frame) or an output the pass writes
+/// (copied out after it); made once, freed after the device has idled
+/// (the renderer's submissions wait).
+pub struct HostTestImage {
     shared: Arc<DeviceShared>,
     pub image: vk::Image,
     pub view: vk::ImageView,
     allocation: Option<Allocation>,
     extent: [u32; 2],
+    format: vk::Format,
+    usage: vk::ImageUsageFlags,
     /// Where the previous frame left it (`HostImage::layout_after`).
     layout: vk::ImageLayout,
 }
 
-impl VisibilityImage {
-    pub fn new(shared: &Arc<DeviceShared>, extent: [u32; 2]) -> Self {
+impl HostTestImage {
+    /// A visibility buffer (`R32_UINT`, sampled, filled by copies).
+    pub fn visibility(shared: &Arc<DeviceShared>, extent: [u32; 2]) -> Self {
+        Self::new(shared, extent, vk::Format::R32_UINT, Self::USAGE)
+    }
+
+    /// An output of `format` (storage, copied out).
+    pub fn output(shared: &Arc<DeviceShared>, extent: [u32; 2], format: vk::Format) -> Self {
+        let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC;
+        Self::new(shared, extent, format, usage)
+    }
+
+    pub fn new(
+        shared: &Arc<DeviceShared>,
+        extent: [u32; 2],
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+    ) -> Self {
         let d = &shared.device;
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
-            .format(vk::Format::R32_UINT)
+            .format(format)
             .extent(vk::Extent3D {
                 width: extent[0],
                 height: extent[1],
@@ -109,7 +128,7 @@ impl VisibilityImage {
             .array_layers(1)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(Self::USAGE)
+            .usage(usage)
             .initial_layout(vk::ImageLayout::UNDEFINED);
         // SAFETY: `info` outlives the call.
         let image = unsafe { d.create_image(&info, None) }.unwrap();
@@ -120,7 +139,7 @@ impl VisibilityImage {
             .lock()
             .unwrap()
             .allocate(&AllocationCreateDesc {
-                name: "host visibility",
+                name: "test host image",
                 requirements,
                 location: MemoryLocation::GpuOnly,
                 linear: false,
@@ -136,20 +155,23 @@ impl VisibilityImage {
         let info = vk::ImageViewCreateInfo::default()
             .image(image)
             .view_type(vk::ImageViewType::TYPE_2D)
-            .format(vk::Format::R32_UINT)
+            .format(format)
             .subresource_range(range);
         // SAFETY: `image` is bound; `info` outlives the call.
         let view = unsafe { d.create_image_view(&info, None) }.unwrap();
-        VisibilityImage {
+        HostTestImage {
             shared: shared.clone(),
             image,
             view,
             allocation: Some(allocation),
             extent,
+            format,
+            usage,
             layout: vk::ImageLayout::UNDEFINED,
         }
     }
 
+    /// A visibility buffer's usage.
     pub const USAGE: vk::ImageUsageFlags = vk::ImageUsageFlags::from_raw(
         vk::ImageUsageFlags::SAMPLED.as_raw() | vk::ImageUsageFlags::TRANSFER_DST.as_raw(),
     );
@@ -210,9 +232,9 @@ impl VisibilityImage {
         let declared = HostImage {
             image: self.image,
             view: self.view,
-            format: vk::Format::R32_UINT,
+            format: self.format,
             extent: self.extent,
-            usage: Self::USAGE,
+            usage: self.usage,
             layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
             written_by: (
                 vk::PipelineStageFlags::TRANSFER,
@@ -224,7 +246,100 @@ impl VisibilityImage {
     }
 }
 
-impl Drop for VisibilityImage {
+impl HostTestImage {
+    /// The output as the next frame declares it: where the last frame (or
+    /// nothing) left it, last read by the copy out.
+    pub fn as_output(&self) -> HostImage {
+        let written_by = if self.layout == vk::ImageLayout::UNDEFINED {
+            (vk::PipelineStageFlags::empty(), vk::AccessFlags::empty())
+        } else {
+            (
+                vk::PipelineStageFlags::TRANSFER,
+                vk::AccessFlags::TRANSFER_READ,
+            )
+        };
+        HostImage {
+            image: self.image,
+            view: self.view,
+            format: self.format,
+            extent: self.extent,
+            usage: self.usage,
+            layout: self.layout,
+            written_by,
+        }
+    }
+
+    /// Records the copy of the output the pass just wrote (left in
+    /// `GENERAL`) into `to`, made visible to the host; the image is left
+    /// in `TRANSFER_SRC_OPTIMAL`, which the next frame declares.
+    ///
+    /// # Safety
+    /// `cmd` is recording on this image's device, after the frame that
+    /// wrote the image; `to` outlives its execution.
+    pub unsafe fn record_copy_out(&mut self, cmd: vk::CommandBuffer, to: &GpuBuffer) {
+        let d = &self.shared.device;
+        let written = [vk::ImageMemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+            .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+            .old_layout(vk::ImageLayout::GENERAL)
+            .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .image(self.image)
+            .subresource_range(
+                vk::ImageSubresourceRange::default()
+                    .aspect_mask(vk::ImageAspectFlags::COLOR)
+                    .level_count(1)
+                    .layer_count(1),
+            )];
+        let region = [vk::BufferImageCopy::default()
+            .image_subresource(
+                vk::ImageSubresourceLayers::default()
+                    .aspect_mask(vk::ImageAspectFlags::COLOR)
+                    .layer_count(1),
+            )
+            .image_extent(vk::Extent3D {
+                width: self.extent[0],
+                height: self.extent[1],
+                depth: 1,
+            })];
+        let to_host = [vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::HOST_READ)];
+        // SAFETY: the caller's promise; the pass left the image in GENERAL
+        // (`host_images`' contract), written by compute shaders.
+        unsafe {
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &written,
+            );
+            d.cmd_copy_image_to_buffer(
+                cmd,
+                self.image,
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                to.buffer,
+                &region,
+            );
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &to_host,
+                &[],
+                &[],
+            );
+        }
+        self.layout = vk::ImageLayout::TRANSFER_SRC_OPTIMAL;
+    }
+}
+
+impl Drop for HostTestImage {
     fn drop(&mut self) {
         // SAFETY: every submission that used the image was waited for.
         unsafe {
@@ -243,7 +358,7 @@ impl Drop for VisibilityImage {
 pub fn run_visibility_frame(
     r: &GpuRenderer,
     pass: &mut ShadowPass,
-    image: &mut VisibilityImage,
+    image: &mut HostTestImage,
     k: usize,
     view: &FrameView,
     ids: &[u32],
@@ -257,7 +372,10 @@ pub fn run_visibility_frame(
         // submission, which the call waits for.
         let declared = unsafe { image.record_fill(cmd, &staging) };
         let view = FrameView {
-            visibility: Some(declared),
+            images: FrameImages {
+                visibility: Some(declared),
+                ..view.images
+            },
             ..*view
         };
         let before = shared.allocations();

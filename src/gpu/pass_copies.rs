@@ -1,0 +1,86 @@
+//! The shadow pass's copies outside frames: the scene uploaded once when
+//! the pass is made, and results copied back for tests and tools. Both
+//! allocate, submit and wait — never inside a frame.
+
+use super::frame::GpuRenderer;
+use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
+use super::shared::BINDING_COUNT;
+use super::GpuError;
+use ash::vk;
+use std::sync::Arc;
+
+const BINDINGS: usize = BINDING_COUNT as usize;
+
+/// Copies `uploads` (binding, bytes) into the pass's buffers through
+/// staging buffers, and waits.
+pub(super) fn upload_into(
+    renderer: &GpuRenderer,
+    buffers: &[Arc<GpuBuffer>; BINDINGS],
+    uploads: &[(u32, Vec<u8>)],
+) -> Result<(), GpuError> {
+    let shared = renderer.shared();
+    let mut staged = Vec::new();
+    for (b, bytes) in uploads.iter().filter(|(_, bytes)| !bytes.is_empty()) {
+        staged.push((GpuBuffer::staging(shared, bytes)?, *b));
+    }
+    let record = |cmd| {
+        for (staging, b) in &staged {
+            let region = [vk::BufferCopy::default().size(staging.size())];
+            let to = buffers[*b as usize].buffer;
+            // SAFETY: `cmd` is recording; each copy fits both buffers.
+            unsafe {
+                shared
+                    .device
+                    .cmd_copy_buffer(cmd, staging.buffer, to, &region)
+            };
+        }
+        Ok(())
+    };
+    // SAFETY: the staging and device buffers outlive the call, which
+    // waits for the copies.
+    unsafe { renderer.context.submit_and_wait(record) }
+}
+
+/// The first `words[k]` words of binding `bindings[k]`'s buffer, copied
+/// back (waits).
+pub(super) fn read_back<const N: usize>(
+    renderer: &GpuRenderer,
+    buffers: &[Arc<GpuBuffer>; BINDINGS],
+    bindings: [u32; N],
+    words: [usize; N],
+) -> Result<[Vec<u32>; N], GpuError> {
+    let shared = renderer.shared();
+    let readbacks: Vec<GpuBuffer> = (0..N)
+        .map(|k| {
+            let desc = BufferDesc {
+                name: "readback",
+                pass: "readback",
+                size: words[k] as u64 * 4,
+                domain: BufferDomain::Readback,
+            };
+            GpuBuffer::new(shared, desc)
+        })
+        .collect::<Result<_, _>>()?;
+    let record = |cmd| {
+        let d = &shared.device;
+        for (k, rb) in readbacks.iter().enumerate().filter(|&(k, _)| words[k] > 0) {
+            let region = [vk::BufferCopy::default().size(words[k] as u64 * 4)];
+            let from = buffers[bindings[k] as usize].buffer;
+            // SAFETY: `cmd` is recording; the copy fits both buffers.
+            unsafe { d.cmd_copy_buffer(cmd, from, rb.buffer, &region) };
+        }
+        // SAFETY: `cmd` is recording.
+        unsafe { super::transfers_visible_to_host(d, cmd) };
+        Ok(())
+    };
+    // The copies read what earlier frames wrote: the barrier at the end of
+    // every frame (`resolve`) made it visible to transfers.
+    // SAFETY: the read-back and device buffers outlive the call, which
+    // waits for the copies.
+    unsafe { renderer.context.submit_and_wait(record) }?;
+    let mut out: [Vec<u32>; N] = std::array::from_fn(|_| Vec::new());
+    for (k, rb) in readbacks.iter().enumerate() {
+        out[k] = bytemuck::pod_collect_to_vec(&rb.mapped()?[..words[k] * 4]);
+    }
+    Ok(out)
+}
