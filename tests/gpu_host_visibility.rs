@@ -12,7 +12,7 @@ mod common;
 use ash::vk;
 use common::gpu::assert_no_validation_messages;
 use common::shadow_pass::{
-    pass_renderer, run_visibility_frame, scene_at, settings, view_at, HostTestImage,
+    assert_refused, pass_renderer, run_visibility_frame, scene_at, settings, view_at, HostTestImage,
 };
 use izb::cpu::SampleMode;
 use izb::gpu::host_images::{FrameImages, HostImage};
@@ -165,16 +165,7 @@ fn bad_visibility_inputs_are_refused_or_counted() {
     ];
     let mut checked = 0;
     for (view, said) in &cases {
-        let mut error = None;
-        let record = |cmd| {
-            // SAFETY: as in `run_frame`; the image is alive.
-            error = unsafe { pass.record(cmd, 1, view) }.err();
-            Ok(())
-        };
-        // SAFETY: the pass and image outlive the call, which waits.
-        unsafe { r.context.submit_and_wait(record) }.unwrap();
-        let e = error.unwrap_or_else(|| panic!("{said}: recorded"));
-        assert!(e.to_string().contains(said), "{said}: {e}");
+        assert_refused(&r, &mut pass, 1, view, said);
         checked += 1;
     }
     assert_eq!(checked, cases.len());
@@ -184,15 +175,6 @@ fn bad_visibility_inputs_are_refused_or_counted() {
     };
     let mut ray_pass = ShadowPass::new(&r, scene.clone(), ray_cast).unwrap();
     let given = with(&|_| {});
-    let mut error = None;
-    let record = |cmd| {
-        // SAFETY: as in `run_frame`.
-        error = unsafe { ray_pass.record(cmd, 0, &given) }.err();
-        Ok(())
-    };
-    // SAFETY: the pass outlives the call, which waits.
-    unsafe { r.context.submit_and_wait(record) }.unwrap();
-    let e = error.expect("a ray-cast pass took a visibility buffer");
-    assert!(e.to_string().contains("gives a visibility buffer"), "{e}");
+    assert_refused(&r, &mut ray_pass, 0, &given, "gives a visibility buffer");
     assert_no_validation_messages(&r, "refused visibility inputs");
 }

@@ -98,18 +98,24 @@ impl HostImage {
         }
     }
 
-    /// Checks an output image: one of `formats`, the pass's resolution,
-    /// `STORAGE` usage, non-null handles (any layout: its contents are
-    /// replaced).
-    fn check_output(
+    /// Checks the image for `usage`: one of `formats` (`format_why` says
+    /// what they mean), the pass's resolution, the usage flag the pass
+    /// needs, non-null handles, and for an input a layout that keeps its
+    /// contents (an output's are replaced). `what` names it in the error.
+    fn check(
         &self,
         what: &str,
-        formats: &[vk::Format],
+        usage: ImageUse,
+        (formats, format_why): (&[vk::Format], &str),
         resolution: [u32; 2],
     ) -> Result<(), GpuError> {
+        let (flag, how) = match usage {
+            ImageUse::Read => (vk::ImageUsageFlags::SAMPLED, "reads it with texelFetch"),
+            ImageUse::Write => (vk::ImageUsageFlags::STORAGE, "writes it with imageStore"),
+        };
         let problem = if !formats.contains(&self.format) {
             Some(format!(
-                "its format is {:?}; it must be {formats:?}",
+                "its format is {:?}; it must be {formats:?}{format_why}",
                 self.format
             ))
         } else if self.extent != resolution {
@@ -117,48 +123,17 @@ impl HostImage {
                 "it is {}x{}; the pass renders {}x{}",
                 self.extent[0], self.extent[1], resolution[0], resolution[1]
             ))
-        } else if !self.usage.contains(vk::ImageUsageFlags::STORAGE) {
+        } else if !self.usage.contains(flag) {
             Some(format!(
-                "its usage {:?} lacks STORAGE (the pass writes it with imageStore)",
+                "its usage {:?} lacks {flag:?} (the pass {how})",
                 self.usage
             ))
-        } else if self.image == vk::Image::null() || self.view == vk::ImageView::null() {
-            Some("its image or view is a null handle".into())
-        } else {
-            None
-        };
-        match problem {
-            Some(p) => Err(GpuError::Unsupported(format!(
-                "the host's {what} image cannot be written: {p}"
-            ))),
-            None => Ok(()),
-        }
-    }
-
-    /// Checks the declaration of a visibility buffer for a `resolution`
-    /// image: `R32_UINT`, the same size, sampled usage, contents defined.
-    pub fn check_visibility(&self, resolution: [u32; 2]) -> Result<(), GpuError> {
-        let problem = if self.format != vk::Format::R32_UINT {
-            Some(format!(
-                "its format is {:?}; a visibility buffer is R32_UINT (per pixel a triangle \
-                 id, {:#x} for none)",
-                self.format,
-                izb_contract::word::NO_HIT
-            ))
-        } else if self.extent != resolution {
-            Some(format!(
-                "it is {}x{}; the pass renders {}x{}",
-                self.extent[0], self.extent[1], resolution[0], resolution[1]
-            ))
-        } else if !self.usage.contains(vk::ImageUsageFlags::SAMPLED) {
-            Some(format!(
-                "its usage {:?} lacks SAMPLED (the pass reads it with texelFetch)",
-                self.usage
-            ))
-        } else if matches!(
-            self.layout,
-            vk::ImageLayout::UNDEFINED | vk::ImageLayout::PREINITIALIZED
-        ) {
+        } else if usage == ImageUse::Read
+            && matches!(
+                self.layout,
+                vk::ImageLayout::UNDEFINED | vk::ImageLayout::PREINITIALIZED
+            )
+        {
             Some(format!(
                 "its layout is {:?}: a transition from it discards the contents",
                 self.layout
@@ -170,10 +145,26 @@ impl HostImage {
         };
         match problem {
             Some(p) => Err(GpuError::Unsupported(format!(
-                "the host's visibility buffer cannot be read: {p}"
+                "the host's {what} image cannot be {}: {p}",
+                if usage == ImageUse::Read {
+                    "read"
+                } else {
+                    "written"
+                }
             ))),
             None => Ok(()),
         }
+    }
+
+    /// Checks the declaration of a visibility buffer for a `resolution`
+    /// image: `R32_UINT`, the same size, sampled usage, contents defined.
+    pub fn check_visibility(&self, resolution: [u32; 2]) -> Result<(), GpuError> {
+        let why = format!(
+            " (per pixel a triangle id, {:#x} for none)",
+            izb_contract::word::NO_HIT
+        );
+        let formats = (&[vk::Format::R32_UINT][..], why.as_str());
+        self.check("visibility", ImageUse::Read, formats, resolution)
     }
 }
 
@@ -205,11 +196,11 @@ impl FrameImages {
             } else {
                 vk::Format::R32_UINT
             };
-            m.check_output("masks", &[format], resolution)?;
+            m.check("masks", ImageUse::Write, (&[format], ""), resolution)?;
         }
         if let Some(l) = &self.lit_fraction {
             let formats = [vk::Format::R16_UNORM, vk::Format::R8_UNORM];
-            l.check_output("lit fraction", &formats, resolution)?;
+            l.check("lit fraction", ImageUse::Write, (&formats, ""), resolution)?;
         }
         Ok(())
     }

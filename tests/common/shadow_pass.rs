@@ -392,3 +392,27 @@ pub fn run_visibility_frame(
     unsafe { r.context.submit_and_wait(record) }?;
     Ok((micros, made))
 }
+
+/// Records `view` into frame slot `slot` expecting a refusal before any
+/// command (the empty command buffer is still submitted, which the
+/// validation layer sees) and asserts its message says `said`.
+pub fn assert_refused(
+    r: &GpuRenderer,
+    pass: &mut ShadowPass,
+    slot: usize,
+    view: &FrameView,
+    said: &str,
+) {
+    let mut error = None;
+    let record = |cmd| {
+        // SAFETY: `cmd` is recording on this thread and submitted to the
+        // pass's device after every earlier frame; the wait below ends
+        // it, and the pass and the view's images outlive it.
+        error = unsafe { pass.record(cmd, slot, view) }.err();
+        Ok(())
+    };
+    // SAFETY: the pass outlives the call, which waits.
+    unsafe { r.context.submit_and_wait(record) }.unwrap();
+    let e = error.unwrap_or_else(|| panic!("{said}: recorded"));
+    assert!(e.to_string().contains(said), "{said}: {e}");
+}
