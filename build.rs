@@ -88,6 +88,7 @@ type Defines = &'static [(&'static str, &'static str)];
 /// dispatch. A pass with several steps is one file compiled once per step.
 const SHADERS: &[(&str, &str, Defines)] = &[
     ("gbuffer", "gbuffer.comp", &[]),
+    ("translate_vertices", "translate_vertices.comp", &[]),
     (
         "gbuffer_from_visibility",
         "gbuffer_from_visibility.comp",

@@ -79,11 +79,16 @@ shared_constants! {
         EDGE_COVERAGE = 23;
         /// The scene's distinct eye-relative vertices (`vec3`), each once.
         VERTICES = 24;
+        /// The shadow pass with a moving eye: the scene's distinct
+        /// vertices relative to its anchor, each as a double-single (hi,
+        /// lo: two `vec3`), from which `translate_vertices` writes
+        /// `B_VERTICES` for each frame's eye; 4 bytes elsewhere.
+        WORLD_VERTICES = 25;
     }
 }
 
 /// Number of bindings (one past the last of [`binding`]).
-pub const BINDING_COUNT: u32 = binding::VERTICES + 1;
+pub const BINDING_COUNT: u32 = binding::WORLD_VERTICES + 1;
 
 shared_constants! {
     /// The second descriptor set (`HOST_*`): the host's images a frame of
@@ -532,7 +537,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 89, "members of the five shared structs");
+        assert_eq!(checked, 92, "members of the five shared structs");
     }
 
     #[test]

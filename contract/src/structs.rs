@@ -118,6 +118,13 @@ shared_struct! {
         /// overflow list (exact, slow: a frame nobody reruns); 0: the
         /// frame is rerun with room, its overrun masks are not used.
         pub overrun_exact: u32 => "uint overrun_exact",
+        /// The eye relative to the shadow pass's anchor as a double-single
+        /// (`eye_hi + eye_lo`), which `translate_vertices` subtracts from
+        /// `B_WORLD_VERTICES`; zero where nothing translates.
+        pub eye_hi: [f32; 3] => "vec3 eye_hi",
+        /// Vertices `translate_vertices` writes (`B_WORLD_VERTICES`' pairs).
+        pub world_vertex_count: u32 => "uint world_vertex_count",
+        pub eye_lo: [f32; 3] => "vec3 eye_lo",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area

@@ -20,6 +20,7 @@ pub mod light_samples;
 pub mod light_setup;
 pub mod penumbra;
 pub mod receivers;
+pub mod translate_vertices;
 
 // The settings the CPU twins take, declared below both backends.
 pub use crate::cascades::CascadeCount;

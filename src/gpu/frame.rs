@@ -167,6 +167,7 @@ impl GpuRenderer {
             edge_surfaces: edges.slots(),
             triangles: t,
             vertices: upload.vertices.len() as u64,
+            world_vertices: 0,
             bvh_nodes: bvh.nodes.len() as u64,
             bvh_prims: bvh.prims.len() as u64,
             max_cells,

@@ -24,6 +24,9 @@ pub struct FrameSizes {
     pub triangles: u64,
     /// Distinct vertices of the triangles (`SceneUpload::vertices`).
     pub vertices: u64,
+    /// Double-single vertices a moving eye translates (the shadow pass
+    /// with a visibility buffer); 0 elsewhere.
+    pub world_vertices: u64,
     pub bvh_nodes: u64,
     pub bvh_prims: u64,
     pub max_cells: u64,
@@ -67,6 +70,10 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         ),
         (binding::TRIANGLES, d("scene", "triangle_corners", t * 12)),
         (binding::VERTICES, d("scene", "vertices", z.vertices * vec3)),
+        (
+            binding::WORLD_VERTICES,
+            d("scene", "world_vertices", z.world_vertices * 2 * vec3),
+        ),
         (
             binding::BVH_NODES,
             d("gbuffer", "bvh_nodes", z.bvh_nodes * 32),
@@ -230,6 +237,7 @@ pub fn planned_memory(
         edge_surfaces,
         triangles: triangles.len() as u64,
         vertices: upload.vertices.len() as u64,
+        world_vertices: 0,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
         max_cells: crate::cascades::max_total_cells(side),
@@ -350,6 +358,7 @@ mod tests {
             edge_surfaces: None,
             triangles: 10,
             vertices: 12,
+            world_vertices: 0,
             bvh_nodes: 50_000,
             bvh_prims: 10,
             max_cells: 16,

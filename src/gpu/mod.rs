@@ -4,6 +4,7 @@
 //! | pass | GPU module | shader | CPU twin |
 //! |---|---|---|---|
 //! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
+//! | 0, moving eye | [`translate_vertices`] | `translate_vertices.comp` | [`crate::cpu::translate_vertices`] |
 //! | 0, host input | [`gbuffer::gbuffer_from_visibility`] | `gbuffer_from_visibility.comp` | [`crate::gbuffer::gbuffer_from_visibility`] |
 //! | 1 | [`light_setup`] | `light_setup.comp` | [`mod@crate::cpu::light_setup`] |
 //! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
@@ -51,6 +52,7 @@ pub mod shadow_rays;
 pub mod shadow_volumes;
 pub mod shared;
 mod timestamps;
+pub mod translate_vertices;
 mod validation_messages;
 
 pub use context::{list_devices, DeviceInfo, GpuContext, GpuOptions};
@@ -132,8 +134,9 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 31] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 32] = [
     ("gbuffer", spirv!("gbuffer")),
+    ("translate_vertices", spirv!("translate_vertices")),
     ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
     ("edge_surfaces", spirv!("edge_surfaces")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
@@ -171,6 +174,8 @@ pub struct Kernels {
     pub gbuffer: ComputeKernel,
     /// The G-buffer from the host's visibility buffer (the shadow pass).
     pub gbuffer_from_visibility: ComputeKernel,
+    /// The shadow pass's eye-relative vertices for a moving eye.
+    pub translate_vertices: ComputeKernel,
     pub edge_surfaces: ComputeKernel,
     pub light_setup_receivers: ComputeKernel,
     pub light_setup_frame: ComputeKernel,
@@ -216,6 +221,7 @@ impl Kernels {
                 "gbuffer_from_visibility",
                 spirv!("gbuffer_from_visibility"),
             )?,
+            translate_vertices: k("translate_vertices", spirv!("translate_vertices"))?,
             edge_surfaces: k("edge_surfaces", spirv!("edge_surfaces"))?,
             light_setup_receivers: k("light_setup_receivers", spirv!("light_setup_receivers"))?,
             light_setup_frame: k("light_setup_frame", spirv!("light_setup_frame"))?,

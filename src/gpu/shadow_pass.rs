@@ -6,10 +6,14 @@
 //! per-frame parameters, a status for too many primitives).
 //!
 //! What this part does and does not do yet:
-//! - The scene is resident: its eye-relative vertices, normals, BVH and
-//!   LUT are uploaded once. The camera may turn and the light may move or
-//!   change size per frame; the eye may not move (the vertices are
-//!   relative to it), which [`ShadowPass::record`] refuses by name.
+//! - The scene is resident: its vertices, normals, BVH (ray cast only)
+//!   and LUT are uploaded once. The camera may turn and the light may
+//!   move or change size per frame. With the host's visibility buffer the
+//!   eye may move too: the vertices are held relative to an anchor as
+//!   double-singles and `translate_vertices` makes them eye-relative on
+//!   the GPU each frame (the twin: [`crate::cpu::translate_vertices`]); a
+//!   ray-cast pass's BVH is built around one eye, so there a moved eye is
+//!   refused by name.
 //! - The G-buffer is the pass's first step, from one of two producers
 //!   ([`GBufferInput`]): the ray-cast one (`gbuffer.comp`, over a BVH
 //!   built once), or the host's visibility buffer (`R32_UINT` triangle
@@ -44,11 +48,12 @@ use super::pass_copies::{read_back, upload_into};
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
+use super::translate_vertices::WorldVertices;
 use super::{GpuError, Recorder};
 use crate::scene::{Camera, Light, Scene};
 use crate::settings::IzbSettings;
 use ash::vk;
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use std::sync::Arc;
 
 const BINDINGS: usize = BINDING_COUNT as usize;
@@ -89,7 +94,9 @@ pub enum GBufferInput {
 /// What may change between frames.
 #[derive(Clone, Copy, Debug)]
 pub struct FrameView {
-    /// The camera; its eye must stay the scene's.
+    /// The camera; with the ray-cast G-buffer its eye must stay the
+    /// scene's (the BVH is built around it), with a visibility buffer it
+    /// may move.
     pub camera: Camera,
     pub light: Light,
     /// The light's size (`Scene::light_radius`); whether it is 0 must stay
@@ -144,6 +151,8 @@ pub struct ShadowPass<'r> {
     status: Vec<GpuBuffer>,
     /// Sets replaced by `grow` that frames in flight may still use.
     retired: Vec<Retired>,
+    /// With a visibility buffer: the vertices a moving eye translates.
+    world: Option<WorldVertices>,
 }
 
 /// A descriptor set replaced by [`ShadowPass::grow`] (it holds its
@@ -184,6 +193,12 @@ impl<'r> ShadowPass<'r> {
         }
         let shared = renderer.shared();
         let upload = renderer.prepare_frame(&scene, GBufferSource::Gpu)?;
+        // With a visibility buffer nothing holds the eye's frame but the
+        // vertices, which `translate_vertices` makes for each frame's eye.
+        let world = (config.gbuffer == GBufferInput::Visibility).then(|| {
+            let (lo, hi) = scene.bounds();
+            WorldVertices::new(&scene, (lo + hi) * 0.5)
+        });
         let triangles = upload.triangles.len();
         let bvh = match config.gbuffer {
             GBufferInput::RayCast => super::gbuffer::build_bvh(&upload.triangles)?,
@@ -201,7 +216,10 @@ impl<'r> ShadowPass<'r> {
             receivers: pixels,
             edge_surfaces: None,
             triangles: triangles as u64,
-            vertices: upload.vertices.len() as u64,
+            vertices: world
+                .as_ref()
+                .map_or(upload.vertices.len(), |w| w.pairs.len()) as u64,
+            world_vertices: world.as_ref().map_or(0, |w| w.pairs.len()) as u64,
             bvh_nodes: bvh.nodes.len() as u64,
             bvh_prims: bvh.prims.len() as u64,
             max_cells,
@@ -235,9 +253,18 @@ impl<'r> ShadowPass<'r> {
         let uploads: Vec<(u32, Vec<u8>)> = vec![
             (
                 binding::TRIANGLES,
-                bytemuck::cast_slice(&upload.corners).to_vec(),
+                match &world {
+                    Some(w) => bytemuck::cast_slice(&w.corners).to_vec(),
+                    None => bytemuck::cast_slice(&upload.corners).to_vec(),
+                },
             ),
             (binding::VERTICES, as_bytes(&upload.vertices)),
+            (
+                binding::WORLD_VERTICES,
+                world.as_ref().map_or(Vec::new(), |w| {
+                    bytemuck::cast_slice::<[Vec3; 2], u8>(&w.pairs).to_vec()
+                }),
+            ),
             (binding::TRIANGLE_NORMALS, as_bytes(&upload.normals)),
             (
                 binding::BVH_NODES,
@@ -264,6 +291,7 @@ impl<'r> ShadowPass<'r> {
             host_sets,
             status,
             retired: Vec::new(),
+            world,
         })
     }
 
@@ -285,10 +313,11 @@ impl<'r> ShadowPass<'r> {
     /// Checks `view` against the scene (the eye, the light's kind of size,
     /// the precision envelope) and takes it as the scene's.
     fn take_view(&mut self, view: &FrameView) -> Result<(), GpuError> {
-        if view.camera.eye != self.scene.camera.eye {
+        if self.world.is_none() && view.camera.eye != self.scene.camera.eye {
             return Err(GpuError::Unsupported(format!(
-                "the eye moved from {} to {}: the pass holds the scene's vertices relative to \
-                 its eye; make the pass again for the new eye",
+                "the eye moved from {} to {}: a ray-cast pass holds the scene's vertices and \
+                 BVH relative to its eye; make the pass again for the new eye, or with \
+                 GBufferInput::Visibility, whose vertices follow the eye",
                 self.scene.camera.eye, view.camera.eye
             )));
         }
@@ -365,6 +394,10 @@ impl<'r> ShadowPass<'r> {
         );
         // Nothing reruns a recorded frame: an overrun stays exact.
         params.overrun_exact = 1;
+        if let Some(w) = &self.world {
+            [params.eye_hi, params.eye_lo] = w.eye(scene.camera.eye).map(|v| v.to_array());
+            params.world_vertex_count = w.pairs.len() as u32;
+        }
         let device = &shared.device;
         let buffer = |b: u32| self.buffers[b as usize].buffer;
         // SAFETY: the caller's promise covers `cmd`, and the set, layout
@@ -383,6 +416,10 @@ impl<'r> ShadowPass<'r> {
         }
         reset_pass_state(device, cmd, buffer, false);
         rec.barrier();
+        if let Some(w) = &self.world {
+            let vertices = w.pairs.len() as u32;
+            super::translate_vertices::translate_vertices(&rec, &renderer.kernels, vertices);
+        }
         let host = [
             (images.visibility, ImageUse::Read),
             (images.masks, ImageUse::Write),
@@ -501,6 +538,25 @@ impl<'r> ShadowPass<'r> {
             shaded,
             gbuffer_words,
         })
+    }
+
+    /// The eye-relative vertices the last frame read (`B_VERTICES`), copied
+    /// back — for tests: it allocates, submits and waits.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing.
+    pub unsafe fn read_back_vertices(&self) -> Result<Vec<Vec3>, GpuError> {
+        let count = self.buffers[binding::VERTICES as usize].size() as usize / 12;
+        let [words] = read_back(
+            self.renderer,
+            &self.buffers,
+            [binding::VERTICES],
+            [count * 3],
+        )?;
+        Ok(bytemuck::cast_slice::<u32, [f32; 3]>(&words)
+            .iter()
+            .map(|&v| Vec3::from(v))
+            .collect())
     }
 
     /// `LLVMPIPE_LOOP_CAP` as a status's refusal.
