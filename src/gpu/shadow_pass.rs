@@ -195,10 +195,9 @@ impl<'r> ShadowPass<'r> {
         let upload = renderer.prepare_frame(&scene, GBufferSource::Gpu)?;
         // With a visibility buffer nothing holds the eye's frame but the
         // vertices, which `translate_vertices` makes for each frame's eye.
-        let world = (config.gbuffer == GBufferInput::Visibility).then(|| {
-            let (lo, hi) = scene.bounds();
-            WorldVertices::new(&scene, (lo + hi) * 0.5)
-        });
+        let bounds = scene.bounds();
+        let world = (config.gbuffer == GBufferInput::Visibility)
+            .then(|| WorldVertices::new(&scene, (bounds.0 + bounds.1) * 0.5));
         let triangles = upload.triangles.len();
         let bvh = match config.gbuffer {
             GBufferInput::RayCast => super::gbuffer::build_bvh(&upload.triangles)?,
@@ -258,7 +257,15 @@ impl<'r> ShadowPass<'r> {
                     None => bytemuck::cast_slice(&upload.corners).to_vec(),
                 },
             ),
-            (binding::VERTICES, as_bytes(&upload.vertices)),
+            // With a moving eye `translate_vertices` writes them before
+            // every frame's first reader: nothing to upload.
+            (
+                binding::VERTICES,
+                match &world {
+                    Some(_) => Vec::new(),
+                    None => as_bytes(&upload.vertices),
+                },
+            ),
             (
                 binding::WORLD_VERTICES,
                 world.as_ref().map_or(Vec::new(), |w| {
@@ -280,7 +287,7 @@ impl<'r> ShadowPass<'r> {
         Ok(ShadowPass {
             renderer,
             config,
-            bounds: scene.bounds(),
+            bounds,
             scene,
             triangles: triangles as u32,
             max_cells,
