@@ -16,7 +16,7 @@
 //!   struct the shaders share with Rust, included by `shaders/common.glsl`.
 //!
 //! It also compiles every GLSL shader in `shaders/` (compute, and the
-//! shadow map's one vertex shader) to SPIR-V with
+//! raster passes' vertex and fragment shaders) to SPIR-V with
 //! the `glslang` crate (built from source, so a fresh machine needs nothing
 //! but cargo; README, Precision), one `<name>.spv` per [`SHADERS`] entry. A compile
 //! error fails the build with the shader's file and glslang's line numbers.
@@ -175,6 +175,8 @@ const SHADERS: &[(&str, &str, Defines)] = &[
         &[("STEP_LOOKUP", "1")],
     ),
     ("shadow_rays", "shadow_rays.comp", &[]),
+    ("visibility_raster_vert", "visibility_raster.vert", &[]),
+    ("visibility_raster_frag", "visibility_raster.frag", &[]),
 ];
 
 /// Resolves `#include "x"` against `OUT_DIR` (the generated
@@ -238,6 +240,8 @@ fn compile_shaders(out_dir: &std::path::Path) {
             &source,
             if file.ends_with(".vert") {
                 glslang::ShaderStage::Vertex
+            } else if file.ends_with(".frag") {
+                glslang::ShaderStage::Fragment
             } else {
                 glslang::ShaderStage::Compute
             },

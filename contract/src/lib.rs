@@ -13,7 +13,9 @@ mod structs;
 
 use macros::{shared_constants, GlslConstant, SharedStruct};
 pub use pcss_taps::pcss;
-pub use structs::{BvhNode, CascadeGrid, FrameParams, GpuTriangle, GpuTriangleCorners, LightState};
+pub use structs::{
+    BvhNode, CascadeGrid, FrameParams, GpuTriangle, GpuTriangleCorners, LightState, VisibilityView,
+};
 
 shared_constants! {
     /// Descriptor bindings of the one set every pass shares (`B_*`).
@@ -482,6 +484,7 @@ pub fn glsl_header() -> String {
     out += &glsl_struct::<GpuTriangle>();
     out += &glsl_struct::<GpuTriangleCorners>();
     out += &glsl_struct::<BvhNode>();
+    out += &glsl_struct::<VisibilityView>();
     out
 }
 

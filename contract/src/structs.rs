@@ -245,3 +245,27 @@ impl LightState {
         }
     }
 }
+
+shared_struct! {
+    /// `VisibilityView`: the push constants of the visibility raster
+    /// (`visibility_raster.vert` / `.frag`), a pinhole camera with reverse
+    /// Z (depth 1 at the near plane, 0 at the far). Positions and the eye
+    /// are relative to one origin the host chooses (its vertex buffer's).
+    pub struct VisibilityView as "VisibilityView" {
+        /// The eye, relative to the vertex buffer's origin.
+        pub eye: [f32; 3] => "vec3 eye",
+        /// Clip z = depth_offset + depth_scale · view depth (reverse Z,
+        /// near → 1, far → 0 after the divide by w = view depth).
+        pub depth_offset: f32 => "float depth_offset",
+        /// Unit right over (tan(fov_y / 2) · aspect): clip x.
+        pub right: [f32; 3] => "vec3 right",
+        /// Added to `gl_PrimitiveID`: the draw's first triangle id.
+        pub first_triangle: u32 => "uint first_triangle",
+        /// Unit image up over −tan(fov_y / 2) (Vulkan's y points down):
+        /// clip y.
+        pub down: [f32; 3] => "vec3 down",
+        pub depth_scale: f32 => "float depth_scale",
+        /// Unit view direction: clip w = view depth.
+        pub forward: [f32; 3] => "vec3 forward",
+    }
+}

@@ -46,23 +46,28 @@ impl DeviceInfo {
 pub struct DeviceShared {
     /// The loader, kept for the function pointers of everything below:
     /// unloaded last, and never while a poisoned device lives on.
-    entry: ManuallyDrop<ash::Entry>,
+    /// `None` on a host's device (the host loaded it).
+    pub(super) entry: ManuallyDrop<Option<ash::Entry>>,
     pub instance: ash::Instance,
     pub device: ash::Device,
     pub physical_device: vk::PhysicalDevice,
-    /// Used only under [`GpuContext`]'s pool lock (a queue is externally
-    /// synchronised), so not public.
-    queue: vk::Queue,
+    /// The queue behind its lock (a queue is externally synchronised),
+    /// held only around a submission; on a host's device the host's own
+    /// lock ([`super::host_device::HostDevice::queue`]). Not public.
+    pub(super) queue: SharedQueue,
+    /// Whether izb created the instance and device (and destroys them
+    /// last); a host's device is the host's to wait on and destroy.
+    pub(super) owned: bool,
     pub queue_family: u32,
     pub allocator: ManuallyDrop<Mutex<Allocator>>,
-    debug_instance: Option<ash::ext::debug_utils::Instance>,
+    pub(super) debug_instance: Option<ash::ext::debug_utils::Instance>,
     pub debug_device: Option<ash::ext::debug_utils::Device>,
-    messenger: vk::DebugUtilsMessengerEXT,
+    pub(super) messenger: vk::DebugUtilsMessengerEXT,
     /// Validation messages since the device was created (the callback's
     /// `user_data` points at this `Mutex`, shared so its address is stable;
     /// freed only after the messenger is destroyed, and never while a
     /// poisoned device's messenger lives on).
-    messages: ManuallyDrop<Arc<Mutex<Vec<String>>>>,
+    pub(super) messages: ManuallyDrop<Arc<Mutex<Vec<String>>>>,
     pub info: DeviceInfo,
     pub limits: vk::PhysicalDeviceLimits,
     /// Why the shadow-map baselines cannot draw on this device's
@@ -75,11 +80,14 @@ pub struct DeviceShared {
     /// Set when a submission timed out or the device was lost: work may
     /// still be running, so nothing it might touch is destroyed any more
     /// (every `Drop` leaks instead; the process exit reclaims it).
-    poisoned: std::sync::atomic::AtomicBool,
+    pub(super) poisoned: std::sync::atomic::AtomicBool,
     /// Buffers created and descriptor sets allocated on the device so far
     /// ([`Allocation`]).
-    allocations: [std::sync::atomic::AtomicU64; 2],
+    pub(super) allocations: [std::sync::atomic::AtomicU64; 2],
 }
+
+/// A queue and the lock every submission to it holds.
+pub type SharedQueue = Arc<Mutex<vk::Queue>>;
 
 /// What [`DeviceShared::allocations`] counts.
 #[derive(Clone, Copy, Debug)]
@@ -145,6 +153,15 @@ impl Drop for DeviceShared {
             // `messages`) and the loader's code stay: leaked, not freed.
             return;
         }
+        if !self.owned {
+            // SAFETY: the last owner drops: every buffer and pipeline made
+            // here is gone (each held an Arc), so their memory blocks are
+            // free; the host's device outlives this
+            // (`GpuContext::on_host_device`), and is the host's to wait
+            // on and destroy.
+            unsafe { ManuallyDrop::drop(&mut self.allocator) };
+            return;
+        }
         // SAFETY: the last owner drops: every buffer, pipeline, pool and the
         // GpuContext hold an Arc to this, so they are gone; the device is not
         // poisoned, so after the idle wait nothing is in flight. The allocator
@@ -168,15 +185,17 @@ impl Drop for DeviceShared {
 pub struct GpuContext {
     pub shared: Arc<DeviceShared>,
     /// The command pool, behind the lock every submission holds from
-    /// allocation to the end of its wait: a command pool and a queue are
-    /// externally synchronised objects (Vulkan spec, "Threading
-    /// Behavior"), and ash's handles are `Send + Sync`, so without it two
-    /// threads rendering with one `GpuRenderer` would allocate from the
-    /// pool and submit to the queue at once. Frames are serialised.
-    command_pool: Mutex<vk::CommandPool>,
+    /// allocation to the end of its wait: a command pool is an externally
+    /// synchronised object (Vulkan spec, "Threading Behavior"), and ash's
+    /// handles are `Send + Sync`, so without it two threads rendering with
+    /// one `GpuRenderer` would allocate from the pool at once. Frames are
+    /// serialised. The queue has its own lock, held only around the submit
+    /// (on a host's device the host's: its frames are not held up by a
+    /// wait here).
+    pub(super) command_pool: Mutex<vk::CommandPool>,
     /// Submissions between allocation and wait right now, and the most
     /// ever seen: 1 while the lock does its job (`tests/gpu_threads.rs`).
-    submissions: [AtomicU32; 2],
+    pub(super) submissions: [AtomicU32; 2],
 }
 
 impl Drop for GpuContext {
@@ -188,11 +207,14 @@ impl Drop for GpuContext {
             .command_pool
             .get_mut()
             .unwrap_or_else(|e| e.into_inner());
-        // SAFETY: the device is not poisoned, so after the idle wait no
-        // command buffer of the pool is in flight; `&mut self` means no
-        // other thread holds the pool.
+        // SAFETY: the device is not poisoned, so every submission from the
+        // pool was waited on (`submit_and_wait`) and none of its command
+        // buffers is in flight; `&mut self` means no other thread holds the
+        // pool. A host's device is not ours to wait on idle.
         unsafe {
-            let _ = self.shared.device.device_wait_idle();
+            if self.shared.owned {
+                let _ = self.shared.device.device_wait_idle();
+            }
             self.shared.device.destroy_command_pool(pool, None);
         }
     }
@@ -361,11 +383,12 @@ impl GpuContext {
             .validation
             .then(|| ash::ext::debug_utils::Device::new(&instance, &device));
         let shared = Arc::new(DeviceShared {
-            entry: ManuallyDrop::new(entry),
+            entry: ManuallyDrop::new(Some(entry)),
             instance,
             device,
             physical_device: chosen.physical,
-            queue,
+            queue: Arc::new(Mutex::new(queue)),
+            owned: true,
             queue_family: chosen.queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             debug_instance,
@@ -465,9 +488,12 @@ impl GpuContext {
                 .map_err(not_submitted)?;
             let cmds = [cmd];
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
-            // SAFETY: the queue is used only under the pool's lock, held
-            // here; `cmd` is executable and `fence` unsignalled.
-            if let Err(e) = unsafe { device.queue_submit(self.shared.queue, &submit, fence) } {
+            let queue = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+            // SAFETY: the queue is used only under its lock, held here;
+            // `cmd` is executable and `fence` unsignalled.
+            let submitted = unsafe { device.queue_submit(*queue, &submit, fence) };
+            drop(queue);
+            if let Err(e) = submitted {
                 // SAFETY: nothing was submitted, so nothing refers to the fence.
                 unsafe { device.destroy_fence(fence, None) };
                 return Err(Submission::NotSubmitted(GpuError::vk(e)));

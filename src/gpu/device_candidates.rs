@@ -44,96 +44,116 @@ pub(super) struct Candidate {
 }
 
 pub(super) fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, GpuError> {
-    // SAFETY: `instance` is a live instance (here and in the calls below,
-    // each `physical` comes from it); the out-structures outlive the calls.
+    // SAFETY: `instance` is a live instance.
     let physicals = unsafe { instance.enumerate_physical_devices() }.map_err(GpuError::vk)?;
-    let mut out = Vec::new();
-    for physical in physicals {
-        // SAFETY: `physical` was enumerated from this live instance.
-        let props = unsafe { instance.get_physical_device_properties(physical) };
-        if props.api_version < vk::API_VERSION_1_2 {
-            continue;
-        }
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12);
-        // SAFETY: as above; the feature chain outlives the call.
-        unsafe { instance.get_physical_device_features2(physical, &mut f2) };
-        let depth_clamp = f2.features.depth_clamp == vk::TRUE;
-        if f12.scalar_block_layout == vk::FALSE {
-            continue;
-        }
-        // The passes reduce their counters and atomics per subgroup
-        // (votes, arithmetic) before touching memory.
-        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
-        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut subgroup);
-        // SAFETY: as above; the property chain outlives the call.
-        unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
-        if !subgroup
-            .supported_stages
-            .contains(vk::ShaderStageFlags::COMPUTE)
-            || !subgroup
-                .supported_operations
-                .contains(REQUIRED_SUBGROUP_OPERATIONS)
-        {
-            continue;
-        }
-        // SAFETY: as above.
-        let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
-        // A family with graphics beside compute when there is one: the
-        // shadow-map baselines draw their maps on the rasteriser.
-        let graphics = vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS;
-        let Some((family, family_props)) = families
-            .iter()
-            .enumerate()
-            .find(|(_, f)| f.queue_flags.contains(graphics))
-            .or_else(|| {
-                families
-                    .iter()
-                    .enumerate()
-                    .find(|(_, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
-            })
-        else {
-            continue;
-        };
-        let raster_missing = if !family_props.queue_flags.contains(graphics) {
-            Some("no queue family of this device has graphics beside compute".to_string())
-        } else if !depth_clamp {
-            Some("this device has no depthClamp (a directional light's map clamps casters in front of its depth range)".to_string())
-        } else {
-            None
-        };
-        let (rank, kind) = device_kind(props.device_type);
-        let name = props
-            .device_name_as_c_str()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|_| "unnamed device".into());
-        out.push(Candidate {
-            physical,
-            queue_family: family as u32,
-            raster_missing,
-            depth_clamp,
-            rank,
-            info: DeviceInfo {
-                index: 0,
-                name,
-                kind: kind.into(),
-                api_version: format!(
-                    "{}.{}.{}",
-                    vk::api_version_major(props.api_version),
-                    vk::api_version_minor(props.api_version),
-                    vk::api_version_patch(props.api_version)
-                ),
-                max_storage_buffer_range: props.limits.max_storage_buffer_range,
-                max_compute_work_group_count: props.limits.max_compute_work_group_count,
-            },
-            limits: props.limits,
-            timestamps: family_props.timestamp_valid_bits > 0
-                && props.limits.timestamp_period > 0.0,
-        });
-    }
+    let mut out: Vec<Candidate> = physicals
+        .into_iter()
+        .filter_map(|physical| candidate(instance, physical, None).ok())
+        .collect();
     out.sort_by_key(|c| c.rank);
     for (i, c) in out.iter_mut().enumerate() {
         c.info.index = i;
     }
     Ok(out)
+}
+
+/// `physical` as a candidate, or why it cannot run the passes. Its queue
+/// family is `family` when given (a host's device: it must have
+/// compute), else one with graphics beside compute when there is one.
+pub(super) fn candidate(
+    instance: &ash::Instance,
+    physical: vk::PhysicalDevice,
+    family: Option<u32>,
+) -> Result<Candidate, String> {
+    // SAFETY: `physical` comes from the live `instance` (the callers);
+    // the out-structures outlive the calls.
+    let props = unsafe { instance.get_physical_device_properties(physical) };
+    if props.api_version < vk::API_VERSION_1_2 {
+        return Err("the device's Vulkan version is below 1.2".into());
+    }
+    let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
+    let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12);
+    // SAFETY: as above; the feature chain outlives the call.
+    unsafe { instance.get_physical_device_features2(physical, &mut f2) };
+    let depth_clamp = f2.features.depth_clamp == vk::TRUE;
+    if f12.scalar_block_layout == vk::FALSE {
+        return Err("the device has no scalarBlockLayout".into());
+    }
+    // The passes reduce their counters and atomics per subgroup
+    // (votes, arithmetic) before touching memory.
+    let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+    let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut subgroup);
+    // SAFETY: as above; the property chain outlives the call.
+    unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
+    if !subgroup
+        .supported_stages
+        .contains(vk::ShaderStageFlags::COMPUTE)
+        || !subgroup
+            .supported_operations
+            .contains(REQUIRED_SUBGROUP_OPERATIONS)
+    {
+        return Err(
+            "the device lacks compute subgroups with basic, vote, arithmetic and ballot \
+             operations"
+                .into(),
+        );
+    }
+    // SAFETY: as above.
+    let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+    // A family with graphics beside compute when there is one: the
+    // shadow-map baselines draw their maps on the rasteriser.
+    let graphics = vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS;
+    let compute = |f: &vk::QueueFamilyProperties| f.queue_flags.contains(vk::QueueFlags::COMPUTE);
+    let (family, family_props) = match family {
+        Some(i) => match families.get(i as usize) {
+            Some(f) if compute(f) => (i as usize, f),
+            Some(_) => return Err(format!("queue family {i} has no compute")),
+            None => {
+                return Err(format!(
+                    "queue family {i}: the device has {}",
+                    families.len()
+                ))
+            }
+        },
+        None => families
+            .iter()
+            .enumerate()
+            .find(|(_, f)| f.queue_flags.contains(graphics))
+            .or_else(|| families.iter().enumerate().find(|(_, f)| compute(f)))
+            .ok_or("no queue family has compute")?,
+    };
+    let raster_missing = if !family_props.queue_flags.contains(graphics) {
+        Some("no queue family of this device has graphics beside compute".to_string())
+    } else if !depth_clamp {
+        Some("this device has no depthClamp (a directional light's map clamps casters in front of its depth range)".to_string())
+    } else {
+        None
+    };
+    let (rank, kind) = device_kind(props.device_type);
+    let name = props
+        .device_name_as_c_str()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|_| "unnamed device".into());
+    Ok(Candidate {
+        physical,
+        queue_family: family as u32,
+        raster_missing,
+        depth_clamp,
+        rank,
+        info: DeviceInfo {
+            index: 0,
+            name,
+            kind: kind.into(),
+            api_version: format!(
+                "{}.{}.{}",
+                vk::api_version_major(props.api_version),
+                vk::api_version_minor(props.api_version),
+                vk::api_version_patch(props.api_version)
+            ),
+            max_storage_buffer_range: props.limits.max_storage_buffer_range,
+            max_compute_work_group_count: props.limits.max_compute_work_group_count,
+        },
+        limits: props.limits,
+        timestamps: family_props.timestamp_valid_bits > 0 && props.limits.timestamp_period > 0.0,
+    })
 }

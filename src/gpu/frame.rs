@@ -102,6 +102,30 @@ impl GpuRenderer {
         })
     }
 
+    /// The pipelines on the host's device ([`GpuContext::on_host_device`]):
+    /// what a [`super::shadow_pass::ShadowPass`] inside the host's frame
+    /// needs. The baselines' raster passes are not built there.
+    ///
+    /// # Safety
+    /// As [`GpuContext::on_host_device`].
+    pub unsafe fn on_host_device(host: super::host_device::HostDevice) -> Result<Self, GpuError> {
+        // SAFETY: the caller's promise.
+        let context = unsafe { GpuContext::on_host_device(host) }?;
+        let layout = BindingLayout::new(&context.shared)?;
+        let kernels = Kernels::new(&context.shared, &layout)?;
+        let why = context.shared.raster_missing.clone().unwrap_or_default();
+        Ok(GpuRenderer {
+            kernels,
+            raster: Err(format!("shadow maps: {why}")),
+            volume_raster: Err(format!("shadow volumes: {why}")),
+            layout,
+            heavy_entries: heavy_entries(context.info(), None),
+            context,
+            timed_repeats: 1,
+            read_back_maps: false,
+        })
+    }
+
     /// For timing: every frame runs its passes `repeats` times in one
     /// submission and reports the median of the repetitions after the
     /// first. An idle GPU lowers its clocks between frames (an H200 idles

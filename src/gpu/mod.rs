@@ -37,6 +37,7 @@ pub mod frame_inputs;
 pub mod frame_memory;
 pub mod frame_report;
 pub mod gbuffer;
+pub mod host_device;
 pub mod host_images;
 mod izb_frame;
 pub mod light_setup;
@@ -54,6 +55,7 @@ pub mod shared;
 mod timestamps;
 pub mod translate_vertices;
 mod validation_messages;
+pub mod visibility_raster;
 
 pub use context::{list_devices, DeviceInfo, GpuContext, GpuOptions};
 pub use frame::{GBufferSource, GpuRenderer};
@@ -134,7 +136,7 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 32] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 34] = [
     ("gbuffer", spirv!("gbuffer")),
     ("translate_vertices", spirv!("translate_vertices")),
     ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
@@ -167,6 +169,8 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 32] = [
     ("volume_depth", spirv!("volume_depth")),
     ("volume_lookup", spirv!("volume_lookup")),
     ("shadow_rays", spirv!("shadow_rays")),
+    ("visibility_raster_vert", spirv!("visibility_raster_vert")),
+    ("visibility_raster_frag", spirv!("visibility_raster_frag")),
 ];
 
 /// The compiled pipelines of every pass.

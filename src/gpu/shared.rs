@@ -5,7 +5,7 @@
 
 pub use izb_contract::{
     binding, counter, host_image, mode, BvhNode, CascadeGrid, FrameParams, GpuTriangle,
-    GpuTriangleCorners, LightState,
+    GpuTriangleCorners, LightState, VisibilityView,
 };
 
 /// Number of descriptor bindings.

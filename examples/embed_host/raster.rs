@@ -1,0 +1,396 @@
+//! The host's visibility-buffer pass on the rasteriser, as an engine
+//! draws one: its own render pass, pipeline and framebuffers over images
+//! it owns, the scene's triangles from its own vertex and index buffers,
+//! drawn with izb's visibility shaders and push constants
+//! (`izb::gpu::visibility_raster`). The colour attachment is left in
+//! `COLOR_ATTACHMENT_OPTIMAL`, written at `COLOR_ATTACHMENT_OUTPUT`: what
+//! the host declares to the shadow pass.
+
+use crate::host_device::HostGpu;
+use ash::vk;
+use gpu_allocator::vulkan::Allocation;
+use gpu_allocator::MemoryLocation;
+use izb::gpu::visibility_raster::{VisibilityView, FRAGMENT_SPIRV, VERTEX_SPIRV};
+
+/// An image of the host's with its view and memory.
+pub struct OwnedImage {
+    pub image: vk::Image,
+    pub view: vk::ImageView,
+    pub format: vk::Format,
+    pub usage: vk::ImageUsageFlags,
+    allocation: Option<Allocation>,
+}
+
+impl OwnedImage {
+    pub fn new(
+        gpu: &HostGpu,
+        name: &str,
+        extent: [u32; 2],
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+    ) -> Self {
+        let aspect = if format == vk::Format::D32_SFLOAT {
+            vk::ImageAspectFlags::DEPTH
+        } else {
+            vk::ImageAspectFlags::COLOR
+        };
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D {
+                width: extent[0],
+                height: extent[1],
+                depth: 1,
+            })
+            .mip_levels(1)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        let device = &gpu.device;
+        // SAFETY: `info` is complete; the image is destroyed in `destroy`.
+        let image = unsafe { device.create_image(&info, None) }.expect("an image");
+        // SAFETY: `image` is live.
+        let requirements = unsafe { device.get_image_memory_requirements(image) };
+        let allocation = gpu.allocate(name, requirements, MemoryLocation::GpuOnly, false);
+        // SAFETY: fresh memory of the image's requirements, bound once.
+        unsafe { device.bind_image_memory(image, allocation.memory(), allocation.offset()) }
+            .expect("image memory");
+        let view_info = vk::ImageViewCreateInfo::default()
+            .image(image)
+            .view_type(vk::ImageViewType::TYPE_2D)
+            .format(format)
+            .subresource_range(whole(aspect));
+        // SAFETY: `image` is live and bound.
+        let view = unsafe { device.create_image_view(&view_info, None) }.expect("a view");
+        OwnedImage {
+            image,
+            view,
+            format,
+            usage,
+            allocation: Some(allocation),
+        }
+    }
+
+    /// Frees the image; no work that uses it is executing.
+    pub fn destroy(&mut self, gpu: &HostGpu) {
+        // SAFETY: the caller's promise; each handle is destroyed once.
+        unsafe {
+            gpu.device.destroy_image_view(self.view, None);
+            gpu.device.destroy_image(self.image, None);
+        }
+        if let Some(a) = self.allocation.take() {
+            gpu.free(a);
+        }
+    }
+}
+
+/// A colour or depth image's whole subresource range.
+pub fn whole(aspect: vk::ImageAspectFlags) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange::default()
+        .aspect_mask(aspect)
+        .level_count(1)
+        .layer_count(1)
+}
+
+/// A buffer of the host's with its memory (host-visible when `mapped`).
+pub struct OwnedBuffer {
+    pub buffer: vk::Buffer,
+    allocation: Option<Allocation>,
+}
+
+impl OwnedBuffer {
+    pub fn new(gpu: &HostGpu, name: &str, size: u64, usage: vk::BufferUsageFlags) -> Self {
+        let info = vk::BufferCreateInfo::default().size(size).usage(usage);
+        // SAFETY: `info` is complete; destroyed in `destroy`.
+        let buffer = unsafe { gpu.device.create_buffer(&info, None) }.expect("a buffer");
+        // SAFETY: `buffer` is live.
+        let requirements = unsafe { gpu.device.get_buffer_memory_requirements(buffer) };
+        let allocation = gpu.allocate(name, requirements, MemoryLocation::CpuToGpu, true);
+        // SAFETY: fresh memory of the buffer's requirements, bound once.
+        unsafe {
+            gpu.device
+                .bind_buffer_memory(buffer, allocation.memory(), allocation.offset())
+        }
+        .expect("buffer memory");
+        OwnedBuffer {
+            buffer,
+            allocation: Some(allocation),
+        }
+    }
+
+    /// The buffer's mapped bytes.
+    pub fn bytes(&mut self) -> &mut [u8] {
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .expect("a mapped buffer")
+    }
+
+    /// Frees the buffer; no work that uses it is executing.
+    pub fn destroy(&mut self, gpu: &HostGpu) {
+        // SAFETY: the caller's promise.
+        unsafe { gpu.device.destroy_buffer(self.buffer, None) };
+        if let Some(a) = self.allocation.take() {
+            gpu.free(a);
+        }
+    }
+}
+
+/// The visibility pass: a render pass with an `R32_UINT` colour and a
+/// `D32_SFLOAT` depth attachment (reverse Z), its pipeline, and one
+/// framebuffer per frame slot.
+pub struct VisibilityRaster {
+    render_pass: vk::RenderPass,
+    layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+    framebuffers: Vec<vk::Framebuffer>,
+    extent: [u32; 2],
+}
+
+impl VisibilityRaster {
+    /// The pass drawing into `targets`' (visibility, depth) pairs.
+    pub fn new(gpu: &HostGpu, extent: [u32; 2], targets: &[(&OwnedImage, &OwnedImage)]) -> Self {
+        let device = &gpu.device;
+        let attachments = [
+            vk::AttachmentDescription::default()
+                .format(vk::Format::R32_UINT)
+                .samples(vk::SampleCountFlags::TYPE_1)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .initial_layout(vk::ImageLayout::UNDEFINED)
+                .final_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL),
+            vk::AttachmentDescription::default()
+                .format(vk::Format::D32_SFLOAT)
+                .samples(vk::SampleCountFlags::TYPE_1)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::DONT_CARE)
+                .initial_layout(vk::ImageLayout::UNDEFINED)
+                .final_layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
+        ];
+        let colour = [vk::AttachmentReference::default()
+            .attachment(0)
+            .layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)];
+        let depth = vk::AttachmentReference::default()
+            .attachment(1)
+            .layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL);
+        let subpass = [vk::SubpassDescription::default()
+            .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+            .color_attachments(&colour)
+            .depth_stencil_attachment(&depth)];
+        // The previous frame's shadow pass read the colour attachment in
+        // compute shaders (the frame before on this slot, and the barrier
+        // at the pass's start orders nothing before the clear): wait for
+        // those reads before writing; depth's own previous writes too.
+        let dependencies = [vk::SubpassDependency::default()
+            .src_subpass(vk::SUBPASS_EXTERNAL)
+            .dst_subpass(0)
+            .src_stage_mask(
+                vk::PipelineStageFlags::COMPUTE_SHADER
+                    | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS
+                    | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            )
+            .src_access_mask(
+                vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE
+                    | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            )
+            .dst_stage_mask(
+                vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS
+                    | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            )
+            .dst_access_mask(
+                vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE
+                    | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+                    | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            )];
+        let info = vk::RenderPassCreateInfo::default()
+            .attachments(&attachments)
+            .subpasses(&subpass)
+            .dependencies(&dependencies);
+        // SAFETY: `info` and its arrays outlive the call.
+        let render_pass = unsafe { device.create_render_pass(&info, None) }.expect("render pass");
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
+            .size(size_of::<VisibilityView>() as u32)];
+        let layout_info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
+        // SAFETY: as above.
+        let layout = unsafe { device.create_pipeline_layout(&layout_info, None) }.expect("layout");
+        let pipeline = pipeline(gpu, render_pass, layout, extent);
+        let framebuffers = targets
+            .iter()
+            .map(|(visibility, depth)| {
+                let views = [visibility.view, depth.view];
+                let info = vk::FramebufferCreateInfo::default()
+                    .render_pass(render_pass)
+                    .attachments(&views)
+                    .width(extent[0])
+                    .height(extent[1])
+                    .layers(1);
+                // SAFETY: the views are live and match the attachments.
+                unsafe { device.create_framebuffer(&info, None) }.expect("framebuffer")
+            })
+            .collect();
+        VisibilityRaster {
+            render_pass,
+            layout,
+            pipeline,
+            framebuffers,
+            extent,
+        }
+    }
+
+    /// Records the draw of `triangles` indexed triangles into slot
+    /// `slot`'s targets.
+    ///
+    /// # Safety
+    /// `cmd` is recording; the buffers and the slot's images are live
+    /// until it has executed, and the slot's previous frame is done.
+    pub unsafe fn record(
+        &self,
+        gpu: &HostGpu,
+        cmd: vk::CommandBuffer,
+        slot: usize,
+        (vertices, indices, triangles): (vk::Buffer, vk::Buffer, u32),
+        view: &VisibilityView,
+    ) {
+        let clear = [
+            vk::ClearValue {
+                color: vk::ClearColorValue {
+                    uint32: [u32::MAX; 4],
+                },
+            },
+            vk::ClearValue {
+                depth_stencil: vk::ClearDepthStencilValue {
+                    depth: 0.0,
+                    stencil: 0,
+                },
+            },
+        ];
+        let begin = vk::RenderPassBeginInfo::default()
+            .render_pass(self.render_pass)
+            .framebuffer(self.framebuffers[slot])
+            .render_area(vk::Rect2D::default().extent(vk::Extent2D {
+                width: self.extent[0],
+                height: self.extent[1],
+            }))
+            .clear_values(&clear);
+        let d = &gpu.device;
+        let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+        // SAFETY: the caller's promise; every handle is live.
+        unsafe {
+            d.cmd_begin_render_pass(cmd, &begin, vk::SubpassContents::INLINE);
+            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+            d.cmd_push_constants(cmd, self.layout, stages, 0, bytemuck::bytes_of(view));
+            d.cmd_bind_vertex_buffers(cmd, 0, &[vertices], &[0]);
+            d.cmd_bind_index_buffer(cmd, indices, 0, vk::IndexType::UINT32);
+            d.cmd_draw_indexed(cmd, triangles * 3, 1, 0, 0, 0);
+            d.cmd_end_render_pass(cmd);
+        }
+    }
+
+    /// Frees the pass; no work that uses it is executing.
+    pub fn destroy(&mut self, gpu: &HostGpu) {
+        let d = &gpu.device;
+        // SAFETY: the caller's promise; each handle is destroyed once.
+        unsafe {
+            for f in self.framebuffers.drain(..) {
+                d.destroy_framebuffer(f, None);
+            }
+            d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline_layout(self.layout, None);
+            d.destroy_render_pass(self.render_pass, None);
+        }
+    }
+}
+
+/// The graphics pipeline: positions at location 0, no culling (the pass
+/// shadow-tests back faces too: it flips their normal), depth `GREATER`.
+fn pipeline(
+    gpu: &HostGpu,
+    render_pass: vk::RenderPass,
+    layout: vk::PipelineLayout,
+    extent: [u32; 2],
+) -> vk::Pipeline {
+    let d = &gpu.device;
+    let module = |bytes: &[u8]| {
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).expect("SPIR-V");
+        let info = vk::ShaderModuleCreateInfo::default().code(&words);
+        // SAFETY: `words` is whole SPIR-V compiled by izb's build script.
+        unsafe { d.create_shader_module(&info, None) }.expect("shader module")
+    };
+    let (vert, frag) = (module(VERTEX_SPIRV), module(FRAGMENT_SPIRV));
+    let stages = [
+        vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::VERTEX)
+            .module(vert)
+            .name(c"main"),
+        vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::FRAGMENT)
+            .module(frag)
+            .name(c"main"),
+    ];
+    let bindings = [vk::VertexInputBindingDescription::default()
+        .binding(0)
+        .stride(12)
+        .input_rate(vk::VertexInputRate::VERTEX)];
+    let attributes = [vk::VertexInputAttributeDescription::default()
+        .location(0)
+        .binding(0)
+        .format(vk::Format::R32G32B32_SFLOAT)];
+    let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+        .vertex_binding_descriptions(&bindings)
+        .vertex_attribute_descriptions(&attributes);
+    let assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+        .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+    let viewports = [vk::Viewport {
+        x: 0.0,
+        y: 0.0,
+        width: extent[0] as f32,
+        height: extent[1] as f32,
+        min_depth: 0.0,
+        max_depth: 1.0,
+    }];
+    let scissors = [vk::Rect2D::default().extent(vk::Extent2D {
+        width: extent[0],
+        height: extent[1],
+    })];
+    let viewport = vk::PipelineViewportStateCreateInfo::default()
+        .viewports(&viewports)
+        .scissors(&scissors);
+    let raster = vk::PipelineRasterizationStateCreateInfo::default()
+        .polygon_mode(vk::PolygonMode::FILL)
+        .cull_mode(vk::CullModeFlags::NONE)
+        .line_width(1.0);
+    let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+        .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+    let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+        .depth_test_enable(true)
+        .depth_write_enable(true)
+        .depth_compare_op(vk::CompareOp::GREATER);
+    let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
+        .color_write_mask(vk::ColorComponentFlags::R)];
+    let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
+    let info = [vk::GraphicsPipelineCreateInfo::default()
+        .stages(&stages)
+        .vertex_input_state(&vertex_input)
+        .input_assembly_state(&assembly)
+        .viewport_state(&viewport)
+        .rasterization_state(&raster)
+        .multisample_state(&multisample)
+        .depth_stencil_state(&depth)
+        .color_blend_state(&blend)
+        .layout(layout)
+        .render_pass(render_pass)
+        .subpass(0)];
+    // SAFETY: every state the info points to outlives the call.
+    let pipeline = unsafe { d.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) }
+        .map_err(|(_, e)| e)
+        .expect("the visibility pipeline")[0];
+    // SAFETY: the pipeline holds what it needs of the modules.
+    unsafe {
+        d.destroy_shader_module(vert, None);
+        d.destroy_shader_module(frag, None);
+    }
+    pipeline
+}

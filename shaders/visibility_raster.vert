@@ -1,0 +1,22 @@
+#version 460
+// Host helper `visibility_raster` — the vertex shader of a minimal
+// visibility-buffer pass (Burns and Hunt 2013) for a host that has none:
+// positions from the host's vertex buffer (location 0, three floats,
+// relative to the origin of `view.eye`), a pinhole camera whose pixel
+// centres see exactly the rays of `izb::scene::CameraFrame::direction`,
+// reverse Z with a finite far plane, so the near and far planes clip as
+// the ray cast's [near, far] view depths do. Its fragment shader writes
+// the triangle id the shadow pass reads (`GBufferInput::Visibility`).
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_scalar_block_layout : require
+#include "contract.glsl"
+
+layout(location = 0) in vec3 position;
+layout(push_constant, scalar) uniform ViewBlock { VisibilityView view; };
+
+void main() {
+    vec3 q = position - view.eye;
+    float depth = dot(q, view.forward);
+    gl_Position = vec4(dot(q, view.right), dot(q, view.down),
+                       view.depth_offset + view.depth_scale * depth, depth);
+}

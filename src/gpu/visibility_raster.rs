@@ -1,0 +1,102 @@
+//! A minimal visibility-buffer pass (Burns and Hunt 2013) for a host that
+//! has none, and the one the host example and its tests draw: the
+//! shaders (`visibility_raster.vert` / `.frag`) and their push constants
+//! ([`VisibilityView`]) from a [`Camera`]. The host builds the pipeline
+//! in its own render pass (vertex input: location 0, three `f32`s;
+//! colour attachment 0: `R32_UINT`, cleared to `0xFFFFFFFF`; a depth
+//! attachment cleared to 0 and tested with `GREATER`: reverse Z; push
+//! constants: one [`VisibilityView`] for the vertex and fragment stages;
+//! the `geometryShader` feature, for `gl_PrimitiveID`), and draws the
+//! scene's triangles in the scene's order — the image it leaves is what
+//! [`super::shadow_pass::GBufferInput::Visibility`] reads.
+//!
+//! Why the projection is built here and not by the host: the pass derives
+//! each pixel's surface from the ray through its centre
+//! ([`crate::scene::CameraFrame::direction`]); a projection made from the
+//! same frame puts the rasteriser's sample on that ray, so the triangle
+//! covering the sample is the one the ray meets first (up to the
+//! rasteriser's edge rules and depth rounding).
+
+pub use super::shared::VisibilityView;
+use crate::scene::Camera;
+use glam::DVec3;
+
+/// The vertex shader's SPIR-V.
+pub const VERTEX_SPIRV: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/visibility_raster_vert.spv"));
+/// The fragment shader's SPIR-V.
+pub const FRAGMENT_SPIRV: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/visibility_raster_frag.spv"));
+
+/// The push constants that draw `camera`'s view of an image of
+/// `resolution` pixels, for vertices relative to `origin` (subtracted in
+/// f64 before the rounding to f32, so a far origin costs no precision),
+/// with triangle ids from `first_triangle` on.
+pub fn visibility_view(
+    camera: &Camera,
+    resolution: [u32; 2],
+    origin: DVec3,
+    first_triangle: u32,
+) -> VisibilityView {
+    let frame = camera.frame(resolution);
+    let f32s = |v: DVec3| v.as_vec3().to_array();
+    // Clip z = near · (far − d) / (far − near): z / w is 1 at d = near
+    // and 0 at d = far.
+    let span = camera.far - camera.near;
+    VisibilityView {
+        eye: f32s(camera.eye - origin),
+        depth_offset: (camera.near * camera.far / span) as f32,
+        right: f32s(frame.right / (frame.tan_half_fov * frame.aspect)),
+        first_triangle,
+        down: f32s(-frame.up / frame.tan_half_fov),
+        depth_scale: (-camera.near / span) as f32,
+        forward: f32s(frame.forward),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point on the ray through a pixel's centre projects onto that
+    /// centre, at depth 1 on the near plane and 0 on the far.
+    #[test]
+    fn pixel_centre_rays_project_onto_their_pixels() {
+        let camera = Camera {
+            eye: DVec3::new(1.0, 2.0, 3.0),
+            target: DVec3::new(-4.0, 0.5, 7.0),
+            up: DVec3::Y,
+            fov_y_deg: 50.0,
+            near: 0.1,
+            far: 300.0,
+        };
+        let resolution = [64, 36];
+        let frame = camera.frame(resolution);
+        let origin = DVec3::new(0.5, -1.0, 2.0);
+        let view = visibility_view(&camera, resolution, origin, 0);
+        let d = |v: [f32; 3]| DVec3::from(v.map(f64::from));
+        let mut checked = 0;
+        for (x, y) in [(0, 0), (63, 35), (17, 30), (40, 3)] {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let dir = frame.direction(px, py);
+            for t in [camera.near, 5.0, camera.far] {
+                let q = dir * t;
+                let w = q.dot(d(view.forward));
+                let sx = (q.dot(d(view.right)) / w + 1.0) * 0.5 * resolution[0] as f64;
+                let sy = (q.dot(d(view.down)) / w + 1.0) * 0.5 * resolution[1] as f64;
+                let z = (view.depth_offset as f64 + view.depth_scale as f64 * w) / w;
+                assert!((sx - px).abs() < 1e-4 && (sy - py).abs() < 1e-4, "{x},{y}");
+                let want = if t == camera.near {
+                    1.0
+                } else if t == camera.far {
+                    0.0
+                } else {
+                    z
+                };
+                assert!((z - want).abs() < 1e-5, "{x},{y} depth {z}");
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 12);
+    }
+}
