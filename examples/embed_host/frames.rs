@@ -27,6 +27,8 @@ pub struct HostOptions {
     pub mode: SampleMode,
     /// Entries of the pass's cell list (`None`: its default).
     pub cell_capacity: Option<u64>,
+    /// Evaluate's heavy-step threshold (`None`: the device's default).
+    pub heavy_entries: Option<u32>,
 }
 
 /// What a run measured, and its last frame read back after the loop.
@@ -48,8 +50,9 @@ pub struct HostRun {
     /// Frames whose status said the cell list overran (the pass grew
     /// before the slot's next frame).
     pub overruns: usize,
-    /// Loop-cap trips summed over the frames (lavapipe).
-    pub loop_cap_trips: u32,
+    /// Frames a shader stopped at lavapipe's loop cap in (their masks
+    /// are cut short), with the trips.
+    pub loop_capped_frames: Vec<(usize, u32)>,
     pub validation_messages: Vec<String>,
     /// The last frame's view (not serialised).
     #[serde(skip)]
@@ -63,7 +66,8 @@ pub struct HostRun {
 }
 
 /// Frame `k`'s view: the eye orbits the target by 0.5° a frame and the
-/// light turns by 2° a frame, both about the camera's up axis.
+/// light turns by 2° a frame (a point light about the target), both about
+/// the camera's up axis.
 pub fn view_at(scene: &Scene, k: usize) -> FrameView {
     let up = scene.camera.up.normalize();
     let light_turn = DMat3::from_axis_angle(up, (2.0 * k as f64).to_radians());
@@ -73,7 +77,7 @@ pub fn view_at(scene: &Scene, k: usize) -> FrameView {
             direction: light_turn * direction,
         },
         Light::Point { position } => Light::Point {
-            position: light_turn * position,
+            position: scene.camera.target + light_turn * (position - scene.camera.target),
         },
     };
     let mut camera = scene.camera;
@@ -122,8 +126,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     // and a queue of `gpu.family` behind `gpu.queue`, which this host
     // submits under; the renderer and pass are dropped (end of this
     // function, after the idle wait) before the device.
-    let renderer =
-        unsafe { GpuRenderer::on_host_device(gpu.host_device()) }.map_err(|e| e.to_string())?;
+    let renderer = unsafe { GpuRenderer::on_host_device(gpu.host_device(), options.heavy_entries) }
+        .map_err(|e| e.to_string())?;
     let settings = pass_settings(options.mode);
     let config = ShadowPassConfig {
         settings,
@@ -204,7 +208,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         record_us: Vec::new(),
         frame_cpu_us: Vec::new(),
         overruns: 0,
-        loop_cap_trips: 0,
+        loop_capped_frames: Vec::new(),
         validation_messages: Vec::new(),
         last_view: None,
         last_ids: Vec::new(),
@@ -212,104 +216,111 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     };
     let mut after_first = [0; 2];
     let mut slot_used = vec![false; options.frames_in_flight];
-    let mut failure = None;
-    for k in 0..options.frames {
-        let slot = k % options.frames_in_flight;
-        // The host's own wait: the frame that last used this slot.
-        // SAFETY: the fence is live.
-        unsafe { d.wait_for_fences(&[fences[slot]], true, u64::MAX) }.map_err(|e| e.to_string())?;
-        if slot_used[slot] {
-            // SAFETY: the slot's frame is done (its fence) and none runs.
-            let status = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
-            note_status(&mut run, &status);
-            pass.grow(&status).map_err(|e| e.to_string())?;
-        }
-        let start = Instant::now();
-        let images = &slots[slot];
-        let mut view = view_at(scene, k);
-        let output_layout = if slot_used[slot] {
-            vk::ImageLayout::GENERAL
-        } else {
-            vk::ImageLayout::UNDEFINED
-        };
-        let compute_write = (
-            vk::PipelineStageFlags::COMPUTE_SHADER,
-            vk::AccessFlags::SHADER_WRITE,
-        );
-        view.images = FrameImages {
-            visibility: Some(declared(
-                &images.visibility,
-                extent,
-                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                (
-                    vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
-                    vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
-                ),
-            )),
-            masks: Some(declared(
-                &images.masks,
-                extent,
-                output_layout,
-                compute_write,
-            )),
-            lit_fraction: Some(declared(&images.lit, extent, output_layout, compute_write)),
-        };
-        let cmd = cmds[slot];
-        let begin = vk::CommandBufferBeginInfo::default()
-            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: the slot's previous submission is done (its fence), so
-        // its command buffer may be reset and recorded again.
-        unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
-        let push = visibility_view(&view.camera, extent, origin, 0);
-        let mesh = (
-            vertex_buffer.buffer,
-            index_buffer.buffer,
-            scene.triangles.len() as u32,
-        );
-        // SAFETY: `cmd` is recording; the buffers and the slot's images
-        // live until after the loop's idle wait; the slot's last frame is
-        // done.
-        unsafe { raster.record(gpu, cmd, slot, mesh, &push) };
-        let before = renderer.context.shared.allocations();
-        let recorded = Instant::now();
-        // SAFETY: `cmd` records on this thread and is submitted below to
-        // the pass's queue after every earlier frame; the slot's previous
-        // frame is done (its fence); the pass and the images outlive the
-        // frame (the idle wait below comes before any is dropped).
-        let result = unsafe { pass.record(cmd, slot, &view) };
-        run.record_us.push(recorded.elapsed().as_secs_f64() * 1e6);
-        let made = renderer.context.shared.allocations();
-        if k > 0 {
-            for i in 0..2 {
-                after_first[i] += made[i] - before[i];
+    // Every frame's error ends the loop; the waits and releases below run
+    // either way (nothing is dropped under executing work).
+    let mut frames = || -> Result<(), String> {
+        for k in 0..options.frames {
+            let slot = k % options.frames_in_flight;
+            // The host's own wait: the frame that last used this slot.
+            // SAFETY: the fence is live.
+            unsafe { d.wait_for_fences(&[fences[slot]], true, u64::MAX) }
+                .map_err(|e| e.to_string())?;
+            if slot_used[slot] {
+                // SAFETY: the slot's frame is done (its fence) and none runs.
+                let status = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
+                note_status(&mut run, &status, k - options.frames_in_flight);
+                pass.grow(&status).map_err(|e| e.to_string())?;
             }
+            let start = Instant::now();
+            let images = &slots[slot];
+            let mut view = view_at(scene, k);
+            let output_layout = if slot_used[slot] {
+                vk::ImageLayout::GENERAL
+            } else {
+                vk::ImageLayout::UNDEFINED
+            };
+            let compute_write = (
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::AccessFlags::SHADER_WRITE,
+            );
+            view.images = FrameImages {
+                visibility: Some(declared(
+                    &images.visibility,
+                    extent,
+                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                    (
+                        vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+                        vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                    ),
+                )),
+                masks: Some(declared(
+                    &images.masks,
+                    extent,
+                    output_layout,
+                    compute_write,
+                )),
+                lit_fraction: Some(declared(&images.lit, extent, output_layout, compute_write)),
+            };
+            let cmd = cmds[slot];
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            // SAFETY: the slot's previous submission is done (its fence), so
+            // its command buffer may be reset and recorded again.
+            unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
+            let push = visibility_view(&view.camera, extent, origin, 0);
+            let mesh = (
+                vertex_buffer.buffer,
+                index_buffer.buffer,
+                scene.triangles.len() as u32,
+            );
+            // SAFETY: `cmd` is recording; the buffers and the slot's images
+            // live until after the loop's idle wait; the slot's last frame is
+            // done.
+            unsafe { raster.record(gpu, cmd, slot, mesh, &push) };
+            let before = renderer.context.shared.allocations();
+            let recorded = Instant::now();
+            // SAFETY: `cmd` records on this thread and is submitted below to
+            // the pass's queue after every earlier frame; the slot's previous
+            // frame is done (its fence); the pass and the images outlive the
+            // frame (the idle wait below comes before any is dropped).
+            let result = unsafe { pass.record(cmd, slot, &view) };
+            run.record_us.push(recorded.elapsed().as_secs_f64() * 1e6);
+            let made = renderer.context.shared.allocations();
+            if k > 0 {
+                for i in 0..2 {
+                    after_first[i] += made[i] - before[i];
+                }
+            }
+            // SAFETY: `cmd` is recording.
+            unsafe { d.end_command_buffer(cmd) }.map_err(|e| e.to_string())?;
+            // A refused frame submits nothing: the slot stays as it was.
+            result.map_err(|e| e.to_string())?;
+            // SAFETY: the fence is live and signalled (waited above).
+            unsafe { d.reset_fences(&[fences[slot]]) }.map_err(|e| e.to_string())?;
+            let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
+            let queue = gpu.queue.lock().unwrap();
+            // SAFETY: the queue is used under its lock; `cmd` is executable.
+            unsafe { d.queue_submit(*queue, &submit, fences[slot]) }.map_err(|e| e.to_string())?;
+            drop(queue);
+            run.frame_cpu_us.push(start.elapsed().as_secs_f64() * 1e6);
+            slot_used[slot] = true;
+            run.last_view = Some(view);
         }
-        // SAFETY: `cmd` is recording.
-        unsafe { d.end_command_buffer(cmd) }.map_err(|e| e.to_string())?;
-        if let Err(e) = result {
-            // Nothing was submitted: the slot stays as it was.
-            failure = Some(e.to_string());
-            break;
-        }
-        // SAFETY: the fence is live and signalled (waited above).
-        unsafe { d.reset_fences(&[fences[slot]]) }.map_err(|e| e.to_string())?;
-        let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
-        let queue = gpu.queue.lock().unwrap();
-        // SAFETY: the queue is used under its lock; `cmd` is executable.
-        unsafe { d.queue_submit(*queue, &submit, fences[slot]) }.map_err(|e| e.to_string())?;
-        drop(queue);
-        run.frame_cpu_us.push(start.elapsed().as_secs_f64() * 1e6);
-        slot_used[slot] = true;
-        run.last_view = Some(view);
-    }
+        Ok(())
+    };
+    let mut failure = frames().err();
     // After the loop: wait for everything, read the remaining statuses and
     // the last frame's images back (outside the frames: a test's check).
     // SAFETY: the fences are live.
-    unsafe { d.wait_for_fences(&fences, true, u64::MAX) }.map_err(|e| e.to_string())?;
-    for slot in (0..options.frames_in_flight).filter(|&s| slot_used[s]) {
+    let waited = unsafe { d.wait_for_fences(&fences, true, u64::MAX) };
+    waited.expect("the host's frames end");
+    let submitted = run.frame_cpu_us.len();
+    for frame in submitted.saturating_sub(options.frames_in_flight)..submitted {
         // SAFETY: every frame is done.
-        let status = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
-        note_status(&mut run, &status);
+        match unsafe { pass.status(frame % options.frames_in_flight) } {
+            Ok(status) => note_status(&mut run, &status, frame),
+            Err(e) => failure = Some(e.to_string()),
+        }
     }
     run.allocations_after_first_frame = after_first;
     if failure.is_none() && options.frames > 0 {
@@ -352,30 +363,48 @@ pub fn pass_settings(mode: SampleMode) -> IzbSettings {
     }
 }
 
-/// Of the last frame's pixels `izb render` shadow-tests in the same view
-/// (on the CPU, its twin, with its own ray-cast G-buffer), how many the
-/// host's masks equal, and how many there are.
-pub fn agreement_with_render(scene: &Scene, run: &HostRun, mode: SampleMode) -> (usize, usize) {
+/// How the last frame's masks compare with `izb render`'s of the same
+/// view (on the CPU, its twin, with its own ray-cast G-buffer), over the
+/// pixels render shadow-tests.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Agreement {
+    /// Pixels render shadow-tests.
+    pub tested: usize,
+    /// Of them, where the host's masks equal render's.
+    pub equal: usize,
+    /// Of them, where the host's rasteriser saw render's triangle.
+    pub same_triangle: usize,
+    /// Of those, where the masks are equal: all of them, bit for bit,
+    /// when the pass is exact.
+    pub same_triangle_equal: usize,
+}
+
+/// The last frame of `run` against `izb render` (see [`Agreement`]).
+pub fn agreement_with_render(scene: &Scene, run: &HostRun, mode: SampleMode) -> Agreement {
     let Some(view) = run.last_view else {
-        return (0, 0);
+        return Agreement::default();
     };
     let mut moved = scene.clone();
     (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
     let bvh = izb::bvh::SceneBvh::build(&moved);
     let render = izb::cpu::render_cpu(&moved, &bvh, pass_settings(mode));
-    let tested: Vec<usize> = (0..render.masks.len())
-        .filter(|&i| !render.visibility[i].is_nan())
-        .collect();
-    let equal = tested
-        .iter()
-        .filter(|&&i| run.last_masks.get(i) == Some(&render.masks[i]))
-        .count();
-    (equal, tested.len())
+    let mut a = Agreement::default();
+    for i in (0..render.masks.len()).filter(|&i| !render.visibility[i].is_nan()) {
+        let equal = run.last_masks.get(i) == Some(&render.masks[i]);
+        let same = run.last_ids.get(i) == Some(&render.gbuffer.triangle_id[i]);
+        a.tested += 1;
+        a.equal += usize::from(equal);
+        a.same_triangle += usize::from(same);
+        a.same_triangle_equal += usize::from(same && equal);
+    }
+    a
 }
 
-fn note_status(run: &mut HostRun, status: &PassStatus) {
+fn note_status(run: &mut HostRun, status: &PassStatus, frame: usize) {
     run.overruns += usize::from(status.cell_list_overrun);
-    run.loop_cap_trips += status.loop_cap_trips;
+    if status.loop_cap_trips != 0 {
+        run.loop_capped_frames.push((frame, status.loop_cap_trips));
+    }
 }
 
 /// `image` as the host declares it to the pass.

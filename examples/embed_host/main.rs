@@ -61,11 +61,15 @@ fn main() -> Result<(), String> {
             frames_in_flight: 2,
             mode: SampleMode::Exact32,
             cell_capacity: None,
+            heavy_entries: std::env::var("IZB_GPU_HEAVY_ENTRIES")
+                .ok()
+                .and_then(|v| v.parse().ok()),
         };
         let result = run(&gpu, &scene, options)?;
-        let (equal, tested) = frames::agreement_with_render(&scene, &result, options.mode);
+        let agreement = frames::agreement_with_render(&scene, &result, options.mode);
         let mut json = serde_json::to_value(&result).map_err(|e| e.to_string())?;
-        json["last_frame_equal_to_render"] = serde_json::json!([equal, tested]);
+        json["last_frame_against_render"] =
+            serde_json::to_value(agreement).map_err(|e| e.to_string())?;
         report.push(json);
     }
     println!(

@@ -108,7 +108,10 @@ impl GpuRenderer {
     ///
     /// # Safety
     /// As [`GpuContext::on_host_device`].
-    pub unsafe fn on_host_device(host: super::host_device::HostDevice) -> Result<Self, GpuError> {
+    pub unsafe fn on_host_device(
+        host: super::host_device::HostDevice,
+        heavy_threshold: Option<u32>,
+    ) -> Result<Self, GpuError> {
         // SAFETY: the caller's promise.
         let context = unsafe { GpuContext::on_host_device(host) }?;
         let layout = BindingLayout::new(&context.shared)?;
@@ -119,7 +122,7 @@ impl GpuRenderer {
             raster: Err(format!("shadow maps: {why}")),
             volume_raster: Err(format!("shadow volumes: {why}")),
             layout,
-            heavy_entries: heavy_entries(context.info(), None),
+            heavy_entries: heavy_entries(context.info(), heavy_threshold),
             context,
             timed_repeats: 1,
             read_back_maps: false,
