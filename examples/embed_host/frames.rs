@@ -47,6 +47,12 @@ pub struct HostRun {
     /// The host's time from the command buffer's begin to its submit,
     /// per frame, µs.
     pub frame_cpu_us: Vec<f64>,
+    /// `record`'s host time with the device idle, µs: the last frame
+    /// recorded again `RECORD_ALONE` times into a command buffer that is
+    /// never submitted. On lavapipe the loop's own `record_us` also pays
+    /// for the device's worker threads running the previous frame on the
+    /// same cores.
+    pub record_alone_us: Vec<f64>,
     /// Frames whose status said the cell list overran (the pass grew
     /// before the slot's next frame).
     pub overruns: usize,
@@ -207,6 +213,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         allocations_after_first_frame: [0; 2],
         record_us: Vec::new(),
         frame_cpu_us: Vec::new(),
+        record_alone_us: Vec::new(),
         overruns: 0,
         loop_capped_frames: Vec::new(),
         validation_messages: Vec::new(),
@@ -323,6 +330,13 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         }
     }
     run.allocations_after_first_frame = after_first;
+    if let (None, Some(view)) = (&failure, run.last_view) {
+        let slot = (options.frames - 1) % options.frames_in_flight;
+        match record_alone(gpu, pool, &mut pass, slot, &view) {
+            Ok(us) => run.record_alone_us = us,
+            Err(e) => failure = Some(e),
+        }
+    }
     if failure.is_none() && options.frames > 0 {
         let last = &slots[(options.frames - 1) % options.frames_in_flight];
         (run.last_ids, run.last_masks) =
@@ -405,6 +419,49 @@ fn note_status(run: &mut HostRun, status: &PassStatus, frame: usize) {
     if status.loop_cap_trips != 0 {
         run.loop_capped_frames.push((frame, status.loop_cap_trips));
     }
+}
+
+/// Recordings of [`HostRun::record_alone_us`].
+const RECORD_ALONE: usize = 100;
+
+/// `record`'s host time with the device idle: `view` recorded into slot
+/// `slot` `RECORD_ALONE` times, each into a fresh recording of one
+/// command buffer that is reset, never submitted.
+fn record_alone(
+    gpu: &HostGpu,
+    pool: vk::CommandPool,
+    pass: &mut ShadowPass,
+    slot: usize,
+    view: &FrameView,
+) -> Result<Vec<f64>, String> {
+    let d = &gpu.device;
+    let alloc = vk::CommandBufferAllocateInfo::default()
+        .command_pool(pool)
+        .level(vk::CommandBufferLevel::PRIMARY)
+        .command_buffer_count(1);
+    // SAFETY: the pool is live and only this thread uses it.
+    let cmd = unsafe { d.allocate_command_buffers(&alloc) }.map_err(|e| e.to_string())?[0];
+    let mut micros = Vec::with_capacity(RECORD_ALONE);
+    for _ in 0..RECORD_ALONE {
+        let begin = vk::CommandBufferBeginInfo::default();
+        // SAFETY: `cmd` is not pending (never submitted); nothing executes
+        // (the caller waited), so the slot's previous frame is done.
+        unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
+        let start = Instant::now();
+        // SAFETY: as above; the recording is never submitted.
+        let recorded = unsafe { pass.record(cmd, slot, view) };
+        micros.push(start.elapsed().as_secs_f64() * 1e6);
+        // SAFETY: `cmd` is recording, then executable and not pending.
+        unsafe {
+            d.end_command_buffer(cmd).map_err(|e| e.to_string())?;
+            d.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
+                .map_err(|e| e.to_string())?;
+        }
+        recorded.map_err(|e| e.to_string())?;
+    }
+    // SAFETY: `cmd` is not pending.
+    unsafe { d.free_command_buffers(pool, &[cmd]) };
+    Ok(micros)
 }
 
 /// `image` as the host declares it to the pass.
