@@ -12,14 +12,19 @@
 
 mod common;
 
+#[path = "../examples/embed_host/after_loop.rs"]
+mod after_loop;
 #[path = "../examples/embed_host/frames.rs"]
 mod frames;
 #[path = "../examples/embed_host/host_device.rs"]
 mod host_device;
 #[path = "../examples/embed_host/raster.rs"]
 mod raster;
+#[path = "../examples/embed_host/targets.rs"]
+mod targets;
 
-use frames::{agreement_with_render, run, HostOptions};
+use after_loop::agreement_with_render;
+use frames::{run, HostOptions};
 use izb::cpu::SampleMode;
 
 /// The image size: the pass's cost on lavapipe is mostly per frame and
@@ -63,6 +68,7 @@ fn the_host_records_the_pass_into_its_own_frames() {
             mode: SampleMode::Exact32,
             cell_capacity: None,
             heavy_entries: *heavy_entries,
+            resize: None,
         };
         let result = run(&gpu, &scene, options).unwrap();
         let a = agreement_with_render(&scene, &result, options.mode);
@@ -113,4 +119,62 @@ fn median(v: &[f64]) -> f64 {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// The host's window changes size between frames: it waits for its
+/// frames, makes its targets anew and calls `ShadowPass::resize`, which
+/// makes the per-pixel buffers and one descriptor set; the frames after it
+/// allocate nothing, and their masks equal `izb render`'s at the new size.
+#[test]
+fn the_pass_follows_a_resized_host() {
+    let validation = std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1");
+    let gpu = match host_device::HostGpu::new(validation) {
+        Ok(gpu) => gpu,
+        Err(e) if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("IZB_REQUIRE_GPU=1 but the host's device did not open: {e}")
+        }
+        Err(e) => return eprintln!("skipped (no Vulkan device: {e})"),
+    };
+    let scene = izb::scene::load("default")
+        .unwrap()
+        .with_resolution(RESOLUTION)
+        .unwrap();
+    let mut checked = 0;
+    // Larger, then smaller than the first size; odd sizes cross the 8×8
+    // tiles.
+    for size in [[83, 47], [40, 22]] {
+        let options = HostOptions {
+            frames: 6,
+            frames_in_flight: 2,
+            mode: SampleMode::Exact32,
+            cell_capacity: None,
+            heavy_entries: None,
+            resize: Some((3, size)),
+        };
+        let result = run(&gpu, &scene, options).unwrap();
+        let a = agreement_with_render(&scene, &result, options.mode);
+        println!(
+            "resized to {size:?}: {:?}, against render {a:?}",
+            result.resize_allocations
+        );
+        assert_eq!(result.resolution, size);
+        assert_eq!(result.allocations_after_first_frame, [0, 0]);
+        assert!(
+            result.resize_allocations[0] > 0,
+            "{:?}",
+            result.resize_allocations
+        );
+        assert_eq!(result.resize_allocations[1], 1, "one descriptor set");
+        assert!(
+            result.validation_messages.is_empty(),
+            "{:?}",
+            result.validation_messages
+        );
+        assert!(result.loop_capped_frames.is_empty());
+        assert!(a.tested > 0);
+        assert_eq!(a.same_triangle_equal, a.same_triangle, "{a:?}");
+        assert!((a.tested - a.equal) * 1000 <= a.tested, "{a:?}");
+        checked += 1;
+    }
+    assert_eq!(checked, 2);
 }

@@ -6,8 +6,10 @@
 //! izb's is made, uploaded or read back inside the loop; izb's buffer and
 //! descriptor-set counters say so.
 
+use crate::after_loop::{read_back, record_alone};
 use crate::host_device::HostGpu;
-use crate::raster::{whole, OwnedBuffer, OwnedImage, VisibilityRaster};
+use crate::raster::{OwnedBuffer, OwnedImage};
+use crate::targets::Targets;
 use ash::vk;
 use glam::{DMat3, DVec3, Vec3};
 use izb::cpu::{IzbSettings, SampleMode};
@@ -29,6 +31,8 @@ pub struct HostOptions {
     pub cell_capacity: Option<u64>,
     /// Evaluate's heavy-step threshold (`None`: the device's default).
     pub heavy_entries: Option<u32>,
+    /// Before frame `.0`, the image becomes `.1` (a resized window).
+    pub resize: Option<(usize, [u32; 2])>,
 }
 
 /// What a run measured, and its last frame read back after the loop.
@@ -40,8 +44,11 @@ pub struct HostRun {
     pub triangles: usize,
     pub frames: usize,
     pub frames_in_flight: usize,
-    /// izb's buffers and descriptor sets made after the first frame.
+    /// izb's buffers and descriptor sets made after the first frame,
+    /// but for the resize.
     pub allocations_after_first_frame: [u64; 2],
+    /// izb's buffers and descriptor sets `ShadowPass::resize` made.
+    pub resize_allocations: [u64; 2],
     /// `ShadowPass::record`'s host time per frame, µs.
     pub record_us: Vec<f64>,
     /// The host's time from the command buffer's begin to its submit,
@@ -116,15 +123,6 @@ fn indexed_mesh(scene: &Scene, origin: DVec3) -> (Vec<Vec3>, Vec<u32>) {
     (vertices, indices)
 }
 
-/// One frame slot's images: the raster's visibility and depth targets,
-/// the pass's mask and lit-fraction outputs.
-struct SlotImages {
-    visibility: OwnedImage,
-    depth: OwnedImage,
-    masks: OwnedImage,
-    lit: OwnedImage,
-}
-
 /// Runs `options.frames` frames of `scene` on the host's device.
 pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun, String> {
     let d = &gpu.device;
@@ -142,7 +140,6 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         gbuffer: GBufferInput::Visibility,
     };
     let mut pass = ShadowPass::new(&renderer, scene.clone(), config).map_err(|e| e.to_string())?;
-    let extent = scene.resolution;
     let (lo, hi) = scene.bounds();
     let origin = (lo + hi) * 0.5;
 
@@ -160,32 +157,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         bytemuck::cast_slice(&indices),
         vk::BufferUsageFlags::INDEX_BUFFER,
     );
-    let sampled_colour = vk::ImageUsageFlags::COLOR_ATTACHMENT
-        | vk::ImageUsageFlags::SAMPLED
-        | vk::ImageUsageFlags::TRANSFER_SRC;
-    let storage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC;
-    let mut slots: Vec<SlotImages> = (0..options.frames_in_flight)
-        .map(|_| SlotImages {
-            visibility: OwnedImage::new(
-                gpu,
-                "visibility",
-                extent,
-                vk::Format::R32_UINT,
-                sampled_colour,
-            ),
-            depth: OwnedImage::new(
-                gpu,
-                "depth",
-                extent,
-                vk::Format::D32_SFLOAT,
-                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
-            ),
-            masks: OwnedImage::new(gpu, "masks", extent, vk::Format::R32_UINT, storage),
-            lit: OwnedImage::new(gpu, "lit", extent, vk::Format::R16_UNORM, storage),
-        })
-        .collect();
-    let targets: Vec<_> = slots.iter().map(|s| (&s.visibility, &s.depth)).collect();
-    let mut raster = VisibilityRaster::new(gpu, extent, &targets);
+    let mut targets = Targets::new(gpu, scene.resolution, options.frames_in_flight);
     let pool_info = vk::CommandPoolCreateInfo::default()
         .queue_family_index(gpu.family)
         .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
@@ -206,11 +178,12 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     let mut run = HostRun {
         scene: scene.name.clone(),
         device: gpu.name.clone(),
-        resolution: extent,
+        resolution: scene.resolution,
         triangles: scene.triangles.len(),
         frames: options.frames,
         frames_in_flight: options.frames_in_flight,
         allocations_after_first_frame: [0; 2],
+        resize_allocations: [0; 2],
         record_us: Vec::new(),
         frame_cpu_us: Vec::new(),
         record_alone_us: Vec::new(),
@@ -238,8 +211,29 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 note_status(&mut run, &status, k - options.frames_in_flight);
                 pass.grow(&status).map_err(|e| e.to_string())?;
             }
+            if let Some((_, size)) = options.resize.filter(|&(at, _)| at == k) {
+                // As a swapchain is recreated: every frame done, the
+                // targets made anew, the pass resized.
+                // SAFETY: the fences are live.
+                unsafe { d.wait_for_fences(&fences, true, u64::MAX) }.map_err(|e| e.to_string())?;
+                for (s, used) in slot_used.iter_mut().enumerate() {
+                    if std::mem::take(used) && s != slot {
+                        // SAFETY: every frame is done.
+                        let status = unsafe { pass.status(s) }.map_err(|e| e.to_string())?;
+                        note_status(&mut run, &status, k + s - slot - options.frames_in_flight);
+                    }
+                }
+                targets.destroy(gpu);
+                targets = Targets::new(gpu, size, options.frames_in_flight);
+                let before = renderer.context.shared.allocations();
+                pass.resize(size).map_err(|e| e.to_string())?;
+                let after = renderer.context.shared.allocations();
+                run.resize_allocations = [after[0] - before[0], after[1] - before[1]];
+                run.resolution = size;
+            }
+            let extent = targets.extent;
             let start = Instant::now();
-            let images = &slots[slot];
+            let images = &targets.slots[slot];
             let mut view = view_at(scene, k);
             let output_layout = if slot_used[slot] {
                 vk::ImageLayout::GENERAL
@@ -283,7 +277,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             // SAFETY: `cmd` is recording; the buffers and the slot's images
             // live until after the loop's idle wait; the slot's last frame is
             // done.
-            unsafe { raster.record(gpu, cmd, slot, mesh, &push) };
+            unsafe { targets.raster.record(gpu, cmd, slot, mesh, &push) };
             let before = renderer.context.shared.allocations();
             let recorded = Instant::now();
             // SAFETY: `cmd` records on this thread and is submitted below to
@@ -293,7 +287,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             let result = unsafe { pass.record(cmd, slot, &view) };
             run.record_us.push(recorded.elapsed().as_secs_f64() * 1e6);
             let made = renderer.context.shared.allocations();
-            if k > 0 {
+            if k > 0 && options.resize.is_none_or(|(at, _)| at != k) {
                 for i in 0..2 {
                     after_first[i] += made[i] - before[i];
                 }
@@ -338,9 +332,9 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         }
     }
     if failure.is_none() && options.frames > 0 {
-        let last = &slots[(options.frames - 1) % options.frames_in_flight];
+        let last = &targets.slots[(options.frames - 1) % options.frames_in_flight];
         (run.last_ids, run.last_masks) =
-            read_back(gpu, pool, &last.visibility, &last.masks, extent);
+            read_back(gpu, pool, &last.visibility, &last.masks, targets.extent);
     }
     run.validation_messages = gpu.take_messages();
     // SAFETY: nothing executes (the waits above); each object is
@@ -351,12 +345,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         }
         d.destroy_command_pool(pool, None);
     }
-    raster.destroy(gpu);
-    for s in &mut slots {
-        for image in [&mut s.visibility, &mut s.depth, &mut s.masks, &mut s.lit] {
-            image.destroy(gpu);
-        }
-    }
+    targets.destroy(gpu);
     vertex_buffer.destroy(gpu);
     index_buffer.destroy(gpu);
     drop(pass);
@@ -377,91 +366,11 @@ pub fn pass_settings(mode: SampleMode) -> IzbSettings {
     }
 }
 
-/// How the last frame's masks compare with `izb render`'s of the same
-/// view (on the CPU, its twin, with its own ray-cast G-buffer), over the
-/// pixels render shadow-tests.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
-pub struct Agreement {
-    /// Pixels render shadow-tests.
-    pub tested: usize,
-    /// Of them, where the host's masks equal render's.
-    pub equal: usize,
-    /// Of them, where the host's rasteriser saw render's triangle.
-    pub same_triangle: usize,
-    /// Of those, where the masks are equal: all of them, bit for bit,
-    /// when the pass is exact.
-    pub same_triangle_equal: usize,
-}
-
-/// The last frame of `run` against `izb render` (see [`Agreement`]).
-pub fn agreement_with_render(scene: &Scene, run: &HostRun, mode: SampleMode) -> Agreement {
-    let Some(view) = run.last_view else {
-        return Agreement::default();
-    };
-    let mut moved = scene.clone();
-    (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
-    let bvh = izb::bvh::SceneBvh::build(&moved);
-    let render = izb::cpu::render_cpu(&moved, &bvh, pass_settings(mode));
-    let mut a = Agreement::default();
-    for i in (0..render.masks.len()).filter(|&i| !render.visibility[i].is_nan()) {
-        let equal = run.last_masks.get(i) == Some(&render.masks[i]);
-        let same = run.last_ids.get(i) == Some(&render.gbuffer.triangle_id[i]);
-        a.tested += 1;
-        a.equal += usize::from(equal);
-        a.same_triangle += usize::from(same);
-        a.same_triangle_equal += usize::from(same && equal);
-    }
-    a
-}
-
 fn note_status(run: &mut HostRun, status: &PassStatus, frame: usize) {
     run.overruns += usize::from(status.cell_list_overrun);
     if status.loop_cap_trips != 0 {
         run.loop_capped_frames.push((frame, status.loop_cap_trips));
     }
-}
-
-/// Recordings of [`HostRun::record_alone_us`].
-const RECORD_ALONE: usize = 100;
-
-/// `record`'s host time with the device idle: `view` recorded into slot
-/// `slot` `RECORD_ALONE` times, each into a fresh recording of one
-/// command buffer that is reset, never submitted.
-fn record_alone(
-    gpu: &HostGpu,
-    pool: vk::CommandPool,
-    pass: &mut ShadowPass,
-    slot: usize,
-    view: &FrameView,
-) -> Result<Vec<f64>, String> {
-    let d = &gpu.device;
-    let alloc = vk::CommandBufferAllocateInfo::default()
-        .command_pool(pool)
-        .level(vk::CommandBufferLevel::PRIMARY)
-        .command_buffer_count(1);
-    // SAFETY: the pool is live and only this thread uses it.
-    let cmd = unsafe { d.allocate_command_buffers(&alloc) }.map_err(|e| e.to_string())?[0];
-    let mut micros = Vec::with_capacity(RECORD_ALONE);
-    for _ in 0..RECORD_ALONE {
-        let begin = vk::CommandBufferBeginInfo::default();
-        // SAFETY: `cmd` is not pending (never submitted); nothing executes
-        // (the caller waited), so the slot's previous frame is done.
-        unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
-        let start = Instant::now();
-        // SAFETY: as above; the recording is never submitted.
-        let recorded = unsafe { pass.record(cmd, slot, view) };
-        micros.push(start.elapsed().as_secs_f64() * 1e6);
-        // SAFETY: `cmd` is recording, then executable and not pending.
-        unsafe {
-            d.end_command_buffer(cmd).map_err(|e| e.to_string())?;
-            d.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
-                .map_err(|e| e.to_string())?;
-        }
-        recorded.map_err(|e| e.to_string())?;
-    }
-    // SAFETY: `cmd` is not pending.
-    unsafe { d.free_command_buffers(pool, &[cmd]) };
-    Ok(micros)
 }
 
 /// `image` as the host declares it to the pass.
@@ -492,108 +401,4 @@ fn host_buffer(
     let mut buffer = OwnedBuffer::new(gpu, name, bytes.len().max(4) as u64, usage);
     buffer.bytes()[..bytes.len()].copy_from_slice(bytes);
     buffer
-}
-
-/// The visibility image (left in `SHADER_READ_ONLY_OPTIMAL` by the pass)
-/// and the masks (`GENERAL`) copied back, one submission, waited on.
-fn read_back(
-    gpu: &HostGpu,
-    pool: vk::CommandPool,
-    visibility: &OwnedImage,
-    masks: &OwnedImage,
-    extent: [u32; 2],
-) -> (Vec<u32>, Vec<u32>) {
-    let d = &gpu.device;
-    let bytes = extent[0] as u64 * extent[1] as u64 * 4;
-    let mut out: Vec<OwnedBuffer> = (0..2)
-        .map(|_| OwnedBuffer::new(gpu, "read_back", bytes, vk::BufferUsageFlags::TRANSFER_DST))
-        .collect();
-    let alloc = vk::CommandBufferAllocateInfo::default()
-        .command_pool(pool)
-        .level(vk::CommandBufferLevel::PRIMARY)
-        .command_buffer_count(1);
-    // SAFETY: the pool is live; nothing executes (the caller waited).
-    unsafe {
-        let cmd = d
-            .allocate_command_buffers(&alloc)
-            .expect("a command buffer")[0];
-        d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap();
-        let barriers = [
-            (visibility.image, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL),
-            (masks.image, vk::ImageLayout::GENERAL),
-        ]
-        .map(|(image, old)| {
-            vk::ImageMemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
-                .old_layout(old)
-                .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image)
-                .subresource_range(whole(vk::ImageAspectFlags::COLOR))
-        });
-        d.cmd_pipeline_barrier(
-            cmd,
-            vk::PipelineStageFlags::COMPUTE_SHADER,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::DependencyFlags::empty(),
-            &[],
-            &[],
-            &barriers,
-        );
-        let region = [vk::BufferImageCopy::default()
-            .image_subresource(
-                vk::ImageSubresourceLayers::default()
-                    .aspect_mask(vk::ImageAspectFlags::COLOR)
-                    .layer_count(1),
-            )
-            .image_extent(vk::Extent3D {
-                width: extent[0],
-                height: extent[1],
-                depth: 1,
-            })];
-        for (image, buffer) in [visibility.image, masks.image].iter().zip(&out) {
-            d.cmd_copy_image_to_buffer(
-                cmd,
-                *image,
-                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                buffer.buffer,
-                &region,
-            );
-        }
-        let to_host = [vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-            .dst_access_mask(vk::AccessFlags::HOST_READ)];
-        d.cmd_pipeline_barrier(
-            cmd,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::PipelineStageFlags::HOST,
-            vk::DependencyFlags::empty(),
-            &to_host,
-            &[],
-            &[],
-        );
-        d.end_command_buffer(cmd).unwrap();
-        let fence = d
-            .create_fence(&vk::FenceCreateInfo::default(), None)
-            .unwrap();
-        let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
-        let queue = gpu.queue.lock().unwrap();
-        d.queue_submit(*queue, &submit, fence).unwrap();
-        drop(queue);
-        d.wait_for_fences(&[fence], true, u64::MAX).unwrap();
-        d.destroy_fence(fence, None);
-        d.free_command_buffers(pool, &[cmd]);
-    }
-    let words: Vec<Vec<u32>> = out
-        .iter_mut()
-        .map(|b| bytemuck::pod_collect_to_vec(b.bytes()))
-        .collect();
-    for b in &mut out {
-        b.destroy(gpu);
-    }
-    let [ids, masks] = <[Vec<u32>; 2]>::try_from(words).unwrap();
-    (ids, masks)
 }

@@ -15,9 +15,11 @@
 //! SCENE: a procedural name (`default`) or a `*.scene.json` spec;
 //! default `default`.
 
+mod after_loop;
 mod frames;
 mod host_device;
 mod raster;
+mod targets;
 
 use frames::{run, HostOptions};
 use izb::cpu::SampleMode;
@@ -61,12 +63,13 @@ fn main() -> Result<(), String> {
             frames_in_flight: 2,
             mode: SampleMode::Exact32,
             cell_capacity: None,
+            resize: None,
             heavy_entries: std::env::var("IZB_GPU_HEAVY_ENTRIES")
                 .ok()
                 .and_then(|v| v.parse().ok()),
         };
         let result = run(&gpu, &scene, options)?;
-        let agreement = frames::agreement_with_render(&scene, &result, options.mode);
+        let agreement = after_loop::agreement_with_render(&scene, &result, options.mode);
         let mut json = serde_json::to_value(&result).map_err(|e| e.to_string())?;
         json["last_frame_against_render"] =
             serde_json::to_value(agreement).map_err(|e| e.to_string())?;

@@ -11,6 +11,7 @@ use crate::settings::IzbSettings;
 use ash::vk;
 
 /// The sizes that decide a frame's buffers.
+#[derive(Clone, Copy, Debug)]
 pub struct FrameSizes {
     pub pixels: u64,
     /// 8×8 tiles of the image (the edge surfaces' table).

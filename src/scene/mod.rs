@@ -17,6 +17,7 @@ mod spec;
 pub use camera::{Camera, CameraFrame};
 pub use gltf_load::{load_gltf, load_gltf_bytes, GltfMeshes};
 pub use light::{light_disk, light_disk_f32, Light, LightDisk, MAX_ANGULAR_RADIUS_DEG};
+pub(crate) use spec::check_resolution;
 pub use spec::{CameraSpec, LightSpec, SceneSpec, MAX_RESOLUTION};
 
 use glam::DVec3;

@@ -39,6 +39,8 @@
 //! visible to later compute-shader and transfer reads; the output images
 //! are in `GENERAL`, written by compute shaders.
 
+mod capacity;
+
 use super::frame::{GBufferSource, GpuRenderer};
 use super::frame_inputs::{frame_params, loop_budget, LLVMPIPE_LOOP_CAP};
 use super::frame_memory::FrameSizes;
@@ -150,19 +152,11 @@ pub struct ShadowPass<'r> {
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
     /// Sets replaced by `grow` that frames in flight may still use.
-    retired: Vec<Retired>,
+    retired: Vec<capacity::Retired>,
     /// With a visibility buffer: the vertices a moving eye translates.
     world: Option<WorldVertices>,
-}
-
-/// A descriptor set replaced by [`ShadowPass::grow`] (it holds its
-/// buffers), kept until every frame slot has recorded again: each slot's
-/// previous frame, which may have used it, is then known done
-/// ([`ShadowPass::record`]'s promise).
-struct Retired {
-    _set: DescriptorSet,
-    /// Bit s: slot s has not recorded since.
-    slots_pending: u64,
+    /// What the buffers were sized for ([`Self::resize`] changes it).
+    sizes: FrameSizes,
 }
 
 /// Most frame slots (a bit each in `Retired::slots_pending`).
@@ -209,7 +203,7 @@ impl<'r> ShadowPass<'r> {
             .unwrap_or_else(|| initial_cell_capacity(triangles));
         let (lut, _) = crate::lut::tables_for(settings.light_samples(&scene));
         let pixels = scene.pixel_count() as u64;
-        let descs = frame_buffer_descs(&FrameSizes {
+        let sizes = FrameSizes {
             pixels,
             tiles: super::edge_surfaces::edge_tiles(scene.resolution),
             receivers: pixels,
@@ -226,7 +220,8 @@ impl<'r> ShadowPass<'r> {
             lut_entries: lut.masks.len() as u64,
             shadow_map_words: 0,
             mask_halves: settings.mask_halves(&scene) as u64,
-        });
+        };
+        let descs = frame_buffer_descs(&sizes);
         // One buffer per binding: a batch frame lets the bin's lists
         // alias the BVH (`frame_memory::SHARED_BUFFERS`) and uploads the
         // BVH again each frame; a resident one keeps both.
@@ -299,6 +294,7 @@ impl<'r> ShadowPass<'r> {
             status,
             retired: Vec::new(),
             world,
+            sizes,
         })
     }
 
@@ -488,37 +484,6 @@ impl<'r> ShadowPass<'r> {
             shadow_tested: c[counter::SHADOW_TESTED],
             visibility_rejected: c[counter::VISIBILITY_REJECTED],
         })
-    }
-
-    /// Makes the cell list hold `status`'s need when it overran (a new
-    /// buffer and descriptor set); whether it grew. A frame slot's status
-    /// says the need of its own frame. Frames in flight may still use the
-    /// old list and set: they are released once every slot has recorded
-    /// again (Granite's per-frame destroy lists).
-    pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
-        if !status.cell_list_overrun || status.cell_entries <= self.cell_capacity {
-            return Ok(false);
-        }
-        let shared = self.renderer.shared();
-        let desc = BufferDesc::device("bin", "cell_triangles", status.cell_entries * 4);
-        let grown = Arc::new(GpuBuffer::new(shared, desc)?);
-        let mut buffers = self.buffers.clone();
-        buffers[binding::CELL_TRIANGLES as usize] = grown;
-        let set = DescriptorSet::new(shared, &self.renderer.layout, buffers.clone())?;
-        let old = std::mem::replace(&mut self.set, set);
-        self.retired.push(Retired {
-            _set: old,
-            slots_pending: (1u64 << self.status.len()) - 1,
-        });
-        self.buffers = buffers;
-        self.cell_capacity = status.cell_entries;
-        Ok(true)
-    }
-
-    /// Descriptor sets (with their buffers) replaced by [`Self::grow`]
-    /// and not released yet.
-    pub fn retired_sets(&self) -> usize {
-        self.retired.len()
     }
 
     /// The masks, the second mask halves (empty with one) and the shaded

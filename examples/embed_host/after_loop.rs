@@ -1,0 +1,197 @@
+//! What the host measures after its frame loop, with the device idle:
+//! `record`'s own cost, the last frame's images read back, and how its
+//! masks compare with `izb render`'s of the same view.
+
+use crate::frames::{pass_settings, HostRun};
+use crate::host_device::HostGpu;
+use crate::raster::{whole, OwnedBuffer, OwnedImage};
+use ash::vk;
+use izb::cpu::SampleMode;
+use izb::gpu::shadow_pass::{FrameView, ShadowPass};
+use izb::scene::Scene;
+use std::time::Instant;
+
+/// How the last frame's masks compare with `izb render`'s of the same
+/// view (on the CPU, its twin, with its own ray-cast G-buffer), over the
+/// pixels render shadow-tests.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Agreement {
+    /// Pixels render shadow-tests.
+    pub tested: usize,
+    /// Of them, where the host's masks equal render's.
+    pub equal: usize,
+    /// Of them, where the host's rasteriser saw render's triangle.
+    pub same_triangle: usize,
+    /// Of those, where the masks are equal: all of them, bit for bit,
+    /// when the pass is exact.
+    pub same_triangle_equal: usize,
+}
+
+/// The last frame of `run` against `izb render` (see [`Agreement`]).
+pub fn agreement_with_render(scene: &Scene, run: &HostRun, mode: SampleMode) -> Agreement {
+    let Some(view) = run.last_view else {
+        return Agreement::default();
+    };
+    let mut moved = scene.clone();
+    (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
+    moved.resolution = run.resolution;
+    let bvh = izb::bvh::SceneBvh::build(&moved);
+    let render = izb::cpu::render_cpu(&moved, &bvh, pass_settings(mode));
+    let mut a = Agreement::default();
+    for i in (0..render.masks.len()).filter(|&i| !render.visibility[i].is_nan()) {
+        let equal = run.last_masks.get(i) == Some(&render.masks[i]);
+        let same = run.last_ids.get(i) == Some(&render.gbuffer.triangle_id[i]);
+        a.tested += 1;
+        a.equal += usize::from(equal);
+        a.same_triangle += usize::from(same);
+        a.same_triangle_equal += usize::from(same && equal);
+    }
+    a
+}
+
+/// Recordings of [`HostRun::record_alone_us`].
+pub const RECORD_ALONE: usize = 100;
+
+/// `record`'s host time with the device idle: `view` recorded into slot
+/// `slot` `RECORD_ALONE` times, each into a fresh recording of one
+/// command buffer that is reset, never submitted.
+pub fn record_alone(
+    gpu: &HostGpu,
+    pool: vk::CommandPool,
+    pass: &mut ShadowPass,
+    slot: usize,
+    view: &FrameView,
+) -> Result<Vec<f64>, String> {
+    let d = &gpu.device;
+    let alloc = vk::CommandBufferAllocateInfo::default()
+        .command_pool(pool)
+        .level(vk::CommandBufferLevel::PRIMARY)
+        .command_buffer_count(1);
+    // SAFETY: the pool is live and only this thread uses it.
+    let cmd = unsafe { d.allocate_command_buffers(&alloc) }.map_err(|e| e.to_string())?[0];
+    let mut micros = Vec::with_capacity(RECORD_ALONE);
+    for _ in 0..RECORD_ALONE {
+        let begin = vk::CommandBufferBeginInfo::default();
+        // SAFETY: `cmd` is not pending (never submitted); nothing executes
+        // (the caller waited), so the slot's previous frame is done.
+        unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
+        let start = Instant::now();
+        // SAFETY: as above; the recording is never submitted.
+        let recorded = unsafe { pass.record(cmd, slot, view) };
+        micros.push(start.elapsed().as_secs_f64() * 1e6);
+        // SAFETY: `cmd` is recording, then executable and not pending.
+        unsafe {
+            d.end_command_buffer(cmd).map_err(|e| e.to_string())?;
+            d.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
+                .map_err(|e| e.to_string())?;
+        }
+        recorded.map_err(|e| e.to_string())?;
+    }
+    // SAFETY: `cmd` is not pending.
+    unsafe { d.free_command_buffers(pool, &[cmd]) };
+    Ok(micros)
+}
+
+/// The visibility image (left in `SHADER_READ_ONLY_OPTIMAL` by the pass)
+/// and the masks (`GENERAL`) copied back, one submission, waited on.
+pub fn read_back(
+    gpu: &HostGpu,
+    pool: vk::CommandPool,
+    visibility: &OwnedImage,
+    masks: &OwnedImage,
+    extent: [u32; 2],
+) -> (Vec<u32>, Vec<u32>) {
+    let d = &gpu.device;
+    let bytes = extent[0] as u64 * extent[1] as u64 * 4;
+    let mut out: Vec<OwnedBuffer> = (0..2)
+        .map(|_| OwnedBuffer::new(gpu, "read_back", bytes, vk::BufferUsageFlags::TRANSFER_DST))
+        .collect();
+    let alloc = vk::CommandBufferAllocateInfo::default()
+        .command_pool(pool)
+        .level(vk::CommandBufferLevel::PRIMARY)
+        .command_buffer_count(1);
+    // SAFETY: the pool is live; nothing executes (the caller waited).
+    unsafe {
+        let cmd = d
+            .allocate_command_buffers(&alloc)
+            .expect("a command buffer")[0];
+        d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+            .unwrap();
+        let barriers = [
+            (visibility.image, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL),
+            (masks.image, vk::ImageLayout::GENERAL),
+        ]
+        .map(|(image, old)| {
+            vk::ImageMemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)
+                .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+                .old_layout(old)
+                .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .image(image)
+                .subresource_range(whole(vk::ImageAspectFlags::COLOR))
+        });
+        d.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &barriers,
+        );
+        let region = [vk::BufferImageCopy::default()
+            .image_subresource(
+                vk::ImageSubresourceLayers::default()
+                    .aspect_mask(vk::ImageAspectFlags::COLOR)
+                    .layer_count(1),
+            )
+            .image_extent(vk::Extent3D {
+                width: extent[0],
+                height: extent[1],
+                depth: 1,
+            })];
+        for (image, buffer) in [visibility.image, masks.image].iter().zip(&out) {
+            d.cmd_copy_image_to_buffer(
+                cmd,
+                *image,
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                buffer.buffer,
+                &region,
+            );
+        }
+        let to_host = [vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::HOST_READ)];
+        d.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::HOST,
+            vk::DependencyFlags::empty(),
+            &to_host,
+            &[],
+            &[],
+        );
+        d.end_command_buffer(cmd).unwrap();
+        let fence = d
+            .create_fence(&vk::FenceCreateInfo::default(), None)
+            .unwrap();
+        let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
+        let queue = gpu.queue.lock().unwrap();
+        d.queue_submit(*queue, &submit, fence).unwrap();
+        drop(queue);
+        d.wait_for_fences(&[fence], true, u64::MAX).unwrap();
+        d.destroy_fence(fence, None);
+        d.free_command_buffers(pool, &[cmd]);
+    }
+    let words: Vec<Vec<u32>> = out
+        .iter_mut()
+        .map(|b| bytemuck::pod_collect_to_vec(b.bytes()))
+        .collect();
+    for b in &mut out {
+        b.destroy(gpu);
+    }
+    let [ids, masks] = <[Vec<u32>; 2]>::try_from(words).unwrap();
+    (ids, masks)
+}

@@ -1,0 +1,104 @@
+//! What changes the pass's buffers between frames: the cell list growing
+//! after an overrun ([`ShadowPass::grow`]) and the image changing size
+//! ([`ShadowPass::resize`]). Both make new buffers and a new descriptor
+//! set and retire the old set with the buffers it holds until every
+//! frame slot has recorded again — each slot's previous frame, which may
+//! still use it, is then known done (Granite's per-frame destroy lists).
+//! Nothing is uploaded or waited on: the scene's buffers are kept.
+
+use super::{PassStatus, ShadowPass};
+use crate::gpu::edge_surfaces::edge_tiles;
+use crate::gpu::frame_memory::frame_buffer_descs;
+use crate::gpu::izb_frame::max_cells;
+use crate::gpu::pipeline::DescriptorSet;
+use crate::gpu::resources::{BufferDesc, GpuBuffer};
+use crate::gpu::shared::binding;
+use crate::gpu::GpuError;
+use std::sync::Arc;
+
+/// A descriptor set replaced by [`ShadowPass::grow`] or
+/// [`ShadowPass::resize`] (it holds its buffers), kept until every frame
+/// slot has recorded again ([`ShadowPass::record`]'s promise).
+pub(super) struct Retired {
+    _set: DescriptorSet,
+    /// Bit s: slot s has not recorded since.
+    pub(super) slots_pending: u64,
+}
+
+impl ShadowPass<'_> {
+    /// Makes the cell list hold `status`'s need when it overran (a new
+    /// buffer and descriptor set); whether it grew. A frame slot's status
+    /// says the need of its own frame. Frames in flight may still use the
+    /// old list and set: they are released once every slot has recorded
+    /// again.
+    pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
+        if !status.cell_list_overrun || status.cell_entries <= self.cell_capacity {
+            return Ok(false);
+        }
+        let shared = self.renderer.shared();
+        let desc = BufferDesc::device("bin", "cell_triangles", status.cell_entries * 4);
+        let mut buffers = self.buffers.clone();
+        buffers[binding::CELL_TRIANGLES as usize] = Arc::new(GpuBuffer::new(shared, desc)?);
+        self.replace_buffers(buffers)?;
+        self.cell_capacity = status.cell_entries;
+        self.sizes.cell_capacity = status.cell_entries;
+        Ok(true)
+    }
+
+    /// Renders `resolution` from the next recorded frame on (a resized
+    /// window or render target): the buffers sized by the pixel count —
+    /// the G-buffer, masks, receivers, the cell pyramid — are made anew
+    /// and the rest (the scene, BVH, LUT, the cell list) kept; whether any
+    /// changed. The host's images of the next frames must have the new
+    /// size. Frames in flight keep the old buffers until every slot has
+    /// recorded again.
+    pub fn resize(&mut self, resolution: [u32; 2]) -> Result<bool, GpuError> {
+        if resolution == self.scene.resolution {
+            return Ok(false);
+        }
+        crate::scene::check_resolution(resolution).map_err(GpuError::Unsupported)?;
+        let pixels = u64::from(resolution[0]) * u64::from(resolution[1]);
+        let settings = self.config.settings;
+        let mut sizes = self.sizes;
+        sizes.pixels = pixels;
+        sizes.receivers = pixels;
+        sizes.tiles = edge_tiles(resolution);
+        sizes.max_cells = max_cells(pixels as usize, self.triangles as usize, settings)?;
+        let shared = self.renderer.shared();
+        let (old, new) = (frame_buffer_descs(&self.sizes), frame_buffer_descs(&sizes));
+        let mut buffers = self.buffers.clone();
+        for (b, (was, now)) in old.into_iter().zip(new).enumerate() {
+            if was.size != now.size {
+                buffers[b] = Arc::new(GpuBuffer::new(shared, now)?);
+            }
+        }
+        self.replace_buffers(buffers)?;
+        self.scene.resolution = resolution;
+        self.max_cells = sizes.max_cells;
+        self.sizes = sizes;
+        Ok(true)
+    }
+
+    /// Descriptor sets (with their buffers) replaced by [`Self::grow`]
+    /// or [`Self::resize`] and not released yet.
+    pub fn retired_sets(&self) -> usize {
+        self.retired.len()
+    }
+
+    /// Binds `buffers` through a new descriptor set from the next frame
+    /// on and retires the old one.
+    fn replace_buffers(
+        &mut self,
+        buffers: [Arc<GpuBuffer>; super::BINDINGS],
+    ) -> Result<(), GpuError> {
+        let shared = self.renderer.shared();
+        let set = DescriptorSet::new(shared, &self.renderer.layout, buffers.clone())?;
+        let old = std::mem::replace(&mut self.set, set);
+        self.retired.push(Retired {
+            _set: old,
+            slots_pending: (1u64 << self.status.len()) - 1,
+        });
+        self.buffers = buffers;
+        Ok(())
+    }
+}
