@@ -33,14 +33,7 @@ const RESOLUTION: [u32; 2] = [64, 36];
 
 #[test]
 fn the_host_records_the_pass_into_its_own_frames() {
-    let validation = std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1");
-    let gpu = match host_device::HostGpu::new(validation) {
-        Ok(gpu) => gpu,
-        Err(e) if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("IZB_REQUIRE_GPU=1 but the host's device did not open: {e}")
-        }
-        Err(e) => return eprintln!("skipped (no Vulkan device: {e})"),
-    };
+    let Some(gpu) = host_gpu() else { return };
     let mut scenes = vec![("default".to_string(), 30, None)];
     if let Some(dir) = common::shared_scenes_dir() {
         // The engine's 110 k triangles take about 4 s a frame on lavapipe
@@ -112,6 +105,23 @@ fn the_host_records_the_pass_into_its_own_frames() {
     assert_eq!(checked, expected);
 }
 
+/// The host's device (the validation layer with synchronization
+/// validation under `IZB_VALIDATION=1`), or `None` with a printed skip —
+/// a failure under `IZB_REQUIRE_GPU=1`.
+fn host_gpu() -> Option<host_device::HostGpu> {
+    let validation = std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1");
+    match host_device::HostGpu::new(validation) {
+        Ok(gpu) => Some(gpu),
+        Err(e) if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("IZB_REQUIRE_GPU=1 but the host's device did not open: {e}")
+        }
+        Err(e) => {
+            eprintln!("skipped (no Vulkan device: {e})");
+            None
+        }
+    }
+}
+
 /// Frames of the engine in CI (the example's default is 30).
 const ENGINE_FRAMES: usize = 8;
 
@@ -127,14 +137,7 @@ fn median(v: &[f64]) -> f64 {
 /// allocate nothing, and their masks equal `izb render`'s at the new size.
 #[test]
 fn the_pass_follows_a_resized_host() {
-    let validation = std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1");
-    let gpu = match host_device::HostGpu::new(validation) {
-        Ok(gpu) => gpu,
-        Err(e) if std::env::var("IZB_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("IZB_REQUIRE_GPU=1 but the host's device did not open: {e}")
-        }
-        Err(e) => return eprintln!("skipped (no Vulkan device: {e})"),
-    };
+    let Some(gpu) = host_gpu() else { return };
     let scene = izb::scene::load("default")
         .unwrap()
         .with_resolution(RESOLUTION)
@@ -177,4 +180,29 @@ fn the_pass_follows_a_resized_host() {
         checked += 1;
     }
     assert_eq!(checked, 2);
+}
+
+/// A host device the passes cannot run on is refused by name before
+/// anything is made on it: here a queue family the device does not have.
+/// And the host's device outlives izb's context: it is used again after.
+#[test]
+fn a_host_device_izb_cannot_use_is_refused_by_name() {
+    let Some(gpu) = host_gpu() else { return };
+    let mut host = gpu.host_device();
+    host.queue_family = 99;
+    // SAFETY: the family is checked, and refused, before anything is made
+    // or submitted on the device.
+    let refused = unsafe { izb::gpu::GpuRenderer::on_host_device(host, None) };
+    let message = refused.err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(message.contains("queue family 99"), "{message}");
+    // SAFETY: the host's device as it is (see `frames::run`).
+    let accepted = unsafe { izb::gpu::GpuRenderer::on_host_device(gpu.host_device(), None) };
+    let renderer = accepted.unwrap();
+    assert!(renderer.context.on_hosts_device());
+    drop(renderer);
+    // SAFETY: the device is live: izb's drop neither waited on it idle
+    // nor destroyed it.
+    unsafe { gpu.device.device_wait_idle() }.unwrap();
+    let messages = gpu.take_messages();
+    assert!(messages.is_empty(), "{messages:?}");
 }
