@@ -182,6 +182,46 @@ fn the_pass_follows_a_resized_host() {
     assert_eq!(checked, 2);
 }
 
+/// A cell list far too small (64 entries for a need of thousands): the
+/// frames recorded before the host reads a status overrun and stay exact
+/// the slow way; the status gives the need, the pass grows between frames
+/// (one buffer and one descriptor set, outside `record`), and the frames
+/// after it do not overrun; the last one's masks equal `izb render`'s.
+#[test]
+fn a_cell_list_far_too_small_grows_and_the_frames_stay_exact() {
+    let Some(gpu) = host_gpu() else { return };
+    let scene = izb::scene::load("default")
+        .unwrap()
+        .with_resolution(RESOLUTION)
+        .unwrap();
+    let options = HostOptions {
+        frames: 5,
+        frames_in_flight: 2,
+        mode: SampleMode::Exact32,
+        cell_capacity: Some(64),
+        heavy_entries: None,
+        resize: None,
+    };
+    let result = run(&gpu, &scene, options).unwrap();
+    let a = agreement_with_render(&scene, &result, options.mode);
+    println!(
+        "overruns {}, grown {}, against render {a:?}",
+        result.overruns, result.grown
+    );
+    // Frames 0 and 1 are recorded before frame 0's status is read.
+    assert_eq!(result.overruns, 2);
+    assert_eq!(result.grown, 1);
+    assert_eq!(result.allocations_after_first_frame, [0, 0]);
+    assert!(
+        result.validation_messages.is_empty(),
+        "{:?}",
+        result.validation_messages
+    );
+    assert!(a.tested > 0);
+    assert_eq!(a.same_triangle_equal, a.same_triangle, "{a:?}");
+    assert!((a.tested - a.equal) * 1000 <= a.tested, "{a:?}");
+}
+
 /// A host device the passes cannot run on is refused by name before
 /// anything is made on it: here a queue family the device does not have.
 /// And the host's device outlives izb's context: it is used again after.

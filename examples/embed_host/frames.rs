@@ -44,9 +44,11 @@ pub struct HostRun {
     pub triangles: usize,
     pub frames: usize,
     pub frames_in_flight: usize,
-    /// izb's buffers and descriptor sets made after the first frame,
-    /// but for the resize.
+    /// izb's buffers and descriptor sets made inside `record` after the
+    /// first frame (growth and resizes happen between frames).
     pub allocations_after_first_frame: [u64; 2],
+    /// Times `ShadowPass::grow` made a larger cell list.
+    pub grown: usize,
     /// izb's buffers and descriptor sets `ShadowPass::resize` made.
     pub resize_allocations: [u64; 2],
     /// `ShadowPass::record`'s host time per frame, µs.
@@ -184,6 +186,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         frames_in_flight: options.frames_in_flight,
         allocations_after_first_frame: [0; 2],
         resize_allocations: [0; 2],
+        grown: 0,
         record_us: Vec::new(),
         frame_cpu_us: Vec::new(),
         record_alone_us: Vec::new(),
@@ -209,7 +212,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 // SAFETY: the slot's frame is done (its fence) and none runs.
                 let status = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
                 note_status(&mut run, &status, k - options.frames_in_flight);
-                pass.grow(&status).map_err(|e| e.to_string())?;
+                run.grown += usize::from(pass.grow(&status).map_err(|e| e.to_string())?);
             }
             if let Some((_, size)) = options.resize.filter(|&(at, _)| at == k) {
                 // As a swapchain is recreated: every frame done, the
@@ -287,7 +290,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             let result = unsafe { pass.record(cmd, slot, &view) };
             run.record_us.push(recorded.elapsed().as_secs_f64() * 1e6);
             let made = renderer.context.shared.allocations();
-            if k > 0 && options.resize.is_none_or(|(at, _)| at != k) {
+            if k > 0 {
                 for i in 0..2 {
                     after_first[i] += made[i] - before[i];
                 }

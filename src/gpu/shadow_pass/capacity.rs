@@ -26,22 +26,28 @@ pub(super) struct Retired {
 }
 
 impl ShadowPass<'_> {
-    /// Makes the cell list hold `status`'s need when it overran (a new
-    /// buffer and descriptor set); whether it grew. A frame slot's status
-    /// says the need of its own frame. Frames in flight may still use the
-    /// old list and set: they are released once every slot has recorded
-    /// again.
+    /// Makes the cell list hold half again `status`'s need when it
+    /// overran (a new buffer and descriptor set); whether it grew. A frame
+    /// slot's status says the need of its own frame. The half again is
+    /// for a moving view, whose need changes from frame to frame: grown
+    /// to one frame's exact need, the host example's list overran in all
+    /// 5 of its frames (default, 64×36, from 64 entries), in 2 with the
+    /// headroom. Frames in flight may still use the old list and set:
+    /// they are released once every slot has recorded again.
     pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
         if !status.cell_list_overrun || status.cell_entries <= self.cell_capacity {
             return Ok(false);
         }
         let shared = self.renderer.shared();
-        let desc = BufferDesc::device("bin", "cell_triangles", status.cell_entries * 4);
+        let need = status.cell_entries;
+        let most = u64::from(shared.limits.max_storage_buffer_range) / 4;
+        let capacity = need.saturating_add(need / 2).min(most.max(need));
+        let desc = BufferDesc::device("bin", "cell_triangles", capacity * 4);
         let mut buffers = self.buffers.clone();
         buffers[binding::CELL_TRIANGLES as usize] = Arc::new(GpuBuffer::new(shared, desc)?);
         self.replace_buffers(buffers)?;
-        self.cell_capacity = status.cell_entries;
-        self.sizes.cell_capacity = status.cell_entries;
+        self.cell_capacity = capacity;
+        self.sizes.cell_capacity = capacity;
         Ok(true)
     }
 
