@@ -24,12 +24,12 @@ const MODES: [SampleMode; 3] = [SampleMode::One, SampleMode::Lut32, SampleMode::
 const RESOLUTION: [u32; 2] = [240, 135];
 /// GPU test resolution and modes: lavapipe needs ~10 min for all three modes
 /// at 240×135 (`grazing` without skips tests 80 M pairs), so CI checks the
-/// 32-sample modes at 128×72; `IZB_GPU_TEST_RESOLUTION=scene` runs every
+/// 32-sample modes at 160×90; `IZB_GPU_TEST_RESOLUTION=scene` runs every
 /// mode at each scene's own resolution (for a real GPU).
 fn gpu_resolution_and_modes() -> (Option<[u32; 2]>, &'static [SampleMode]) {
     match std::env::var("IZB_GPU_TEST_RESOLUTION").as_deref() {
         Ok("scene") => (None, &MODES),
-        _ => (Some([128, 72]), &MODES[1..]),
+        _ => (Some([160, 90]), &MODES[1..]),
     }
 }
 
