@@ -6,6 +6,7 @@ use crate::frames::{pass_settings, HostRun};
 use crate::host_device::HostGpu;
 use crate::raster::{whole, OwnedBuffer, OwnedImage};
 use ash::vk;
+use gpu_allocator::MemoryLocation;
 use izb::cpu::SampleMode;
 use izb::gpu::shadow_pass::{FrameView, ShadowPass};
 use izb::scene::Scene;
@@ -93,7 +94,8 @@ pub fn record_alone(
 }
 
 /// The visibility image (left in `SHADER_READ_ONLY_OPTIMAL` by the pass)
-/// and the masks (`GENERAL`) copied back, one submission, waited on.
+/// and the masks (`GENERAL`; one `R32_UINT` word a pixel, the example's
+/// format) copied back, one submission, waited on.
 pub fn read_back(
     gpu: &HostGpu,
     pool: vk::CommandPool,
@@ -104,7 +106,10 @@ pub fn read_back(
     let d = &gpu.device;
     let bytes = extent[0] as u64 * extent[1] as u64 * 4;
     let mut out: Vec<OwnedBuffer> = (0..2)
-        .map(|_| OwnedBuffer::new(gpu, "read_back", bytes, vk::BufferUsageFlags::TRANSFER_DST))
+        .map(|_| {
+            let usage = vk::BufferUsageFlags::TRANSFER_DST;
+            OwnedBuffer::new(gpu, "read_back", bytes, usage, MemoryLocation::GpuToCpu)
+        })
         .collect();
     let alloc = vk::CommandBufferAllocateInfo::default()
         .command_pool(pool)
@@ -123,7 +128,9 @@ pub fn read_back(
         ]
         .map(|(image, old)| {
             vk::ImageMemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)
+                // The masks' compute writes; the visibility image was only
+                // read (a write-after-read needs no access scope).
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
                 .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
                 .old_layout(old)
                 .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)

@@ -12,6 +12,7 @@ use crate::raster::{OwnedBuffer, OwnedImage};
 use crate::targets::Targets;
 use ash::vk;
 use glam::{DMat3, DVec3, Vec3};
+use gpu_allocator::MemoryLocation;
 use izb::cpu::{IzbSettings, SampleMode};
 use izb::gpu::host_images::{FrameImages, HostImage};
 use izb::gpu::shadow_pass::{FrameView, GBufferInput, PassStatus, ShadowPass, ShadowPassConfig};
@@ -198,7 +199,11 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         last_masks: Vec::new(),
     };
     let mut after_first = [0; 2];
-    let mut slot_used = vec![false; options.frames_in_flight];
+    // Per slot: the frame submitted on it whose status is not read yet,
+    // and whether its output images are new (nothing to keep: UNDEFINED).
+    let mut unread: Vec<Option<usize>> = vec![None; options.frames_in_flight];
+    let mut fresh = vec![true; options.frames_in_flight];
+    let mut fences = fences;
     // Every frame's error ends the loop; the waits and releases below run
     // either way (nothing is dropped under executing work).
     let mut frames = || -> Result<(), String> {
@@ -208,24 +213,18 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             // SAFETY: the fence is live.
             unsafe { d.wait_for_fences(&[fences[slot]], true, u64::MAX) }
                 .map_err(|e| e.to_string())?;
-            if slot_used[slot] {
-                // SAFETY: the slot's frame is done (its fence) and none runs.
-                let status = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
-                note_status(&mut run, &status, k - options.frames_in_flight);
-                run.grown += usize::from(pass.grow(&status).map_err(|e| e.to_string())?);
-            }
+            // SAFETY: the slot's frame is done (its fence) and none runs.
+            unsafe { read_status(&mut pass, &mut run, &mut unread, slot, true) }?;
             if let Some((_, size)) = options.resize.filter(|&(at, _)| at == k) {
                 // As a swapchain is recreated: every frame done, the
                 // targets made anew, the pass resized.
                 // SAFETY: the fences are live.
                 unsafe { d.wait_for_fences(&fences, true, u64::MAX) }.map_err(|e| e.to_string())?;
-                for (s, used) in slot_used.iter_mut().enumerate() {
-                    if std::mem::take(used) && s != slot {
-                        // SAFETY: every frame is done.
-                        let status = unsafe { pass.status(s) }.map_err(|e| e.to_string())?;
-                        note_status(&mut run, &status, k + s - slot - options.frames_in_flight);
-                    }
+                for s in 0..options.frames_in_flight {
+                    // SAFETY: every frame is done (the wait above).
+                    unsafe { read_status(&mut pass, &mut run, &mut unread, s, true) }?;
                 }
+                fresh.fill(true);
                 targets.destroy(gpu);
                 targets = Targets::new(gpu, size, options.frames_in_flight);
                 let before = renderer.context.shared.allocations();
@@ -238,10 +237,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             let start = Instant::now();
             let images = &targets.slots[slot];
             let mut view = view_at(scene, k);
-            let output_layout = if slot_used[slot] {
-                vk::ImageLayout::GENERAL
-            } else {
+            let output_layout = if std::mem::take(&mut fresh[slot]) {
                 vk::ImageLayout::UNDEFINED
+            } else {
+                vk::ImageLayout::GENERAL
             };
             let compute_write = (
                 vk::PipelineStageFlags::COMPUTE_SHADER,
@@ -304,10 +303,22 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
             let queue = gpu.queue.lock().unwrap();
             // SAFETY: the queue is used under its lock; `cmd` is executable.
-            unsafe { d.queue_submit(*queue, &submit, fences[slot]) }.map_err(|e| e.to_string())?;
+            let submitted = unsafe { d.queue_submit(*queue, &submit, fences[slot]) };
             drop(queue);
+            if let Err(e) = submitted {
+                // Nothing will signal the reset fence: a signalled one
+                // takes its place, so the waits below end.
+                // SAFETY: the fence is not in use (nothing was submitted).
+                unsafe {
+                    d.destroy_fence(fences[slot], None);
+                    fences[slot] = d
+                        .create_fence(&signalled, None)
+                        .map_err(|e| e.to_string())?;
+                }
+                return Err(e.to_string());
+            }
             run.frame_cpu_us.push(start.elapsed().as_secs_f64() * 1e6);
-            slot_used[slot] = true;
+            unread[slot] = Some(k);
             run.last_view = Some(view);
         }
         Ok(())
@@ -318,12 +329,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     // SAFETY: the fences are live.
     let waited = unsafe { d.wait_for_fences(&fences, true, u64::MAX) };
     waited.expect("the host's frames end");
-    let submitted = run.frame_cpu_us.len();
-    for frame in submitted.saturating_sub(options.frames_in_flight)..submitted {
-        // SAFETY: every frame is done.
-        match unsafe { pass.status(frame % options.frames_in_flight) } {
-            Ok(status) => note_status(&mut run, &status, frame),
-            Err(e) => failure = Some(e.to_string()),
+    for s in 0..options.frames_in_flight {
+        // SAFETY: every frame is done (the wait above).
+        if let Err(e) = unsafe { read_status(&mut pass, &mut run, &mut unread, s, false) } {
+            failure = Some(e);
         }
     }
     run.allocations_after_first_frame = after_first;
@@ -369,11 +378,31 @@ pub fn pass_settings(mode: SampleMode) -> IzbSettings {
     }
 }
 
-fn note_status(run: &mut HostRun, status: &PassStatus, frame: usize) {
+/// Reads slot `slot`'s status if a frame of it is unread: notes its
+/// overrun and loop-cap trips, and with `grow` grows the pass for it.
+///
+/// # Safety
+/// The slot's frames are done (the host waited on its fence).
+unsafe fn read_status(
+    pass: &mut ShadowPass,
+    run: &mut HostRun,
+    unread: &mut [Option<usize>],
+    slot: usize,
+    grow: bool,
+) -> Result<(), String> {
+    let Some(frame) = unread[slot].take() else {
+        return Ok(());
+    };
+    // SAFETY: the caller's promise.
+    let status: PassStatus = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
     run.overruns += usize::from(status.cell_list_overrun);
     if status.loop_cap_trips != 0 {
         run.loop_capped_frames.push((frame, status.loop_cap_trips));
     }
+    if grow {
+        run.grown += usize::from(pass.grow(&status).map_err(|e| e.to_string())?);
+    }
+    Ok(())
 }
 
 /// `image` as the host declares it to the pass.
@@ -401,7 +430,8 @@ fn host_buffer(
     bytes: &[u8],
     usage: vk::BufferUsageFlags,
 ) -> OwnedBuffer {
-    let mut buffer = OwnedBuffer::new(gpu, name, bytes.len().max(4) as u64, usage);
+    let size = bytes.len().max(4) as u64;
+    let mut buffer = OwnedBuffer::new(gpu, name, size, usage, MemoryLocation::CpuToGpu);
     buffer.bytes()[..bytes.len()].copy_from_slice(bytes);
     buffer
 }

@@ -96,10 +96,18 @@ impl HostGpu {
             let family = families
                 .iter()
                 .position(|f| f.queue_flags.contains(wanted))?;
-            (features.geometry_shader == vk::TRUE).then_some((p, family as u32))
+            // The lit fraction is an R16_UNORM storage image.
+            // SAFETY: as above.
+            let lit =
+                unsafe { instance.get_physical_device_format_properties(p, vk::Format::R16_UNORM) };
+            let storage = vk::FormatFeatureFlags::STORAGE_IMAGE;
+            let ok = features.geometry_shader == vk::TRUE
+                && lit.optimal_tiling_features.contains(storage);
+            ok.then_some((p, family as u32))
         });
-        let (physical, family) =
-            chosen.ok_or("no device with graphics + compute and geometryShader")?;
+        let (physical, family) = chosen.ok_or(
+            "no device with graphics + compute, geometryShader and R16_UNORM storage images",
+        )?;
         let priorities = [1.0];
         let queues = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(family)

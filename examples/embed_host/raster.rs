@@ -94,20 +94,27 @@ pub fn whole(aspect: vk::ImageAspectFlags) -> vk::ImageSubresourceRange {
         .layer_count(1)
 }
 
-/// A buffer of the host's with its memory (host-visible when `mapped`).
+/// A host-visible buffer of the host's with its memory: written by the
+/// host (`CpuToGpu`) or read back (`GpuToCpu`).
 pub struct OwnedBuffer {
     pub buffer: vk::Buffer,
     allocation: Option<Allocation>,
 }
 
 impl OwnedBuffer {
-    pub fn new(gpu: &HostGpu, name: &str, size: u64, usage: vk::BufferUsageFlags) -> Self {
+    pub fn new(
+        gpu: &HostGpu,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Self {
         let info = vk::BufferCreateInfo::default().size(size).usage(usage);
         // SAFETY: `info` is complete; destroyed in `destroy`.
         let buffer = unsafe { gpu.device.create_buffer(&info, None) }.expect("a buffer");
         // SAFETY: `buffer` is live.
         let requirements = unsafe { gpu.device.get_buffer_memory_requirements(buffer) };
-        let allocation = gpu.allocate(name, requirements, MemoryLocation::CpuToGpu, true);
+        let allocation = gpu.allocate(name, requirements, location, true);
         // SAFETY: fresh memory of the buffer's requirements, bound once.
         unsafe {
             gpu.device
@@ -197,6 +204,7 @@ impl VisibilityRaster {
             )
             .dst_stage_mask(
                 vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS
+                    | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS
                     | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
             )
             .dst_access_mask(

@@ -48,7 +48,9 @@ pub(super) fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, Gpu
     let physicals = unsafe { instance.enumerate_physical_devices() }.map_err(GpuError::vk)?;
     let mut out: Vec<Candidate> = physicals
         .into_iter()
-        .filter_map(|physical| candidate(instance, physical, None).ok())
+        // SAFETY: `physical` was enumerated from this live instance, made
+        // with API 1.2 (`create_instance`).
+        .filter_map(|physical| unsafe { candidate(instance, physical, None) }.ok())
         .collect();
     out.sort_by_key(|c| c.rank);
     for (i, c) in out.iter_mut().enumerate() {
@@ -58,15 +60,19 @@ pub(super) fn candidates(instance: &ash::Instance) -> Result<Vec<Candidate>, Gpu
 }
 
 /// `physical` as a candidate, or why it cannot run the passes. Its queue
-/// family is `family` when given (a host's device: it must have
+/// family is `given_family` when given (a host's device: it must have
 /// compute), else one with graphics beside compute when there is one.
-pub(super) fn candidate(
+///
+/// # Safety
+/// `instance` is live, created with `apiVersion` ≥ 1.2 (the queries below
+/// chain Vulkan 1.2 structures), and `physical` was enumerated from it.
+pub(super) unsafe fn candidate(
     instance: &ash::Instance,
     physical: vk::PhysicalDevice,
-    family: Option<u32>,
+    given_family: Option<u32>,
 ) -> Result<Candidate, String> {
-    // SAFETY: `physical` comes from the live `instance` (the callers);
-    // the out-structures outlive the calls.
+    // SAFETY: the caller's promise (here and in the queries below); the
+    // out-structures outlive the calls.
     let props = unsafe { instance.get_physical_device_properties(physical) };
     if props.api_version < vk::API_VERSION_1_2 {
         return Err("the device's Vulkan version is below 1.2".into());
@@ -104,7 +110,7 @@ pub(super) fn candidate(
     // shadow-map baselines draw their maps on the rasteriser.
     let graphics = vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS;
     let compute = |f: &vk::QueueFamilyProperties| f.queue_flags.contains(vk::QueueFlags::COMPUTE);
-    let (family, family_props) = match family {
+    let (family, family_props) = match given_family {
         Some(i) => match families.get(i as usize) {
             Some(f) if compute(f) => (i as usize, f),
             Some(_) => return Err(format!("queue family {i} has no compute")),
@@ -123,7 +129,10 @@ pub(super) fn candidate(
             .ok_or("no queue family has compute")?,
     };
     let raster_missing = if !family_props.queue_flags.contains(graphics) {
-        Some("no queue family of this device has graphics beside compute".to_string())
+        Some(match given_family {
+            Some(i) => format!("queue family {i} has no graphics beside compute"),
+            None => "no queue family of this device has graphics beside compute".to_string(),
+        })
     } else if !depth_clamp {
         Some("this device has no depthClamp (a directional light's map clamps casters in front of its depth range)".to_string())
     } else {

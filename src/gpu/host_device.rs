@@ -28,32 +28,45 @@ pub struct HostDevice {
     /// The family of `queue`; it has compute.
     pub queue_family: u32,
     /// The host's queue, behind the lock the host itself submits under
-    /// (Vulkan queues are externally synchronised).
+    /// (Vulkan queues are externally synchronised). izb takes it when a
+    /// pass is made and in read-backs: the host must not hold it across
+    /// those calls (`std::sync::Mutex` is not re-entrant), and izb's wait
+    /// after such a submission ([`super::options::frame_timeout`]) also
+    /// waits for whatever the host queued before it.
     pub queue: SharedQueue,
 }
 
 impl GpuContext {
     /// The context on the host's device: a command pool of its own on the
-    /// host's queue family, a memory allocator, and the device's limits,
-    /// checked as [`super::context::list_devices`] checks its own
-    /// (Vulkan ≥ 1.2, `scalarBlockLayout`, compute subgroups, a compute
-    /// family). The baselines' raster passes are not built on it (izb
-    /// does not know the features the host enabled).
+    /// host's queue family and a memory allocator. The baselines' raster
+    /// passes are not built on it (izb does not know the features the
+    /// host enabled).
+    ///
+    /// Checked, and refused by name: what the physical device supports,
+    /// as [`super::context::list_devices`] checks its own (Vulkan ≥ 1.2,
+    /// `scalarBlockLayout`, compute subgroups with vote, arithmetic and
+    /// ballot), and that `host.queue_family` is one of its families and
+    /// has compute.
     ///
     /// # Safety
-    /// `host.device` was created from `host.instance` on
-    /// `host.physical_device` with API version ≥ 1.2, the
-    /// `scalarBlockLayout` feature enabled and a queue of
-    /// `host.queue_family`, which `host.queue` holds; the host submits to
-    /// that queue only while holding its lock; the instance and device
-    /// outlive this context and everything made on it (pipelines, buffers,
-    /// passes), which the host drops with the device idle.
+    /// What izb cannot query: `host.instance` was created with
+    /// `apiVersion` ≥ 1.2 and `host.physical_device` enumerated from it;
+    /// `host.device` was created on that physical device with the
+    /// `scalarBlockLayout` feature enabled; if `host.queue_family` is one
+    /// of the device's families, the device was created with a queue of
+    /// it, which `host.queue` holds; the host submits to that queue only
+    /// while holding its lock; the instance and device outlive this
+    /// context and everything made on it (pipelines, buffers, passes),
+    /// which the host drops with the device idle.
     pub unsafe fn on_host_device(host: HostDevice) -> Result<Self, GpuError> {
-        let chosen = candidate(
-            &host.instance,
-            host.physical_device,
-            Some(host.queue_family),
-        )
+        // SAFETY: the instance and physical device as the caller promises.
+        let chosen = unsafe {
+            candidate(
+                &host.instance,
+                host.physical_device,
+                Some(host.queue_family),
+            )
+        }
         .map_err(|why| GpuError::Unsupported(format!("the host's device: {why}")))?;
         let allocator = Allocator::new(&AllocatorCreateDesc {
             instance: host.instance.clone(),

@@ -39,6 +39,7 @@ pub mod frame_report;
 pub mod gbuffer;
 pub mod host_device;
 pub mod host_images;
+mod instance;
 mod izb_frame;
 pub mod light_setup;
 pub mod options;

@@ -6,9 +6,13 @@
 //! colour attachment 0: `R32_UINT`, cleared to `0xFFFFFFFF`; a depth
 //! attachment cleared to 0 and tested with `GREATER`: reverse Z; push
 //! constants: one [`VisibilityView`] for the vertex and fragment stages;
-//! the `geometryShader` feature, for `gl_PrimitiveID`), and draws the
-//! scene's triangles in the scene's order — the image it leaves is what
-//! [`super::shadow_pass::GBufferInput::Visibility`] reads.
+//! the `geometryShader` feature, for `gl_PrimitiveID`; a viewport of the
+//! whole image, `minDepth` 0, `maxDepth` 1, positive height, no depth
+//! bias or clamp), and draws the scene's triangles in the scene's order —
+//! the image it leaves is what
+//! [`super::shadow_pass::GBufferInput::Visibility`] reads. A surface
+//! exactly at the far plane gets depth 0, the clear value, and is not
+//! drawn: the ray cast's `[near, far)`.
 //!
 //! Why the projection is built here and not by the host: the pass derives
 //! each pixel's surface from the ray through its centre
@@ -86,14 +90,13 @@ mod tests {
                 let sy = (q.dot(d(view.down)) / w + 1.0) * 0.5 * resolution[1] as f64;
                 let z = (view.depth_offset as f64 + view.depth_scale as f64 * w) / w;
                 assert!((sx - px).abs() < 1e-4 && (sy - py).abs() < 1e-4, "{x},{y}");
-                let want = if t == camera.near {
-                    1.0
-                } else if t == camera.far {
-                    0.0
-                } else {
-                    z
-                };
-                assert!((z - want).abs() < 1e-5, "{x},{y} depth {z}");
+                // Reverse Z: near / far ↦ 1 / 0, and 1/d in between.
+                let (n, f) = (camera.near, camera.far);
+                let want = n * (f - t) / ((f - n) * t);
+                assert!(
+                    (z - want).abs() < 1e-5,
+                    "{x},{y} at {t}: depth {z}, want {want}"
+                );
                 checked += 1;
             }
         }

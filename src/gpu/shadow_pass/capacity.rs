@@ -28,12 +28,13 @@ pub(super) struct Retired {
 impl ShadowPass<'_> {
     /// Makes the cell list hold half again `status`'s need when it
     /// overran (a new buffer and descriptor set); whether it grew. A frame
-    /// slot's status says the need of its own frame. The half again is
-    /// for a moving view, whose need changes from frame to frame: grown
-    /// to one frame's exact need, the host example's list overran in all
-    /// 5 of its frames (default, 64×36, from 64 entries), in 2 with the
-    /// headroom. Frames in flight may still use the old list and set:
-    /// they are released once every slot has recorded again.
+    /// slot's status says the need of its own frame; the half again is
+    /// for a moving view, whose need changes from frame to frame (grown to
+    /// one frame's exact need, the list overruns again on the next larger
+    /// one). A need past the device's largest storage buffer is refused by
+    /// name; the pass goes on exact the slow way. Frames in flight may
+    /// still use the old list and set: they are released once every slot
+    /// has recorded again.
     pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
         if !status.cell_list_overrun || status.cell_entries <= self.cell_capacity {
             return Ok(false);
@@ -41,7 +42,13 @@ impl ShadowPass<'_> {
         let shared = self.renderer.shared();
         let need = status.cell_entries;
         let most = u64::from(shared.limits.max_storage_buffer_range) / 4;
-        let capacity = need.saturating_add(need / 2).min(most.max(need));
+        if need > most {
+            return Err(GpuError::Unsupported(format!(
+                "the cell list needs {need} entries; this device's storage buffers hold at \
+                 most {most}: the frames stay exact the slow way (the overflow list)"
+            )));
+        }
+        let capacity = need.saturating_add(need / 2).min(most);
         let desc = BufferDesc::device("bin", "cell_triangles", capacity * 4);
         let mut buffers = self.buffers.clone();
         buffers[binding::CELL_TRIANGLES as usize] = Arc::new(GpuBuffer::new(shared, desc)?);

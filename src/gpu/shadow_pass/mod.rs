@@ -23,8 +23,9 @@
 //!   for them are refused (`--no-edge-surfaces` renders the same masks).
 //! - A frame whose cell list overruns stays exact the slow way
 //!   (`bin.comp`) and says so in its status; [`ShadowPass::grow`] makes
-//!   room between frames, releasing the old list once every frame slot
-//!   has recorded again.
+//!   room between frames and [`ShadowPass::resize`] follows a new image
+//!   size, each releasing the old buffers once every frame slot has
+//!   recorded again (`capacity.rs`).
 //!
 //! Per frame the recording is: a barrier after the previous frame's work
 //! on the pass's buffers, the parameters and the light state's start
@@ -151,7 +152,8 @@ pub struct ShadowPass<'r> {
     host_sets: HostImageSets,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
-    /// Sets replaced by `grow` that frames in flight may still use.
+    /// Sets replaced by `grow` or `resize` that frames in flight may
+    /// still use.
     retired: Vec<capacity::Retired>,
     /// With a visibility buffer: the vertices a moving eye translates.
     world: Option<WorldVertices>,
