@@ -198,10 +198,10 @@ pub struct GpuContext {
     /// serialised. The queue has its own lock, held only around the submit
     /// (on a host's device the host's: its frames are not held up by a
     /// wait here).
-    pub(super) command_pool: Mutex<vk::CommandPool>,
+    command_pool: Mutex<vk::CommandPool>,
     /// Submissions between allocation and wait right now, and the most
     /// ever seen: 1 while the lock does its job (`tests/gpu_threads.rs`).
-    pub(super) submissions: [AtomicU32; 2],
+    submissions: [AtomicU32; 2],
 }
 
 impl Drop for GpuContext {
@@ -345,11 +345,18 @@ impl GpuContext {
             limits: chosen.limits,
             raster_missing: chosen.raster_missing,
         });
+        Self::with_command_pool(shared)
+    }
+
+    /// The context of `shared`: a command pool of its own on the device's
+    /// queue family (a family of the device: its candidate check).
+    pub(super) fn with_command_pool(shared: Arc<DeviceShared>) -> Result<Self, GpuError> {
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(shared.queue_family)
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: the queue family is one of the device's (checked when
+        // `shared` was made, by `candidate`).
         let command_pool =
-            // SAFETY: the queue family is the device's own.
             unsafe { shared.device.create_command_pool(&pool_info, None) }.map_err(GpuError::vk)?;
         Ok(GpuContext {
             shared,

@@ -103,17 +103,7 @@ impl GpuContext {
                     .into(),
             ),
         });
-        let pool_info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(shared.queue_family)
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        // SAFETY: the queue family is the host device's own (the caller).
-        let command_pool =
-            unsafe { shared.device.create_command_pool(&pool_info, None) }.map_err(GpuError::vk)?;
-        Ok(GpuContext {
-            shared,
-            command_pool: Mutex::new(command_pool),
-            submissions: Default::default(),
-        })
+        GpuContext::with_command_pool(shared)
     }
 
     /// Whether the device is the host's ([`Self::on_host_device`]).
