@@ -36,7 +36,7 @@ impl ShadowPass<'_> {
     /// still use the old list and set: they are released once every slot
     /// has recorded again.
     pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
-        if !status.cell_list_overrun || status.cell_entries <= self.cell_capacity {
+        if !status.cell_list_overrun || status.cell_entries <= self.sizes.cell_capacity {
             return Ok(false);
         }
         let shared = self.renderer.shared();
@@ -53,7 +53,6 @@ impl ShadowPass<'_> {
         let mut buffers = self.buffers.clone();
         buffers[binding::CELL_TRIANGLES as usize] = Arc::new(GpuBuffer::new(shared, desc)?);
         self.replace_buffers(buffers)?;
-        self.cell_capacity = capacity;
         self.sizes.cell_capacity = capacity;
         Ok(true)
     }
@@ -87,7 +86,6 @@ impl ShadowPass<'_> {
         }
         self.replace_buffers(buffers)?;
         self.scene.resolution = resolution;
-        self.max_cells = sizes.max_cells;
         self.sizes = sizes;
         Ok(true)
     }

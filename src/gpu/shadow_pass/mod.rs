@@ -142,8 +142,6 @@ pub struct ShadowPass<'r> {
     scene: Scene,
     bounds: (DVec3, DVec3),
     triangles: u32,
-    max_cells: u64,
-    cell_capacity: u64,
     /// `FrameParams::loop_budget` on this device.
     loop_budget: u32,
     buffers: [Arc<GpuBuffer>; BINDINGS],
@@ -157,7 +155,9 @@ pub struct ShadowPass<'r> {
     retired: Vec<capacity::Retired>,
     /// With a visibility buffer: the vertices a moving eye translates.
     world: Option<WorldVertices>,
-    /// What the buffers were sized for ([`Self::resize`] changes it).
+    /// What the buffers were sized for, the cell list's capacity and the
+    /// cell pyramid's size among them ([`Self::grow`] and
+    /// [`Self::resize`] change it).
     sizes: FrameSizes,
 }
 
@@ -287,8 +287,6 @@ impl<'r> ShadowPass<'r> {
             bounds,
             scene,
             triangles: triangles as u32,
-            max_cells,
-            cell_capacity,
             loop_budget: loop_budget(&shared.info.name),
             buffers,
             set,
@@ -312,7 +310,7 @@ impl<'r> ShadowPass<'r> {
 
     /// Entries of the cell list now.
     pub fn cell_capacity(&self) -> u64 {
-        self.cell_capacity
+        self.sizes.cell_capacity
     }
 
     /// Checks `view` against the scene (the eye, the light's kind of size,
@@ -392,8 +390,8 @@ impl<'r> ShadowPass<'r> {
             scene,
             settings,
             self.triangles as usize,
-            self.max_cells,
-            self.cell_capacity,
+            self.sizes.max_cells,
+            self.sizes.cell_capacity,
             self.loop_budget,
             renderer.heavy_entries(),
         );
@@ -453,7 +451,7 @@ impl<'r> ShadowPass<'r> {
         super::light_setup::light_setup(&rec, &renderer.kernels, [w, h]);
         let gather = settings.skips.behind_receivers.then_some(w * h);
         let kernels = &renderer.kernels;
-        super::bin::bin(&rec, kernels, self.triangles, self.max_cells, gather);
+        super::bin::bin(&rec, kernels, self.triangles, self.sizes.max_cells, gather);
         let heavy = super::evaluate::heavy_step(&params, &shared.info);
         let halves = settings.mask_halves(scene);
         super::evaluate::evaluate(&rec, kernels, [w, h], heavy, halves);
