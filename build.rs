@@ -94,6 +94,7 @@ const SHADERS: &[(&str, &str, Defines)] = &[
         "gbuffer_from_visibility.comp",
         &[],
     ),
+    ("gbuffer_from_depth", "gbuffer_from_depth.comp", &[]),
     ("edge_surfaces", "edge_surfaces.comp", &[]),
     (
         "light_setup_receivers",

@@ -53,6 +53,7 @@ layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
+layout(scalar, binding = B_G_NORMAL) readonly buffer GNrmBuf { vec3 g_normal[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 #include "scene_triangles.glsl"
@@ -85,6 +86,7 @@ layout(scalar, binding = B_MASKS_HIGH) buffer MaskHighBuf { uint masks_high[]; }
 #define HALF_DIAGONAL 0.70710677
 #define PI 3.14159265
 
+#include "entry_normal.glsl"
 #include "pixel_frustum.glsl"
 
 // The candidates listed in the pixel's cells on the used levels of its

@@ -3,7 +3,8 @@
 // (the triangle a BVH traversal hit) and `gbuffer_from_visibility.comp`
 // (the triangle the host's visibility buffer names). Both refine the hit
 // on the triangle's plane, so the same triangle gives the same entry bit
-// for bit. Include after common.glsl, the frame, triangle, normal,
+// for bit. `gbuffer_from_depth.comp` stores its surfaces with
+// `store_entry` too. Include after common.glsl, the frame, triangle, normal,
 // G-buffer and counter bindings, counters.glsl and surface_hit.glsl.
 
 void store_miss(uint i) {
@@ -11,6 +12,23 @@ void store_miss(uint i) {
     g_position[i] = vec3(0.0);
     g_axis_x[i] = vec3(0.0);
     g_axis_y[i] = vec3(0.0);
+}
+
+// Stores pixel i's entry: the surface of camera-facing normal n that its
+// centre ray d meets at t > 0, named `id`, with `flags` so far.
+void store_entry(uint i, uint id, vec3 d, float t, vec3 n, uint flags) {
+    vec3 p = d * t;
+    if (faces_light(p, n)) flags |= FLAG_SHADOW_TESTED;
+    vec3 ex, ey;
+    if (microquad_axes(d, t, n, ex, ey)) flags |= FLAG_AXES_CLAMPED;
+
+    g_id_flags[i] = (flags << ID_BITS) | id;
+    g_position[i] = p;
+    g_axis_x[i] = ex;
+    g_axis_y[i] = ey;
+    count_add(C_HITS, 1u);
+    count_add(C_SHADOW_TESTED, (flags & FLAG_SHADOW_TESTED) != 0u ? 1u : 0u);
+    count_add(C_CLAMPED, (flags & FLAG_AXES_CLAMPED) != 0u ? 1u : 0u);
 }
 
 // Pixel i's centre ray d sees triangle `id`; t is the ray's parameter
@@ -33,17 +51,6 @@ bool store_surface(uint i, uint id, vec3 d, float t) {
         store_miss(i);
         return false;
     }
-    vec3 p = d * t;
-    if (faces_light(p, n)) flags |= FLAG_SHADOW_TESTED;
-    vec3 ex, ey;
-    if (microquad_axes(d, t, n, ex, ey)) flags |= FLAG_AXES_CLAMPED;
-
-    g_id_flags[i] = (flags << ID_BITS) | id;
-    g_position[i] = p;
-    g_axis_x[i] = ex;
-    g_axis_y[i] = ey;
-    count_add(C_HITS, 1u);
-    count_add(C_SHADOW_TESTED, (flags & FLAG_SHADOW_TESTED) != 0u ? 1u : 0u);
-    count_add(C_CLAMPED, (flags & FLAG_AXES_CLAMPED) != 0u ? 1u : 0u);
+    store_entry(i, id, d, t, n, flags);
     return true;
 }

@@ -6,8 +6,8 @@
 // shadow-volume side planes as affine edge functions over the µQuad — LUT
 // masks (MODE_LUT32), all 32 samples evaluated (MODE_EXACT32), or the
 // centre only (MODE_ONE) — ANDed per triangle; under an area light the
-// same over the light's disk. Include after the bindings, light_view.glsl
-// and loop_budget.glsl.
+// same over the light's disk. Include after the bindings, light_view.glsl,
+// loop_budget.glsl and entry_normal.glsl.
 
 // The pixel in eye space, as the CPU twin's `PixelFrustum` (the frustum
 // test runs in eye space: its depth test then sees the same floats in
@@ -406,7 +406,8 @@ void pixel_frustum(uint i, uint cascade) {
     // tangent-plane test compares heights against 2^-8 of a µQuad, and a
     // normal rebuilt from f32 light-view vertices (error ~ε·|v|/|edge|)
     // flipped 1.1–1.8e-4 of the samples at 960×540 (wires, deckchair).
-    px_normal = receiver_normal(triangle_normals[px_receiver], word);
+    // With the host's depth and normal: its normal (`entry_normal.glsl`).
+    px_normal = entry_normal(i, word);
     px_ex = ex;
     px_ey = ey;
     precise float size = max(length(px_ex), length(px_ey));

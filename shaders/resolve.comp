@@ -16,6 +16,7 @@ layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; 
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
+layout(scalar, binding = B_G_NORMAL) readonly buffer GNrmBuf { vec3 g_normal[]; };
 // With edge surfaces the pixel's combined mask is written back to its word.
 layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 layout(scalar, binding = B_MASKS_HIGH) buffer MaskHighBuf { uint masks_high[]; };
@@ -27,6 +28,7 @@ layout(scalar, binding = B_SHADED) writeonly buffer ShadedBuf { uint shaded[]; }
 const vec3 SKY = vec3(0.55, 0.7, 0.9);
 
 #include "edge_receivers.glsl"
+#include "entry_normal.glsl"
 
 // The receivers' masks of half `mask_half`.
 uint half_mask(uint mask_half, uint i) {
@@ -76,7 +78,7 @@ void main() {
     if ((flags & FLAG_HIT) != 0u) {
         vec3 p = g_position[i];
         vec3 toward = frame.light_is_point != 0u ? normalize(frame.light_vec - p) : frame.light_vec;
-        vec3 n = receiver_normal(triangle_normals[gbuffer_triangle(word)], word);
+        vec3 n = entry_normal(i, word);
         float lambert = max(dot(n, toward), 0.0);
         // 1 − hidden / samples, as the CPU twin: with edge surfaces the
         // count is no power of two and (samples − hidden) / samples can

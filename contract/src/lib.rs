@@ -86,11 +86,16 @@ shared_constants! {
         /// lo: two `vec3`), from which `translate_vertices` writes
         /// `B_VERTICES` for each frame's eye; 4 bytes elsewhere.
         WORLD_VERTICES = 25;
+        /// Per G-buffer entry whose triangle is not known (id
+        /// `DEPTH_SURFACE`: the shadow pass fed the host's depth and
+        /// normal images), its camera-facing unit normal (`vec3`); 4 bytes
+        /// where every entry names its triangle.
+        G_NORMAL = 26;
     }
 }
 
 /// Number of bindings (one past the last of [`binding`]).
-pub const BINDING_COUNT: u32 = binding::WORLD_VERTICES + 1;
+pub const BINDING_COUNT: u32 = binding::G_NORMAL + 1;
 
 shared_constants! {
     /// The second descriptor set (`HOST_*`): the host's images a frame of
@@ -108,8 +113,16 @@ shared_constants! {
         /// The lit fraction out (a storage image, `R16_UNORM` or
         /// `R8_UNORM`).
         LIT = 2;
+        /// The host's depth (a sampled image, its depth aspect:
+        /// `D32_SFLOAT`, `D24_UNORM_S8_UINT`, `X8_D24_UNORM_PACK32` or
+        /// `D32_SFLOAT_S8_UINT`), with the depth + normal input.
+        DEPTH = 3;
+        /// The host's geometric normal per pixel, world axes, xyz of a
+        /// float or snorm colour image (a sampled image), with the depth +
+        /// normal input.
+        NORMAL = 4;
         /// Bindings of the set.
-        BINDING_COUNT = 3;
+        BINDING_COUNT = 5;
     }
 }
 
@@ -178,7 +191,9 @@ shared_constants! {
         /// `gbuffer_from_visibility`: pixels whose host id named no
         /// triangle of the pass (past its count, and not `NO_HIT`) or a
         /// triangle whose plane the centre ray does not cross in front of
-        /// the eye; each is stored as a miss.
+        /// the eye; `gbuffer_from_depth`: pixels whose depth gives no view
+        /// depth in front of the eye or whose normal is zero or not
+        /// finite. Each is stored as a miss.
         VISIBILITY_REJECTED = 41;
         /// Words in the counters buffer.
         WORDS = 42;
@@ -244,9 +259,13 @@ shared_constants! {
     pub mod word: u32 as Uint, prefix "" {
         /// A triangle id of no triangle (a miss).
         NO_HIT = u32::MAX;
-        /// Id field of a miss in the G-buffer word; also one more than the
-        /// largest triangle id.
+        /// Id field of a miss in the G-buffer word.
         ID_MASK = (1 << crate::size::ID_BITS) - 1;
+        /// Id field of a G-buffer entry made from the host's depth and
+        /// normal: its triangle is not known (no candidate is skipped as
+        /// the receiver's own), its normal is `B_G_NORMAL`'s. One more than
+        /// the largest triangle id.
+        DEPTH_SURFACE = (1 << crate::size::ID_BITS) - 2;
         /// Alpha of a shaded pixel that is not shadow-tested; otherwise
         /// alpha is the count of lit samples, 0..=32.
         ALPHA_NOT_TESTED = 255;
@@ -540,7 +559,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 92, "members of the five shared structs");
+        assert_eq!(checked, 96, "members of the five shared structs");
     }
 
     #[test]

@@ -125,6 +125,16 @@ shared_struct! {
         /// Vertices `translate_vertices` writes (`B_WORLD_VERTICES`' pairs).
         pub world_vertex_count: u32 => "uint world_vertex_count",
         pub eye_lo: [f32; 3] => "vec3 eye_lo",
+        /// `gbuffer_from_depth`: the host's depth value D maps to the view
+        /// depth `depth_near / (depth_near_over_far + u · depth_span)`,
+        /// u = D with reverse Z (`depth_reversed` 1), 1 − D with standard
+        /// Z; `depth_near_over_far` is 0 for an infinite far plane and
+        /// `depth_span` = 1 − `depth_near_over_far`
+        /// (`gbuffer::DepthConvention`).
+        pub depth_near: f32 => "float depth_near",
+        pub depth_near_over_far: f32 => "float depth_near_over_far",
+        pub depth_span: f32 => "float depth_span",
+        pub depth_reversed: u32 => "uint depth_reversed",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area

@@ -7,9 +7,11 @@
 //! `Ex = dP/dx`, `Ey = dP/dy` (Wyman et al. 2015, §4: the pixel's footprint on its
 //! tangent plane, the base of its shadow frustum).
 
+mod depth;
 pub mod edge_surfaces;
 mod visibility;
 
+pub use depth::{gbuffer_from_depth, DepthConvention, DEPTH_SURFACE};
 pub use visibility::{gbuffer_from_visibility, VisibilityGBuffer};
 
 use crate::bvh::SceneBvh;

@@ -38,6 +38,9 @@ pub struct FrameSizes {
     pub shadow_map_words: u64,
     /// 32-bit mask halves per pixel ([`IzbSettings::mask_halves`]).
     pub mask_halves: u64,
+    /// G-buffer entries that carry their own normal (`B_G_NORMAL`): the
+    /// pixels with the shadow pass's depth + normal input, 0 elsewhere.
+    pub normal_entries: u64,
 }
 
 /// A frame's room for edge surfaces: extra surfaces (G-buffer rows and
@@ -149,6 +152,10 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
             binding::EDGE_COVERAGE,
             d("gbuffer", "edge_coverage", edge_coverage_words * 4),
         ),
+        (
+            binding::G_NORMAL,
+            d("gbuffer", "g_normal", z.normal_entries * vec3),
+        ),
     ])
 }
 
@@ -239,6 +246,7 @@ pub fn planned_memory(
         triangles: triangles.len() as u64,
         vertices: upload.vertices.len() as u64,
         world_vertices: 0,
+        normal_entries: 0,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
         max_cells: crate::cascades::max_total_cells(side),
@@ -360,6 +368,7 @@ mod tests {
             triangles: 10,
             vertices: 12,
             world_vertices: 0,
+            normal_entries: 0,
             bvh_nodes: 50_000,
             bvh_prims: 10,
             max_cells: 16,

@@ -157,3 +157,16 @@ pub fn gbuffer_from_visibility(rec: &Recorder, kernels: &Kernels, size: [u32; 2]
     rec.barrier();
     rec.end_label();
 }
+
+/// Records the G-buffer from the host's depth and normal images
+/// (`shaders/gbuffer_from_depth.comp`, the twin of
+/// [`crate::gbuffer::gbuffer_from_depth`]): one thread per pixel, each
+/// entry from its centre ray at the view depth the host's depth encodes,
+/// with the host's normal kept per entry (`B_G_NORMAL`). The caller has
+/// bound the host-image set holding both images.
+pub fn gbuffer_from_depth(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+    rec.begin_label("gbuffer_from_depth");
+    rec.dispatch_pixels(&kernels.gbuffer_from_depth, size);
+    rec.barrier();
+    rec.end_label();
+}

@@ -1,6 +1,6 @@
 //! The host's images a frame of the shadow pass reads or writes, and the
-//! state contract around them (issue 29's point 2): the visibility buffer
-//! in, the masks and the lit fraction out. The host declares each
+//! state contract around them (issue 29's point 2): the visibility buffer,
+//! or the depth and the normal, in; the masks and the lit fraction out. The host declares each
 //! image — what it is and the layout, stage and access its last write
 //! left it in — and the pass records the one barrier that makes that write
 //! visible to its compute shader and moves the image into the layout it
@@ -18,8 +18,10 @@
 //!   `SHADER_READ`), an output written by them (`COMPUTE_SHADER`,
 //!   `SHADER_WRITE`), every pixel of it;
 //! - after: in [`HostImage::layout_after`] — an input
-//!   `SHADER_READ_ONLY_OPTIMAL` (or `GENERAL` if given `GENERAL`), an
-//!   output `GENERAL`. The host's next access needs a barrier from the
+//!   `SHADER_READ_ONLY_OPTIMAL`, or left as given when given `GENERAL`
+//!   or (a depth image) `DEPTH_STENCIL_READ_ONLY_OPTIMAL` or
+//!   `DEPTH_READ_ONLY_STENCIL_ATTACHMENT_OPTIMAL`, so a host may keep
+//!   depth-testing against it read-only; an output `GENERAL`. The host's next access needs a barrier from the
 //!   pass's scope above (a layout transition out of it is one).
 //!
 //! Descriptors: one set per frame slot (set `HOST_SET`), allocated once
@@ -41,7 +43,8 @@ use std::sync::Arc;
 pub struct HostImage {
     pub image: vk::Image,
     /// A 2D view of the image's first mip level and array layer, in
-    /// `format`, with the colour aspect.
+    /// `format`, with the colour aspect (a depth image's: the depth
+    /// aspect alone).
     pub view: vk::ImageView,
     pub format: vk::Format,
     pub extent: [u32; 2],
@@ -62,6 +65,13 @@ pub struct FrameImages {
     /// In: per pixel the scene triangle it sees (`R32_UINT`, sampled),
     /// with the pass's `GBufferInput::Visibility` and only then.
     pub visibility: Option<HostImage>,
+    /// In: the host's depth (with the pass's `GBufferInput::DepthNormal`
+    /// and only then): one of [`DEPTH_FORMATS`], sampled.
+    pub depth: Option<HostImage>,
+    /// In: the host's geometric normal per pixel (with the depth): world
+    /// axes in x, y, z, either facing, unit length or near it (the pass
+    /// normalises); one of [`NORMAL_FORMATS`], sampled.
+    pub normal: Option<HostImage>,
     /// Out: the masks (`R32_UINT`; `R32G32_UINT` with two mask halves),
     /// a storage image.
     pub masks: Option<HostImage>,
@@ -69,6 +79,34 @@ pub struct FrameImages {
     /// 1 − hidden / samples where shadow-tested, 0 on a surface facing
     /// away from the light, 1 where no surface is seen.
     pub lit_fraction: Option<HostImage>,
+}
+
+/// The depth formats the pass reads (the depth aspect of the combined
+/// ones).
+pub const DEPTH_FORMATS: [vk::Format; 4] = [
+    vk::Format::D32_SFLOAT,
+    vk::Format::D24_UNORM_S8_UINT,
+    vk::Format::X8_D24_UNORM_PACK32,
+    vk::Format::D32_SFLOAT_S8_UINT,
+];
+
+/// The normal formats the pass reads: float or snorm, x, y, z in the
+/// first three channels.
+pub const NORMAL_FORMATS: [vk::Format; 3] = [
+    vk::Format::R32G32B32A32_SFLOAT,
+    vk::Format::R16G16B16A16_SFLOAT,
+    vk::Format::R16G16B16A16_SNORM,
+];
+
+/// Which input images a frame gives the pass's G-buffer producer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputImages {
+    /// None (the pass casts its own rays).
+    None,
+    /// A visibility buffer.
+    Visibility,
+    /// A depth and a normal.
+    DepthNormal,
 }
 
 /// Whether the pass reads or writes an image.
@@ -79,13 +117,36 @@ pub enum ImageUse {
 }
 
 impl HostImage {
-    /// The layout a frame leaves an input in (and reads it in): `GENERAL`
-    /// when given `GENERAL`, else `SHADER_READ_ONLY_OPTIMAL`.
+    /// The layout a frame leaves an input in (and reads it in): the one
+    /// given when it is `GENERAL` or, for a depth image, a depth
+    /// read-only layout; else `SHADER_READ_ONLY_OPTIMAL`.
     pub fn layout_after(&self) -> vk::ImageLayout {
-        if self.layout == vk::ImageLayout::GENERAL {
-            vk::ImageLayout::GENERAL
+        let depth_read_only = [
+            vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
+            vk::ImageLayout::DEPTH_READ_ONLY_STENCIL_ATTACHMENT_OPTIMAL,
+        ];
+        let is_depth = DEPTH_FORMATS.contains(&self.format);
+        if self.layout == vk::ImageLayout::GENERAL
+            || (is_depth && depth_read_only.contains(&self.layout))
+        {
+            self.layout
         } else {
             vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL
+        }
+    }
+
+    /// The aspects a barrier on the image names: depth and stencil for a
+    /// combined format (every aspect changes layout together), depth for
+    /// a depth-only one, else colour.
+    pub fn aspects(&self) -> vk::ImageAspectFlags {
+        match self.format {
+            vk::Format::D32_SFLOAT | vk::Format::X8_D24_UNORM_PACK32 => {
+                vk::ImageAspectFlags::DEPTH
+            }
+            vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT => {
+                vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+            }
+            _ => vk::ImageAspectFlags::COLOR,
         }
     }
 
@@ -168,27 +229,44 @@ impl HostImage {
     }
 }
 
+/// A named error for an input the pass was not made for, or lacks.
+fn input_mismatch(made_for: InputImages, what: &str, given: bool) -> GpuError {
+    GpuError::Unsupported(format!(
+        "the pass was made for the {made_for:?} G-buffer input, and the frame {} a {what}",
+        if given { "gives" } else { "lacks" }
+    ))
+}
+
 impl FrameImages {
     /// Checks a frame's images for a pass that does (`wants_visibility`)
     /// or does not read a visibility buffer, renders `resolution` and
     /// keeps `mask_halves` mask halves; each problem named.
     pub fn check(
         &self,
-        wants_visibility: bool,
+        input: InputImages,
         resolution: [u32; 2],
         mask_halves: usize,
     ) -> Result<(), GpuError> {
-        match (wants_visibility, &self.visibility) {
-            (true, Some(v)) => v.check_visibility(resolution)?,
-            (false, None) => {}
-            (wants, given) => {
-                return Err(GpuError::Unsupported(format!(
-                    "the pass was made for the {} G-buffer input, and the frame {} a \
-                     visibility buffer",
-                    if wants { "Visibility" } else { "RayCast" },
-                    if given.is_some() { "gives" } else { "lacks" }
-                )))
+        let wanted = [
+            ("visibility buffer", self.visibility, input == InputImages::Visibility),
+            ("depth image", self.depth, input == InputImages::DepthNormal),
+            ("normal image", self.normal, input == InputImages::DepthNormal),
+        ];
+        for (what, given, wants) in wanted {
+            if given.is_some() != wants {
+                return Err(input_mismatch(input, what, given.is_some()));
             }
+        }
+        if let Some(v) = &self.visibility {
+            v.check_visibility(resolution)?;
+        }
+        if let Some(d) = &self.depth {
+            let why = " (its depth aspect: the view must have that aspect alone)";
+            d.check("depth", ImageUse::Read, (&DEPTH_FORMATS, why), resolution)?;
+        }
+        if let Some(n) = &self.normal {
+            let why = " (x, y, z in the first three channels)";
+            n.check("normal", ImageUse::Read, (&NORMAL_FORMATS, why), resolution)?;
         }
         if let Some(m) = &self.masks {
             let format = if mask_halves == 2 {
@@ -239,7 +317,7 @@ pub(crate) unsafe fn acquire(
         .image(image.image)
         .subresource_range(
             vk::ImageSubresourceRange::default()
-                .aspect_mask(vk::ImageAspectFlags::COLOR)
+                .aspect_mask(image.aspects())
                 .level_count(1)
                 .layer_count(1),
         )];
@@ -278,7 +356,7 @@ impl HostImageSets {
         let sizes = [
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::SAMPLED_IMAGE)
-                .descriptor_count(slots_u32),
+                .descriptor_count(3 * slots_u32),
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::STORAGE_IMAGE)
                 .descriptor_count(2 * slots_u32),
@@ -318,6 +396,8 @@ impl HostImageSets {
             (host_image::VISIBILITY, images.visibility, ImageUse::Read),
             (host_image::MASKS, images.masks, ImageUse::Write),
             (host_image::LIT, images.lit_fraction, ImageUse::Write),
+            (host_image::DEPTH, images.depth, ImageUse::Read),
+            (host_image::NORMAL, images.normal, ImageUse::Read),
         ];
         let infos: Vec<(u32, [vk::DescriptorImageInfo; 1], ImageUse)> = bound
             .iter()

@@ -37,9 +37,9 @@ impl GpuRenderer {
             }
         }
         let upload = SceneUpload::new(scene);
-        if upload.triangles.len() >= shared::ID_MASK as usize {
+        if upload.triangles.len() >= izb_contract::word::DEPTH_SURFACE as usize {
             return Err(GpuError::Unsupported(format!(
-                "{} triangles: the GPU G-buffer holds ids below 2^{} - 1",
+                "{} triangles: the GPU G-buffer holds ids below 2^{} - 2",
                 upload.triangles.len(),
                 shared::ID_BITS
             )));

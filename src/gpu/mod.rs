@@ -6,6 +6,7 @@
 //! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
 //! | 0, moving eye | [`translate_vertices`] | `translate_vertices.comp` | [`crate::cpu::translate_vertices`] |
 //! | 0, host input | [`gbuffer::gbuffer_from_visibility`] | `gbuffer_from_visibility.comp` | [`crate::gbuffer::gbuffer_from_visibility`] |
+//! | 0, host input | [`gbuffer::gbuffer_from_depth`] | `gbuffer_from_depth.comp` | [`crate::gbuffer::gbuffer_from_depth`] |
 //! | 1 | [`light_setup`] | `light_setup.comp` | [`mod@crate::cpu::light_setup`] |
 //! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
 //! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |
@@ -137,10 +138,11 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 34] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 35] = [
     ("gbuffer", spirv!("gbuffer")),
     ("translate_vertices", spirv!("translate_vertices")),
     ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
+    ("gbuffer_from_depth", spirv!("gbuffer_from_depth")),
     ("edge_surfaces", spirv!("edge_surfaces")),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
@@ -179,6 +181,7 @@ pub struct Kernels {
     pub gbuffer: ComputeKernel,
     /// The G-buffer from the host's visibility buffer (the shadow pass).
     pub gbuffer_from_visibility: ComputeKernel,
+    pub gbuffer_from_depth: ComputeKernel,
     /// The shadow pass's eye-relative vertices for a moving eye.
     pub translate_vertices: ComputeKernel,
     pub edge_surfaces: ComputeKernel,
@@ -226,6 +229,7 @@ impl Kernels {
                 "gbuffer_from_visibility",
                 spirv!("gbuffer_from_visibility"),
             )?,
+            gbuffer_from_depth: k("gbuffer_from_depth", spirv!("gbuffer_from_depth"))?,
             translate_vertices: k("translate_vertices", spirv!("translate_vertices"))?,
             edge_surfaces: k("edge_surfaces", spirv!("edge_surfaces"))?,
             light_setup_receivers: k("light_setup_receivers", spirv!("light_setup_receivers"))?,

@@ -54,8 +54,10 @@ impl BindingLayout {
             host_binding(host_image::VISIBILITY, vk::DescriptorType::SAMPLED_IMAGE),
             host_binding(host_image::MASKS, vk::DescriptorType::STORAGE_IMAGE),
             host_binding(host_image::LIT, vk::DescriptorType::STORAGE_IMAGE),
+            host_binding(host_image::DEPTH, vk::DescriptorType::SAMPLED_IMAGE),
+            host_binding(host_image::NORMAL, vk::DescriptorType::SAMPLED_IMAGE),
         ];
-        const _: () = assert!(host_image::BINDING_COUNT == 3);
+        const _: () = assert!(host_image::BINDING_COUNT == 5);
         let host_images_layout = match create(&host_bindings) {
             Ok(l) => l,
             Err(e) => {

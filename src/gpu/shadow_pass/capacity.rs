@@ -74,6 +74,9 @@ impl ShadowPass<'_> {
         let mut sizes = self.sizes;
         sizes.pixels = pixels;
         sizes.receivers = pixels;
+        if sizes.normal_entries != 0 {
+            sizes.normal_entries = pixels;
+        }
         sizes.tiles = edge_tiles(resolution);
         sizes.max_cells = max_cells(pixels as usize, self.triangles as usize, settings)?;
         let shared = self.renderer.shared();

@@ -9,16 +9,18 @@
 //! - The scene is resident: its vertices, normals, BVH (ray cast only)
 //!   and LUT are uploaded once. The camera may turn and the light may
 //!   move or change size per frame. With the host's visibility buffer the
-//!   eye may move too: the vertices are held relative to an anchor as
+//!   eye may move too (with the depth + normal input as well): the
+//!   vertices are held relative to an anchor as
 //!   double-singles and `translate_vertices` makes them eye-relative on
 //!   the GPU each frame (the twin: [`crate::cpu::translate_vertices`]); a
 //!   ray-cast pass's BVH is built around one eye, so there a moved eye is
 //!   refused by name.
-//! - The G-buffer is the pass's first step, from one of two producers
+//! - The G-buffer is the pass's first step, from one of three producers
 //!   ([`GBufferInput`]): the ray-cast one (`gbuffer.comp`, over a BVH
-//!   built once), or the host's visibility buffer (`R32_UINT` triangle
-//!   ids, `gbuffer_from_visibility.comp`), read under the state contract
-//!   of [`super::host_images`]. A depth + normal G-buffer is the next part.
+//!   built once), the host's visibility buffer (`R32_UINT` triangle ids,
+//!   `gbuffer_from_visibility.comp`), or the host's depth and normal
+//!   images (`gbuffer_from_depth.comp`), read under the state contract
+//!   of [`super::host_images`].
 //! - Edge pixels' per-sample surfaces are not traced: settings that ask
 //!   for them are refused (`--no-edge-surfaces` renders the same masks).
 //! - A frame whose cell list overruns stays exact the slow way
@@ -41,13 +43,16 @@
 //! are in `GENERAL`, written by compute shaders.
 
 mod capacity;
+mod read_back;
+
+pub use read_back::PassImages;
 
 use super::frame::{GBufferSource, GpuRenderer};
 use super::frame_inputs::{frame_params, loop_budget, LLVMPIPE_LOOP_CAP};
 use super::frame_memory::FrameSizes;
 use super::frame_memory::{frame_buffer_descs, initial_cell_capacity, reset_pass_state};
-use super::host_images::{FrameImages, HostImageSets, ImageUse};
-use super::pass_copies::{read_back, upload_into};
+use super::host_images::{FrameImages, HostImageSets, ImageUse, InputImages};
+use super::pass_copies::upload_into;
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
@@ -82,7 +87,7 @@ pub struct ShadowPassConfig {
 }
 
 /// The G-buffer's producer, the pass's first step.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GBufferInput {
     /// Primary rays cast through a BVH of the scene (built once).
     RayCast,
@@ -92,6 +97,25 @@ pub enum GBufferInput {
     /// ray and that triangle's plane, as the ray cast derives it from its
     /// hit; no BVH is built.
     Visibility,
+    /// The host's depth and geometric normal, `FrameView::images.depth`
+    /// and `.normal`, the depth under this convention: each entry's point
+    /// at the view depth its depth encodes on the pixel's centre ray, its
+    /// µQuad from that point and the normal. The receiver's triangle is
+    /// not known, so its own triangle is one more candidate that the
+    /// depth tolerance must reject: the depth format's precision shows in
+    /// the shadows (`paper-notes/embedding.md`, per format). No BVH.
+    DepthNormal(crate::gbuffer::DepthConvention),
+}
+
+impl GBufferInput {
+    /// The host images a frame gives this producer.
+    fn images(&self) -> InputImages {
+        match self {
+            GBufferInput::RayCast => InputImages::None,
+            GBufferInput::Visibility => InputImages::Visibility,
+            GBufferInput::DepthNormal(_) => InputImages::DepthNormal,
+        }
+    }
 }
 
 /// What may change between frames.
@@ -187,17 +211,22 @@ impl<'r> ShadowPass<'r> {
                 config.frames_in_flight
             )));
         }
+        if let GBufferInput::DepthNormal(convention) = config.gbuffer {
+            convention.check().map_err(GpuError::Unsupported)?;
+        }
         let shared = renderer.shared();
         let upload = renderer.prepare_frame(&scene, GBufferSource::Gpu)?;
         // With a visibility buffer nothing holds the eye's frame but the
         // vertices, which `translate_vertices` makes for each frame's eye.
         let bounds = scene.bounds();
-        let world = (config.gbuffer == GBufferInput::Visibility)
+        let world = (config.gbuffer != GBufferInput::RayCast)
             .then(|| WorldVertices::new(&scene, (bounds.0 + bounds.1) * 0.5));
         let triangles = upload.triangles.len();
         let bvh = match config.gbuffer {
             GBufferInput::RayCast => super::gbuffer::build_bvh(&upload.triangles)?,
-            GBufferInput::Visibility => super::gbuffer::GpuBvh::EMPTY,
+            GBufferInput::Visibility | GBufferInput::DepthNormal(_) => {
+                super::gbuffer::GpuBvh::EMPTY
+            }
         };
         let max_cells = super::izb_frame::max_cells(scene.pixel_count(), triangles, settings)?;
         let cell_capacity = config
@@ -222,6 +251,10 @@ impl<'r> ShadowPass<'r> {
             lut_entries: lut.masks.len() as u64,
             shadow_map_words: 0,
             mask_halves: settings.mask_halves(&scene) as u64,
+            normal_entries: match config.gbuffer {
+                GBufferInput::DepthNormal(_) => pixels,
+                _ => 0,
+            },
         };
         let descs = frame_buffer_descs(&sizes);
         // One buffer per binding: a batch frame lets the bin's lists
@@ -320,7 +353,7 @@ impl<'r> ShadowPass<'r> {
             return Err(GpuError::Unsupported(format!(
                 "the eye moved from {} to {}: a ray-cast pass holds the scene's vertices and \
                  BVH relative to its eye; make the pass again for the new eye, or with \
-                 GBufferInput::Visibility, whose vertices follow the eye",
+                 the host's visibility buffer or depth, whose vertices follow the eye",
                 self.scene.camera.eye, view.camera.eye
             )));
         }
@@ -371,9 +404,8 @@ impl<'r> ShadowPass<'r> {
             )));
         }
         let images = view.images;
-        let wants_visibility = self.config.gbuffer == GBufferInput::Visibility;
         let halves = self.config.settings.mask_halves(&self.scene);
-        images.check(wants_visibility, self.scene.resolution, halves)?;
+        images.check(self.config.gbuffer.images(), self.scene.resolution, halves)?;
         self.take_view(view)?;
         // This slot's previous frame is done (the caller): what only it
         // still held is released.
@@ -401,6 +433,12 @@ impl<'r> ShadowPass<'r> {
             [params.eye_hi, params.eye_lo] = w.eye(scene.camera.eye).map(|v| v.to_array());
             params.world_vertex_count = w.pairs.len() as u32;
         }
+        if let GBufferInput::DepthNormal(c) = self.config.gbuffer {
+            params.depth_near = c.near as f32;
+            params.depth_near_over_far = c.near_over_far() as f32;
+            params.depth_span = (1.0 - c.near_over_far()) as f32;
+            params.depth_reversed = u32::from(c.reversed);
+        }
         let device = &shared.device;
         let buffer = |b: u32| self.buffers[b as usize].buffer;
         // SAFETY: the caller's promise covers `cmd`, and the set, layout
@@ -425,6 +463,8 @@ impl<'r> ShadowPass<'r> {
         }
         let host = [
             (images.visibility, ImageUse::Read),
+            (images.depth, ImageUse::Read),
+            (images.normal, ImageUse::Read),
             (images.masks, ImageUse::Write),
             (images.lit_fraction, ImageUse::Write),
         ];
@@ -443,10 +483,16 @@ impl<'r> ShadowPass<'r> {
                 rec.bind_host_images(self.host_sets.handle(slot));
             }
         }
-        if wants_visibility {
-            super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
-        } else {
-            super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false);
+        match self.config.gbuffer {
+            GBufferInput::RayCast => {
+                super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false);
+            }
+            GBufferInput::Visibility => {
+                super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
+            }
+            GBufferInput::DepthNormal(_) => {
+                super::gbuffer::gbuffer_from_depth(&rec, &renderer.kernels, [w, h]);
+            }
         }
         super::light_setup::light_setup(&rec, &renderer.kernels, [w, h]);
         let gather = settings.skips.behind_receivers.then_some(w * h);
@@ -486,51 +532,6 @@ impl<'r> ShadowPass<'r> {
         })
     }
 
-    /// The masks, the second mask halves (empty with one) and the shaded
-    /// pixels of the last frame, copied back — for tests and tools: it
-    /// allocates, submits and waits.
-    ///
-    /// # Safety
-    /// No frame of this pass is executing.
-    pub unsafe fn read_back(&self) -> Result<PassImages, GpuError> {
-        let halves = self.config.settings.mask_halves(&self.scene);
-        let pixels = self.scene.pixel_count();
-        let wanted = [
-            binding::MASKS,
-            binding::MASKS_HIGH,
-            binding::SHADED,
-            binding::G_ID_FLAGS,
-        ];
-        let words = [pixels, pixels * (halves - 1), pixels, pixels];
-        let [masks, masks_high, shaded, gbuffer_words] =
-            read_back(self.renderer, &self.buffers, wanted, words)?;
-        Ok(PassImages {
-            masks,
-            masks_high,
-            shaded,
-            gbuffer_words,
-        })
-    }
-
-    /// The eye-relative vertices the last frame read (`B_VERTICES`), copied
-    /// back — for tests: it allocates, submits and waits.
-    ///
-    /// # Safety
-    /// No frame of this pass is executing.
-    pub unsafe fn read_back_vertices(&self) -> Result<Vec<Vec3>, GpuError> {
-        let count = self.buffers[binding::VERTICES as usize].size() as usize / 12;
-        let [words] = read_back(
-            self.renderer,
-            &self.buffers,
-            [binding::VERTICES],
-            [count * 3],
-        )?;
-        Ok(bytemuck::cast_slice::<u32, [f32; 3]>(&words)
-            .iter()
-            .map(|&v| Vec3::from(v))
-            .collect())
-    }
-
     /// `LLVMPIPE_LOOP_CAP` as a status's refusal.
     pub fn loop_cap_error(&self, status: &PassStatus) -> Option<GpuError> {
         (status.loop_cap_trips != 0).then(|| GpuError::LoopCap {
@@ -539,15 +540,4 @@ impl<'r> ShadowPass<'r> {
             trips: status.loop_cap_trips,
         })
     }
-}
-
-/// A frame's images as [`ShadowPass::read_back`] copies them.
-pub struct PassImages {
-    pub masks: Vec<u32>,
-    pub masks_high: Vec<u32>,
-    /// Packed RGBA8 shaded pixels (`resolve.comp`).
-    pub shaded: Vec<u32>,
-    /// The G-buffer's words: triangle id below `ID_BITS`, flags above
-    /// (`ID_MASK` for a miss).
-    pub gbuffer_words: Vec<u32>,
 }
