@@ -166,6 +166,20 @@ fn evaluate_half(
 /// Renders the shadow mask of `scene` on the CPU.
 pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> ShadowRender {
     let start = Instant::now();
+    let g = gbuffer_with(scene, bvh, settings.edge_halves(scene));
+    let gbuffer_seconds = start.elapsed().as_secs_f64();
+    let mut render = render_cpu_on(scene, g, settings);
+    render.report.seconds.gbuffer = gbuffer_seconds;
+    render.report.seconds.total += gbuffer_seconds;
+    render
+}
+
+/// Renders the shadow mask of `scene` on the CPU from a G-buffer made
+/// elsewhere: a host's (`gbuffer_from_visibility`, `gbuffer_from_depth`)
+/// or the GPU's, read back (`ShadowPass::read_back_gbuffer`), so the
+/// twin's later passes run on exactly the entries the GPU's did.
+pub fn render_cpu_on(scene: &Scene, g: GBuffer, settings: IzbSettings) -> ShadowRender {
+    let start = Instant::now();
     let soft = settings.light_samples(scene);
     let mut seconds = PassSeconds::default();
     let mut lap = {
@@ -176,8 +190,6 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
             s
         }
     };
-    let g = gbuffer_with(scene, bvh, settings.edge_halves(scene));
-    seconds.gbuffer = lap();
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     seconds.light_setup = lap();
     let triangles = eye_relative_f32(scene);

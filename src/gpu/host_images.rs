@@ -109,6 +109,19 @@ pub enum InputImages {
     DepthNormal,
 }
 
+/// The aspects a barrier on an image of `format` names: depth and stencil
+/// for a combined format (every aspect changes layout together), depth for
+/// a depth-only one, else colour.
+pub fn format_aspects(format: vk::Format) -> vk::ImageAspectFlags {
+    match format {
+        vk::Format::D32_SFLOAT | vk::Format::X8_D24_UNORM_PACK32 => vk::ImageAspectFlags::DEPTH,
+        vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT => {
+            vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+        }
+        _ => vk::ImageAspectFlags::COLOR,
+    }
+}
+
 /// Whether the pass reads or writes an image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImageUse {
@@ -135,19 +148,9 @@ impl HostImage {
         }
     }
 
-    /// The aspects a barrier on the image names: depth and stencil for a
-    /// combined format (every aspect changes layout together), depth for
-    /// a depth-only one, else colour.
+    /// The aspects a barrier on the image names ([`format_aspects`]).
     pub fn aspects(&self) -> vk::ImageAspectFlags {
-        match self.format {
-            vk::Format::D32_SFLOAT | vk::Format::X8_D24_UNORM_PACK32 => {
-                vk::ImageAspectFlags::DEPTH
-            }
-            vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT => {
-                vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
-            }
-            _ => vk::ImageAspectFlags::COLOR,
-        }
+        format_aspects(self.format)
     }
 
     /// The layout a frame leaves the image in for `usage`: an output is

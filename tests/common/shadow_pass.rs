@@ -1,7 +1,8 @@
 //! The shadow pass's test host (`izb::gpu::shadow_pass`): its renderer
 //! (synchronization validation on whenever validation is), frames whose
 //! camera and light move, one frame per submission, and the host's own
-//! `R32_UINT` visibility image filled before each frame.
+//! input images (an `R32_UINT` visibility buffer, or a depth and a normal)
+//! filled before each frame.
 
 use super::gpu::own_renderer;
 use ash::vk;
@@ -10,7 +11,7 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 use izb::cpu::{IzbSettings, SampleMode};
 use izb::gpu::context::DeviceShared;
-use izb::gpu::host_images::{FrameImages, HostImage};
+use izb::gpu::host_images::{format_aspects, FrameImages, HostImage};
 use izb::gpu::resources::GpuBuffer;
 use izb::gpu::shadow_pass::{FrameView, ShadowPass};
 use izb::gpu::{GpuError, GpuOptions, GpuRenderer};
@@ -100,7 +101,23 @@ pub struct HostTestImage {
 impl HostTestImage {
     /// A visibility buffer (`R32_UINT`, sampled, filled by copies).
     pub fn visibility(shared: &Arc<DeviceShared>, extent: [u32; 2]) -> Self {
-        Self::new(shared, extent, vk::Format::R32_UINT, Self::USAGE)
+        Self::input(shared, extent, vk::Format::R32_UINT)
+    }
+
+    /// An input of `format` (sampled, filled by copies): a depth image's
+    /// view has the depth aspect alone.
+    pub fn input(shared: &Arc<DeviceShared>, extent: [u32; 2], format: vk::Format) -> Self {
+        Self::new(shared, extent, format, Self::USAGE)
+    }
+
+    /// The aspect a view and a copy of the image name: depth for a depth
+    /// format, else colour.
+    fn view_aspect(&self) -> vk::ImageAspectFlags {
+        if format_aspects(self.format) == vk::ImageAspectFlags::COLOR {
+            vk::ImageAspectFlags::COLOR
+        } else {
+            vk::ImageAspectFlags::DEPTH
+        }
     }
 
     /// An output of `format` (storage, copied out).
@@ -148,8 +165,13 @@ impl HostTestImage {
             .unwrap();
         // SAFETY: made for this image's requirements; not bound yet.
         unsafe { d.bind_image_memory(image, allocation.memory(), allocation.offset()) }.unwrap();
+        let view_aspect = if format_aspects(format) == vk::ImageAspectFlags::COLOR {
+            vk::ImageAspectFlags::COLOR
+        } else {
+            vk::ImageAspectFlags::DEPTH
+        };
         let range = vk::ImageSubresourceRange::default()
-            .aspect_mask(vk::ImageAspectFlags::COLOR)
+            .aspect_mask(view_aspect)
             .level_count(1)
             .layer_count(1);
         let info = vk::ImageViewCreateInfo::default()
@@ -176,7 +198,8 @@ impl HostTestImage {
         vk::ImageUsageFlags::SAMPLED.as_raw() | vk::ImageUsageFlags::TRANSFER_DST.as_raw(),
     );
 
-    /// Records the copy of `staging` (one id per pixel) into the image —
+    /// Records the copy of `staging` (a texel per pixel; a depth image's
+    /// depth aspect, 4 bytes a texel) into the image —
     /// after the previous frame's reads, as the contract asks of a host's
     /// later write — and returns the image as the next frame declares it.
     ///
@@ -186,7 +209,7 @@ impl HostTestImage {
     pub unsafe fn record_fill(&mut self, cmd: vk::CommandBuffer, staging: &GpuBuffer) -> HostImage {
         let d = &self.shared.device;
         let range = vk::ImageSubresourceRange::default()
-            .aspect_mask(vk::ImageAspectFlags::COLOR)
+            .aspect_mask(format_aspects(self.format))
             .level_count(1)
             .layer_count(1);
         let to_transfer = [vk::ImageMemoryBarrier::default()
@@ -201,7 +224,7 @@ impl HostTestImage {
         let region = [vk::BufferImageCopy::default()
             .image_subresource(
                 vk::ImageSubresourceLayers::default()
-                    .aspect_mask(vk::ImageAspectFlags::COLOR)
+                    .aspect_mask(self.view_aspect())
                     .layer_count(1),
             )
             .image_extent(vk::Extent3D {
