@@ -53,7 +53,7 @@ layout(scalar, binding = B_G_AXIS_X) readonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) readonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
-layout(scalar, binding = B_G_NORMAL) readonly buffer GNrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_G_NORMAL) readonly buffer GNrmBuf { vec4 g_normal[]; };
 layout(scalar, binding = B_LIGHT) readonly buffer LightBuf { LightState light; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 #include "scene_triangles.glsl"
@@ -295,7 +295,7 @@ shared uint sm_mask;
 // warp sets up 32 pixels at once).
 struct PixelState {
     vec3 p, normal, ex, ey, light;
-    float size;
+    float microquad_part;
     uint receiver, cascade, has_cells, cover, soft, wanted;
     vec2 lo, hi;
     vec3 disk_c, disk_u, disk_v;
@@ -306,7 +306,7 @@ void share_pixel(uint i, uint cascade) {
     if (gl_SubgroupID == 0u) {
         pixel_frustum(i, cascade);
         if (subgroupElect()) {
-            sm_pixel = PixelState(px_p, px_normal, px_ex, px_ey, px_light, px_size, px_receiver,
+            sm_pixel = PixelState(px_p, px_normal, px_ex, px_ey, px_light, px_microquad_part, px_receiver,
                                   px_cascade, px_has_cells ? 1u : 0u, px_cover, px_soft ? 1u : 0u,
                                   px_wanted, px_lo, px_hi, px_disk_c, px_disk_u, px_disk_v);
         }
@@ -318,7 +318,7 @@ void share_pixel(uint i, uint cascade) {
     px_ex = s.ex;
     px_ey = s.ey;
     px_light = s.light;
-    px_size = s.size;
+    px_microquad_part = s.microquad_part;
     px_receiver = s.receiver;
     px_cascade = s.cascade;
     px_has_cells = s.has_cells != 0u;

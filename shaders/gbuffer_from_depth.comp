@@ -9,7 +9,11 @@
 // and reverse Z, finite and infinite far); the µQuad follows from P and
 // the normal as the other producers derive it from their triangle's plane
 // (`store_entry`). The entry names no triangle (DEPTH_SURFACE) and keeps
-// its normal in B_G_NORMAL, which `entry_normal.glsl` reads.
+// its normal in B_G_NORMAL, which `entry_normal.glsl` reads, with how far
+// the depth's error may put P off the surface along it
+// (`gbuffer::depth_uncertainty`): the receiver's own triangle, now a
+// candidate, lies within that of P's tangent plane, and the frustum
+// test's depth tolerance grows by it.
 //
 // A depth at the far plane's value is no surface. A depth that gives no
 // view depth in front of the eye, or a normal that is zero or not finite,
@@ -26,7 +30,7 @@ layout(scalar, binding = B_G_POSITION) writeonly buffer PosBuf { vec3 g_position
 layout(scalar, binding = B_G_AXIS_X) writeonly buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) writeonly buffer AyBuf { vec3 g_axis_y[]; };
 layout(scalar, binding = B_G_ID_FLAGS) writeonly buffer GidBuf { uint g_id_flags[]; };
-layout(scalar, binding = B_G_NORMAL) writeonly buffer GNrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_G_NORMAL) writeonly buffer GNrmBuf { vec4 g_normal[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
 layout(scalar, binding = B_COUNTERS) buffer CountBuf { uint counters[]; };
 layout(set = HOST_SET, binding = HOST_DEPTH) uniform texture2D depth_image;
@@ -60,6 +64,12 @@ void main() {
     vec2 image_point = vec2(pixel) + 0.5;
     vec3 d = frame.cam_corner + image_point.x * frame.cam_dx + image_point.y * frame.cam_dy;
     if (dot(n, d) > 0.0) n = -n;
-    g_normal[i] = n;
+    // The format's spacing at the depth: a float's from its exponent (D
+    // is normal or 0 here), a unorm's fixed.
+    float float_spacing = uintBitsToFloat(floatBitsToUint(depth) & 0x7F800000u) * exp2(-23.0);
+    float spacing = max(float_spacing, frame.depth_step);
+    precise float dz = z * z * (frame.depth_span / frame.depth_near) * (DEPTH_INPUT_SPACINGS * spacing);
+    precise float uncertainty = dz * abs(dot(n, d));
+    g_normal[i] = vec4(n, uncertainty);
     store_entry(i, DEPTH_SURFACE, d, z, n, FLAG_HIT);
 }

@@ -16,7 +16,9 @@ vec3 px_p, px_normal, px_ex, px_ey;
 // LightSetup::light_from(P): the direction toward a directional light
 // (light.rot_z), or the point light's position minus P.
 vec3 px_light;
-float px_size;
+// The depth tolerance's part that does not depend on the triangle: 2^-8 of
+// the µQuad, plus the depth's uncertainty where the host's depth made P.
+float px_microquad_part;
 uint px_receiver;
 uint px_cascade;
 vec2 px_lo, px_hi; // the µQuad's level-0 grid box
@@ -44,7 +46,7 @@ bool may_shadow(vec3 t0, vec3 t1, vec3 t2, vec3 light_rel) {
     precise float height = max_of3(dot(px_normal, t0), dot(px_normal, t1), dot(px_normal, t2));
     // The tolerance is this plus a non-negative term (no fused ops:
     // rounding is monotone), so the lengths wait until the height passes it.
-    precise float microquad_part = float(DEPTH_TOLERANCE_MICROQUAD) * px_size;
+    precise float microquad_part = px_microquad_part;
     if (!(height > microquad_part)) return false;
     precise float reach = max_of3(length(t0), length(t1), length(t2));
     precise float tolerance = microquad_part + float(DEPTH_TOLERANCE_ROUNDING) * reach;
@@ -196,7 +198,7 @@ vec3 below_horizon_function() {
 // triangle's plane (either side), each by the tolerance.
 bool may_shadow_soft(vec3 t0, vec3 t1, vec3 t2) {
     precise float height = max_of3(dot(px_normal, t0), dot(px_normal, t1), dot(px_normal, t2));
-    precise float microquad_part = float(DEPTH_TOLERANCE_MICROQUAD) * px_size;
+    precise float microquad_part = px_microquad_part;
     if (!(height > microquad_part)) return false;
     precise float reach = max_of3(length(t0), length(t1), length(t2));
     precise float tolerance = microquad_part + float(DEPTH_TOLERANCE_ROUNDING) * reach;
@@ -411,7 +413,9 @@ void pixel_frustum(uint i, uint cascade) {
     px_ex = ex;
     px_ey = ey;
     precise float size = max(length(px_ex), length(px_ey));
-    px_size = size;
+    precise float microquad_part = float(DEPTH_TOLERANCE_MICROQUAD) * size
+                                 + entry_depth_uncertainty(i, word);
+    px_microquad_part = microquad_part;
     px_soft = frame.light_samples != 0u;
     if (px_soft) light_disk_from(p);
     px_has_cells = false;

@@ -16,7 +16,7 @@ layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; 
 layout(scalar, binding = B_G_POSITION) readonly buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_TRIANGLE_NORMALS) readonly buffer TriNrmBuf { vec3 triangle_normals[]; };
-layout(scalar, binding = B_G_NORMAL) readonly buffer GNrmBuf { vec3 g_normal[]; };
+layout(scalar, binding = B_G_NORMAL) readonly buffer GNrmBuf { vec4 g_normal[]; };
 // With edge surfaces the pixel's combined mask is written back to its word.
 layout(scalar, binding = B_MASKS) buffer MaskBuf { uint masks[]; };
 layout(scalar, binding = B_MASKS_HIGH) buffer MaskHighBuf { uint masks_high[]; };

@@ -18,7 +18,7 @@ use common::shadow_pass::{assert_refused, pass_renderer, scene_at, settings, vie
 use glam::Vec3;
 use izb::bvh::SceneBvh;
 use izb::cpu::{render_cpu, render_cpu_on, resolve, SampleMode};
-use izb::gbuffer::{gbuffer, gbuffer_from_depth, DepthConvention, GBuffer, NO_HIT};
+use izb::gbuffer::{gbuffer, gbuffer_from_depth, DepthConvention, GBuffer, NO_HIT, UNORM24_DEPTH_STEP};
 use izb::gpu::host_images::{FrameImages, HostImage};
 use izb::gpu::resources::GpuBuffer;
 use izb::gpu::shadow_pass::{FrameView, GBufferInput, ShadowPass, ShadowPassConfig};
@@ -215,7 +215,8 @@ fn host_depth_and_normals_give_the_twin_s_masks_bit_for_bit() {
                 )
             };
             assert_eq!(status.visibility_rejected, 0, "{case:?}: {status:?}");
-            let twin = gbuffer_from_depth(&moved, &frame.depth_read, &frame.normals, case.convention)
+            let step = if case.is_unorm24() { UNORM24_DEPTH_STEP } else { 0.0 };
+            let twin = gbuffer_from_depth(&moved, &frame.depth_read, &frame.normals, case.convention, step)
                 .unwrap();
             assert_eq!(twin.rejected, 0);
             assert_g_buffers_agree(&g, &twin.gbuffer, &frame, case, &format!("{case:?} frame {k}"));
@@ -265,6 +266,8 @@ fn assert_g_buffers_agree(gpu: &GBuffer, twin: &GBuffer, frame: &HostFrame, case
         assert!(off <= moved + size / 4096.0, "{what} pixel {i}: P off by {off} of {size} (+{moved})");
         let turned = (gpu.normal[i] - twin.normal[i]).length();
         assert!(turned <= 1.0 / 1048576.0, "{what} pixel {i}: normal off by {turned}");
+        let (a, b) = (gpu.depth_uncertainty.as_ref().unwrap()[i], twin.depth_uncertainty.as_ref().unwrap()[i]);
+        assert!((a - b).abs() <= b / 256.0, "{what} pixel {i}: depth uncertainty {a} against {b}");
     }
     let pixels = twin.triangle_id.len();
     assert!(differ * 1000 <= pixels, "{what}: {differ} of {pixels} flags differ");

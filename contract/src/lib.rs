@@ -88,8 +88,10 @@ shared_constants! {
         WORLD_VERTICES = 25;
         /// Per G-buffer entry whose triangle is not known (id
         /// `DEPTH_SURFACE`: the shadow pass fed the host's depth and
-        /// normal images), its camera-facing unit normal (`vec3`); 4 bytes
-        /// where every entry names its triangle.
+        /// normal images), its camera-facing unit normal and how far its
+        /// depth's rounding may put P off its surface along that normal
+        /// (`vec4`; `DEPTH_INPUT_SPACINGS`); 4 bytes where every entry
+        /// names its triangle.
         G_NORMAL = 26;
     }
 }
@@ -324,6 +326,11 @@ shared_constants! {
         /// Depth test: the part scaled by the triangle's distance from P
         /// (16 ε₃₂).
         DEPTH_TOLERANCE_ROUNDING = 16.0 * f32::EPSILON;
+        /// A host depth value's error, in spacings of its format at that
+        /// value: half of one from the format's rounding and up to one
+        /// and a half from a rasteriser's interpolation in `f32`
+        /// (`gbuffer::depth_uncertainty`).
+        DEPTH_INPUT_SPACINGS = 2.0;
         /// Relative margin of the saturated-edge shortcut (2⁻¹⁰).
         SATURATION_MARGIN = 1.0 / 1024.0;
         /// Relative margin of the behind-receivers cull (2⁻¹⁰).
@@ -559,7 +566,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 96, "members of the five shared structs");
+        assert_eq!(checked, 97, "members of the five shared structs");
     }
 
     #[test]

@@ -135,6 +135,10 @@ shared_struct! {
         pub depth_near_over_far: f32 => "float depth_near_over_far",
         pub depth_span: f32 => "float depth_span",
         pub depth_reversed: u32 => "uint depth_reversed",
+        /// The depth format's spacing where it is fixed (1/(2²⁴ − 1) for
+        /// a 24-bit unorm); 0 for a float depth, whose spacing at D the
+        /// shader takes from D's exponent.
+        pub depth_step: f32 => "float depth_step",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area

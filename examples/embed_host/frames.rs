@@ -263,6 +263,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                     compute_write,
                 )),
                 lit_fraction: Some(declared(&images.lit, extent, output_layout, compute_write)),
+                depth: None,
+                normal: None,
             };
             let cmd = cmds[slot];
             let begin = vk::CommandBufferBeginInfo::default()

@@ -40,7 +40,8 @@ struct PixelFrustum {
     normal: Vec3,
     ex: Vec3,
     ey: Vec3,
-    /// The µQuad part of the depth tolerance (the same for every triangle).
+    /// The µQuad part of the depth tolerance (the same for every
+    /// triangle), with the depth's uncertainty where a host's depth made P.
     microquad_part: f32,
     /// Where the light is, seen from P.
     light: LightRel<Vec3>,
@@ -105,7 +106,8 @@ fn pixel_frustum(
         normal: g.normal[i],
         ex,
         ey,
-        microquad_part: microquad_tolerance::<Vec3>(ex.length().max(ey.length())),
+        microquad_part: microquad_tolerance::<Vec3>(ex.length().max(ey.length()))
+            + g.depth_uncertainty.as_ref().map_or(0.0, |u| u[i]),
         light: setup.light_from(p),
         receiver: g.triangle_id[i],
         cascade,

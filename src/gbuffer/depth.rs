@@ -9,9 +9,13 @@
 //! triangle-id producers (paper-notes/embedding.md, "Depth + normal"):
 //! - P carries the depth format's error: the receiver's own triangle is
 //!   then one more candidate whose vertices sit off the tangent plane by
-//!   that error, and the frustum test's depth tolerance (2⁻⁸ of a µQuad)
-//!   decides whether it shadows its own pixel. `D32` stays well inside it;
-//!   `D24` does not at a distance (measured there, per format).
+//!   that error. With the frustum test's depth tolerance alone (2⁻⁸ of a
+//!   µQuad) reverse-Z `D32` stays inside it, but standard Z and `D24` do
+//!   not at a distance: their pixels shadowed themselves (courtyard at
+//!   480×270: Lut32 MAE 1.33× the ray cast's). So each entry carries its
+//!   depth's uncertainty ([`depth_uncertainty`]) and the tolerance grows
+//!   by it — a per-pixel bias that is exactly the depth's error, not a
+//!   tuned constant.
 //! - No triangle id: the entry's id is [`DEPTH_SURFACE`], which no
 //!   candidate equals, and its normal is stored per entry
 //!   (`B_G_NORMAL` on the GPU, [`GBuffer::normal`] here).
@@ -23,6 +27,31 @@ use glam::{DVec3, Vec3};
 /// The id of a G-buffer entry made from depth and a normal: its triangle
 /// is not known.
 pub const DEPTH_SURFACE: u32 = izb_contract::word::DEPTH_SURFACE;
+
+/// The spacing of a 24-bit unorm depth's values.
+pub const UNORM24_DEPTH_STEP: f32 = 1.0 / 16_777_215.0;
+
+/// How far a point at view depth `z` on the centre ray `direction` may
+/// lie off its surface of unit normal `normal` when its depth value
+/// `depth` is off by [`izb_contract::tolerance::DEPTH_INPUT_SPACINGS`]
+/// spacings of its format there (`unorm_step` for a unorm format, 0 for
+/// a float one, whose spacing follows D's exponent): |dz/dD| = z²(1 −
+/// n/f)/n, along the ray, times |n·d| onto the normal. In `f32` as
+/// `gbuffer_from_depth.comp` computes it.
+pub fn depth_uncertainty(
+    convention: &DepthConvention,
+    depth: f32,
+    unorm_step: f32,
+    z: f32,
+    normal: Vec3,
+    direction: Vec3,
+) -> f32 {
+    let float_spacing = f32::from_bits(depth.to_bits() & 0x7F80_0000) * 2f32.powi(-23);
+    let spacing = float_spacing.max(unorm_step);
+    let span_over_near = (1.0 - convention.near_over_far()) as f32 / convention.near as f32;
+    let dz = z * z * span_over_near * (izb_contract::tolerance::DEPTH_INPUT_SPACINGS * spacing);
+    dz * normal.dot(direction).abs()
+}
 
 /// How the host's depth values map to view depth: its projection's near
 /// plane, its far plane (`None`: infinite), and whether depth is reversed
@@ -91,12 +120,15 @@ impl DepthConvention {
 /// here), under `convention`. Pixels whose depth gives no view depth in
 /// front of the eye, or whose normal is zero or not finite, are misses,
 /// counted in `rejected` unless the depth is the far plane's (no surface).
-/// An error names buffers of the wrong size or a bad convention.
+/// `unorm_step` is the depth format's spacing if it is a unorm format
+/// ([`UNORM24_DEPTH_STEP`]), 0 for a float one. An error names buffers of
+/// the wrong size or a bad convention.
 pub fn gbuffer_from_depth(
     scene: &Scene,
     depth: &[f32],
     normals: &[Vec3],
     convention: DepthConvention,
+    unorm_step: f32,
 ) -> Result<VisibilityGBuffer, String> {
     convention.check()?;
     let [w, h] = scene.resolution;
@@ -111,6 +143,7 @@ pub fn gbuffer_from_depth(
     let light = scene.light.relative_to(scene.camera.eye);
     let far_value = if convention.reversed { 0.0 } else { 1.0 };
     let mut g = GBuffer::with_capacity(w, h);
+    let mut uncertainty = Vec::with_capacity(depth.len());
     let mut rejected = 0;
     for (i, (&d, &n)) in depth.iter().zip(normals).enumerate() {
         let (px, py) = ((i % w as usize) as f64 + 0.5, (i / w as usize) as f64 + 0.5);
@@ -142,8 +175,15 @@ pub fn gbuffer_from_depth(
             })
         });
         rejected += usize::from(matches!(surface, Some(None)));
-        g.push(surface.flatten().as_ref());
+        let surface = surface.flatten();
+        uncertainty.push(surface.as_ref().map_or(0.0, |s| {
+            let (z, n) = (s.hit.t as f32, s.hit.normal.as_vec3());
+            let direction = frame.direction(px, py).as_vec3();
+            depth_uncertainty(&convention, d, unorm_step, z, n, direction)
+        }));
+        g.push(surface.as_ref());
     }
+    g.depth_uncertainty = Some(uncertainty);
     Ok(VisibilityGBuffer {
         gbuffer: g,
         rejected,
@@ -222,7 +262,7 @@ mod tests {
                     }
                 })
                 .collect();
-            let from = gbuffer_from_depth(&scene, &depth, &cast.normal, c).unwrap();
+            let from = gbuffer_from_depth(&scene, &depth, &cast.normal, c, 0.0).unwrap();
             assert_eq!(from.rejected, 0);
             let g = &from.gbuffer;
             let frame = scene.camera.frame(scene.resolution);

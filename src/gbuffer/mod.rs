@@ -11,7 +11,9 @@ mod depth;
 pub mod edge_surfaces;
 mod visibility;
 
-pub use depth::{gbuffer_from_depth, DepthConvention, DEPTH_SURFACE};
+pub use depth::{
+    depth_uncertainty, gbuffer_from_depth, DepthConvention, DEPTH_SURFACE, UNORM24_DEPTH_STEP,
+};
 pub use visibility::{gbuffer_from_visibility, VisibilityGBuffer};
 
 use crate::bvh::SceneBvh;
@@ -153,6 +155,11 @@ pub struct GBuffer {
     /// `Paired64`'s second half's: the surfaces its own µQuad pattern's
     /// samples see (samples 32–63), when the G-buffer has two halves.
     pub edges_high: Option<Box<EdgeSurfaces>>,
+    /// Per entry, how far its point may lie off its surface along the
+    /// normal: a host depth's error ([`gbuffer_from_depth`]), by which the
+    /// frustum test's depth tolerance grows. `None` where every point is
+    /// exact to rounding.
+    pub depth_uncertainty: Option<Vec<f32>>,
 }
 
 impl GBuffer {
@@ -175,6 +182,7 @@ impl GBuffer {
             },
             edges: None,
             edges_high: None,
+            depth_uncertainty: None,
         }
     }
 
@@ -221,6 +229,9 @@ impl GBuffer {
         self.axis_x.truncate(n);
         self.axis_y.truncate(n);
         self.flags.truncate(n);
+        if let Some(u) = &mut self.depth_uncertainty {
+            u.truncate(n);
+        }
     }
 
     /// Entries `order` of this G-buffer as a one-row G-buffer (no edges).
@@ -235,6 +246,10 @@ impl GBuffer {
             g.axis_y.push(self.axis_y[k]);
             g.flags.push(self.flags[k]);
         }
+        g.depth_uncertainty = self
+            .depth_uncertainty
+            .as_ref()
+            .map(|u| order.iter().map(|&k| u[k]).collect());
         g
     }
 

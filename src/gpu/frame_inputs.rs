@@ -249,6 +249,7 @@ pub(super) fn frame_params(
         depth_near_over_far: 0.0,
         depth_span: 0.0,
         depth_reversed: 0,
+        depth_step: 0.0,
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
         second_pattern: *crate::lut::paired_patterns(1).0,

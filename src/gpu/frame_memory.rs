@@ -154,7 +154,7 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
         ),
         (
             binding::G_NORMAL,
-            d("gbuffer", "g_normal", z.normal_entries * vec3),
+            d("gbuffer", "g_normal_and_uncertainty", z.normal_entries * 16),
         ),
     ])
 }

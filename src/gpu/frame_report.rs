@@ -411,6 +411,7 @@ pub(super) fn read_back_gbuffer(
                 },
                 edges: None,
                 edges_high: None,
+                depth_uncertainty: None,
             };
             // The `edge_surfaces` pass's slots follow the pixels.
             if let Some((records, coverage)) = out.edge_tables.take() {

@@ -185,6 +185,16 @@ pub struct ShadowPass<'r> {
     sizes: FrameSizes,
 }
 
+/// The spacing of a unorm depth format's values (0 for a float one).
+fn unorm_depth_step(format: vk::Format) -> f32 {
+    match format {
+        vk::Format::D24_UNORM_S8_UINT | vk::Format::X8_D24_UNORM_PACK32 => {
+            crate::gbuffer::UNORM24_DEPTH_STEP
+        }
+        _ => 0.0,
+    }
+}
+
 /// Most frame slots (a bit each in `Retired::slots_pending`).
 const MAX_FRAMES_IN_FLIGHT: usize = 63;
 
@@ -438,6 +448,7 @@ impl<'r> ShadowPass<'r> {
             params.depth_near_over_far = c.near_over_far() as f32;
             params.depth_span = (1.0 - c.near_over_far()) as f32;
             params.depth_reversed = u32::from(c.reversed);
+            params.depth_step = images.depth.map_or(0.0, |d| unorm_depth_step(d.format));
         }
         let device = &shared.device;
         let buffer = |b: u32| self.buffers[b as usize].buffer;

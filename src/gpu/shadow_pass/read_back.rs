@@ -58,7 +58,8 @@ impl ShadowPass<'_> {
     /// The last frame's G-buffer, copied back as the CPU twin's
     /// [`GBuffer`] (normals per entry: the host's where its depth and
     /// normal made the entry, else the triangle's facing the camera;
-    /// depth along the view axis) — so the CPU twin's later passes can
+    /// depth along the view axis; the depth's uncertainty where the host's
+    /// depth made the entries) — so the CPU twin's later passes can
     /// run on exactly the entries the GPU's did.
     ///
     /// # Safety
@@ -81,7 +82,7 @@ impl ShadowPass<'_> {
             3 * pixels,
             3 * pixels,
             3 * pixels,
-            3 * normals,
+            4 * normals,
             3 * triangles,
             counter::WORDS,
         ];
@@ -89,7 +90,8 @@ impl ShadowPass<'_> {
             read_back(self.renderer, &self.buffers, wanted, words)?;
         let vectors =
             |w: &[u32]| -> Vec<Vec3> { bytemuck::cast_slice::<u32, [f32; 3]>(w).iter().map(|&v| v.into()).collect() };
-        let (g_normal, triangle_normals) = (vectors(&g_normal), vectors(&triangle_normals));
+        let g_normal: &[[f32; 4]] = bytemuck::cast_slice(&g_normal);
+        let triangle_normals = vectors(&triangle_normals);
         let forward = self.scene.camera.frame(self.scene.resolution).forward.as_vec3();
         let mut g = GBuffer {
             width: self.scene.resolution[0],
@@ -109,12 +111,13 @@ impl ShadowPass<'_> {
             },
             edges: None,
             edges_high: None,
+            depth_uncertainty: None,
         };
         for (i, &word) in words.iter().enumerate() {
             let (id, flags) = shared::unpack_id_flags(word);
             let normal = match id {
                 NO_HIT => Vec3::ZERO,
-                DEPTH_SURFACE => g_normal[i],
+                DEPTH_SURFACE => Vec3::from_slice(&g_normal[i][..3]),
                 _ if flags & shared::FLAG_NORMAL_FLIPPED != 0 => -triangle_normals[id as usize],
                 _ => triangle_normals[id as usize],
             };
@@ -127,6 +130,13 @@ impl ShadowPass<'_> {
             g.flags.push(flags & !shared::FLAG_NORMAL_FLIPPED);
             g.normal.push(normal);
             g.depth.push(depth);
+        }
+        if normals != 0 {
+            g.depth_uncertainty = Some(
+                (0..pixels)
+                    .map(|i| if g.triangle_id[i] == DEPTH_SURFACE { g_normal[i][3] } else { 0.0 })
+                    .collect(),
+            );
         }
         Ok(g)
     }
