@@ -14,11 +14,15 @@ mod common;
 
 use ash::vk;
 use common::gpu::assert_no_validation_messages;
-use common::shadow_pass::{assert_refused, pass_renderer, scene_at, settings, view_at, HostTestImage};
+use common::shadow_pass::{
+    assert_refused, pass_renderer, scene_at, settings, view_at, HostTestImage,
+};
 use glam::Vec3;
 use izb::bvh::SceneBvh;
 use izb::cpu::{render_cpu, render_cpu_on, resolve, SampleMode};
-use izb::gbuffer::{gbuffer, gbuffer_from_depth, DepthConvention, GBuffer, NO_HIT, UNORM24_DEPTH_STEP};
+use izb::gbuffer::{
+    gbuffer, gbuffer_from_depth, DepthConvention, GBuffer, NO_HIT, UNORM24_DEPTH_STEP,
+};
 use izb::gpu::host_images::{FrameImages, HostImage};
 use izb::gpu::resources::GpuBuffer;
 use izb::gpu::shadow_pass::{FrameView, GBufferInput, ShadowPass, ShadowPassConfig};
@@ -89,7 +93,11 @@ fn host_frame(cast: &GBuffer, case: DepthCase) -> HostFrame {
         };
         f.depth_texels.push(texel);
         f.depth_read.push(read);
-        let n = if i % 2 == 1 { -cast.normal[i] } else { cast.normal[i] };
+        let n = if i % 2 == 1 {
+            -cast.normal[i]
+        } else {
+            cast.normal[i]
+        };
         f.normal_texels.push([n.x, n.y, n.z, 0.0]);
         f.normals.push(n);
     }
@@ -159,7 +167,12 @@ fn run_depth_frame(
     Ok(made)
 }
 
-fn pass_for<'r>(r: &'r GpuRenderer, scene: &Scene, mode: SampleMode, case: DepthCase) -> ShadowPass<'r> {
+fn pass_for<'r>(
+    r: &'r GpuRenderer,
+    scene: &Scene,
+    mode: SampleMode,
+    case: DepthCase,
+) -> ShadowPass<'r> {
     let config = ShadowPassConfig {
         settings: settings(mode),
         frames_in_flight: 2,
@@ -205,7 +218,11 @@ fn host_depth_and_normals_give_the_twin_s_masks_bit_for_bit() {
             let cast = gbuffer(&moved, &bvh);
             let frame = host_frame(&cast, case);
             let made = run_depth_frame(&r, &mut pass, &mut inputs, k, &view, &frame).unwrap();
-            assert_eq!(made, [0, 0], "{case:?} frame {k}: allocations while recording");
+            assert_eq!(
+                made,
+                [0, 0],
+                "{case:?} frame {k}: allocations while recording"
+            );
             // SAFETY: the frame was waited for; nothing is executing.
             let (status, images, g) = unsafe {
                 (
@@ -215,11 +232,27 @@ fn host_depth_and_normals_give_the_twin_s_masks_bit_for_bit() {
                 )
             };
             assert_eq!(status.visibility_rejected, 0, "{case:?}: {status:?}");
-            let step = if case.is_unorm24() { UNORM24_DEPTH_STEP } else { 0.0 };
-            let twin = gbuffer_from_depth(&moved, &frame.depth_read, &frame.normals, case.convention, step)
-                .unwrap();
+            let step = if case.is_unorm24() {
+                UNORM24_DEPTH_STEP
+            } else {
+                0.0
+            };
+            let twin = gbuffer_from_depth(
+                &moved,
+                &frame.depth_read,
+                &frame.normals,
+                case.convention,
+                step,
+            )
+            .unwrap();
             assert_eq!(twin.rejected, 0);
-            assert_g_buffers_agree(&g, &twin.gbuffer, &frame, case, &format!("{case:?} frame {k}"));
+            assert_g_buffers_agree(
+                &g,
+                &twin.gbuffer,
+                &frame,
+                case,
+                &format!("{case:?} frame {k}"),
+            );
             let cpu = render_cpu_on(&moved, g, settings(mode));
             assert_eq!(images.masks, cpu.masks, "{case:?} frame {k}: masks");
             let truth = render_cpu(&moved, &bvh, settings(mode));
@@ -249,7 +282,13 @@ const DEPTH_FRAMES: usize = 2;
 /// plus what one ulp of the depth value read moves them (the device's
 /// unorm-to-float conversion may round the other way: |dz| =
 /// z²(1 − n/f)/n · |dD|, with standard Z's u = 1 − D small far away).
-fn assert_g_buffers_agree(gpu: &GBuffer, twin: &GBuffer, frame: &HostFrame, case: DepthCase, what: &str) {
+fn assert_g_buffers_agree(
+    gpu: &GBuffer,
+    twin: &GBuffer,
+    frame: &HostFrame,
+    case: DepthCase,
+    what: &str,
+) {
     assert_eq!(gpu.triangle_id, twin.triangle_id, "{what}: ids");
     let c = case.convention;
     let mut differ = 0;
@@ -259,18 +298,36 @@ fn assert_g_buffers_agree(gpu: &GBuffer, twin: &GBuffer, frame: &HostFrame, case
             continue;
         }
         let size = f64::from(twin.axis_x[i].length().max(twin.axis_y[i].length()));
-        let (z, p) = (f64::from(twin.depth[i]), f64::from(twin.position[i].length()));
+        let (z, p) = (
+            f64::from(twin.depth[i]),
+            f64::from(twin.position[i].length()),
+        );
         let ulp = f64::from(frame.depth_read[i].abs().max(f32::MIN_POSITIVE)) * 2f64.powi(-23);
         let moved = p * z * (1.0 - c.near_over_far()) / c.near * ulp;
         let off = f64::from((gpu.position[i] - twin.position[i]).length());
-        assert!(off <= moved + size / 4096.0, "{what} pixel {i}: P off by {off} of {size} (+{moved})");
+        assert!(
+            off <= moved + size / 4096.0,
+            "{what} pixel {i}: P off by {off} of {size} (+{moved})"
+        );
         let turned = (gpu.normal[i] - twin.normal[i]).length();
-        assert!(turned <= 1.0 / 1048576.0, "{what} pixel {i}: normal off by {turned}");
-        let (a, b) = (gpu.depth_uncertainty.as_ref().unwrap()[i], twin.depth_uncertainty.as_ref().unwrap()[i]);
-        assert!((a - b).abs() <= b / 256.0, "{what} pixel {i}: depth uncertainty {a} against {b}");
+        assert!(
+            turned <= 1.0 / 1048576.0,
+            "{what} pixel {i}: normal off by {turned}"
+        );
+        let (a, b) = (
+            gpu.depth_uncertainty.as_ref().unwrap()[i],
+            twin.depth_uncertainty.as_ref().unwrap()[i],
+        );
+        assert!(
+            (a - b).abs() <= b / 256.0,
+            "{what} pixel {i}: depth uncertainty {a} against {b}"
+        );
     }
     let pixels = twin.triangle_id.len();
-    assert!(differ * 1000 <= pixels, "{what}: {differ} of {pixels} flags differ");
+    assert!(
+        differ * 1000 <= pixels,
+        "{what}: {differ} of {pixels} flags differ"
+    );
 }
 
 /// Bad depth and normal inputs are refused by name at create or record
@@ -302,7 +359,9 @@ fn bad_depth_inputs_are_refused_or_counted() {
     let view = view_at(&scene, 0);
     let cast = gbuffer(&scene, &SceneBvh::build(&scene));
     let mut frame = host_frame(&cast, case);
-    let hits: Vec<usize> = (0..cast.triangle_id.len()).filter(|&i| cast.triangle_id[i] != NO_HIT).collect();
+    let hits: Vec<usize> = (0..cast.triangle_id.len())
+        .filter(|&i| cast.triangle_id[i] != NO_HIT)
+        .collect();
     for &i in hits.iter().step_by(5) {
         frame.normal_texels[i] = [0.0; 4];
     }
@@ -340,11 +399,23 @@ fn bad_depth_inputs_are_refused_or_counted() {
     };
     let keep = |_: &mut HostImage| {};
     let cases: [(FrameView, &str); 7] = [
-        (both(&|d| d.format = vk::Format::R32_SFLOAT, &keep), "its format is R32_SFLOAT"),
-        (both(&keep, &|n| n.format = vk::Format::R8G8B8A8_UNORM), "its format is R8G8B8A8_UNORM"),
+        (
+            both(&|d| d.format = vk::Format::R32_SFLOAT, &keep),
+            "its format is R32_SFLOAT",
+        ),
+        (
+            both(&keep, &|n| n.format = vk::Format::R8G8B8A8_UNORM),
+            "its format is R8G8B8A8_UNORM",
+        ),
         (both(&|d| d.extent = [32, 36], &keep), "32x36"),
-        (both(&keep, &|n| n.usage = vk::ImageUsageFlags::STORAGE), "lacks SAMPLED"),
-        (both(&|d| d.layout = vk::ImageLayout::UNDEFINED, &keep), "UNDEFINED"),
+        (
+            both(&keep, &|n| n.usage = vk::ImageUsageFlags::STORAGE),
+            "lacks SAMPLED",
+        ),
+        (
+            both(&|d| d.layout = vk::ImageLayout::UNDEFINED, &keep),
+            "UNDEFINED",
+        ),
         (
             with(FrameImages {
                 depth: Some(depth),
@@ -403,12 +474,20 @@ fn host_depth_accuracy_against_the_reference_per_format() {
 /// asserted (the `f32` ones).
 fn accuracy_per_format(r: &GpuRenderer, scene: &Scene) -> usize {
     let bvh = SceneBvh::build(scene);
-    let truth = reference(scene, &bvh, ReferenceSettings::from_spp(64, 1).unwrap(), &|_| {});
+    let truth = reference(
+        scene,
+        &bvh,
+        ReferenceSettings::from_spp(64, 1).unwrap(),
+        &|_| {},
+    );
     let mode = SampleMode::Lut32;
     let rendered = render_cpu(scene, &bvh, settings(mode));
     let render_mae = metrics(&rendered.visibility, &truth.visibility, &truth.smooth).mae;
     let [w, h] = scene.resolution;
-    println!("{} at {w}x{h}, render (its own ray cast): Lut32 MAE {render_mae:.5}", scene.name);
+    println!(
+        "{} at {w}x{h}, render (its own ray cast): Lut32 MAE {render_mae:.5}",
+        scene.name
+    );
     let cast = gbuffer(scene, &bvh);
     let cases = [
         DepthCase::new(vk::Format::D32_SFLOAT, scene, true, false),

@@ -222,8 +222,14 @@ mod tests {
             far,
             reversed: true,
         };
-        assert!(bad(0.0, None).check().unwrap_err().contains("near plane is 0"));
-        assert!(bad(1.0, Some(0.5)).check().unwrap_err().contains("far plane is 0.5"));
+        assert!(bad(0.0, None)
+            .check()
+            .unwrap_err()
+            .contains("near plane is 0"));
+        assert!(bad(1.0, Some(0.5))
+            .check()
+            .unwrap_err()
+            .contains("far plane is 0.5"));
     }
 
     /// The ray cast's view depths and normals, as a `D32` depth image
@@ -268,9 +274,13 @@ mod tests {
             let frame = scene.camera.frame(scene.resolution);
             let [w, _] = scene.resolution;
             let (mut flags_differ, mut worst) = (0, 0.0f64);
-            for i in 0..scene.pixel_count() {
+            for (i, &d) in depth.iter().enumerate() {
                 let hit = cast.triangle_id[i] != crate::gbuffer::NO_HIT;
-                let id = if hit { DEPTH_SURFACE } else { cast.triangle_id[i] };
+                let id = if hit {
+                    DEPTH_SURFACE
+                } else {
+                    cast.triangle_id[i]
+                };
                 assert_eq!(g.triangle_id[i], id, "pixel {i}");
                 flags_differ += usize::from(g.flags[i] != cast.flags[i]);
                 if hit {
@@ -279,10 +289,13 @@ mod tests {
                     let (x, y) = ((i % w as usize) as f64 + 0.5, (i / w as usize) as f64 + 0.5);
                     let ray = frame.direction(x, y).length();
                     // 2⁻²⁴·D: at least half an ulp of D.
-                    let half_ulp = f64::from(depth[i]) * 2f64.powi(-24);
+                    let half_ulp = f64::from(d) * 2f64.powi(-24);
                     let moved = 2.0 * ray * z * z * (1.0 - c.near_over_far()) / c.near * half_ulp;
                     let off = f64::from((g.position[i] - cast.position[i]).length());
-                    assert!(off <= moved + size / 65536.0, "pixel {i}: {off} > {moved} + 2^-16 of {size}");
+                    assert!(
+                        off <= moved + size / 65536.0,
+                        "pixel {i}: {off} > {moved} + 2^-16 of {size}"
+                    );
                     worst = worst.max(off / size);
                     checked += 1;
                 }

@@ -251,9 +251,17 @@ impl FrameImages {
         mask_halves: usize,
     ) -> Result<(), GpuError> {
         let wanted = [
-            ("visibility buffer", self.visibility, input == InputImages::Visibility),
+            (
+                "visibility buffer",
+                self.visibility,
+                input == InputImages::Visibility,
+            ),
             ("depth image", self.depth, input == InputImages::DepthNormal),
-            ("normal image", self.normal, input == InputImages::DepthNormal),
+            (
+                "normal image",
+                self.normal,
+                input == InputImages::DepthNormal,
+            ),
         ];
         for (what, given, wants) in wanted {
             if given.is_some() != wants {

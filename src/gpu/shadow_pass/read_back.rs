@@ -54,7 +54,6 @@ impl ShadowPass<'_> {
             .collect())
     }
 
-
     /// The last frame's G-buffer, copied back as the CPU twin's
     /// [`GBuffer`] (normals per entry: the host's where its depth and
     /// normal made the entry, else the triangle's facing the camera;
@@ -88,11 +87,20 @@ impl ShadowPass<'_> {
         ];
         let [words, position, axis_x, axis_y, g_normal, triangle_normals, counters] =
             read_back(self.renderer, &self.buffers, wanted, words)?;
-        let vectors =
-            |w: &[u32]| -> Vec<Vec3> { bytemuck::cast_slice::<u32, [f32; 3]>(w).iter().map(|&v| v.into()).collect() };
+        let vectors = |w: &[u32]| -> Vec<Vec3> {
+            bytemuck::cast_slice::<u32, [f32; 3]>(w)
+                .iter()
+                .map(|&v| v.into())
+                .collect()
+        };
         let g_normal: &[[f32; 4]] = bytemuck::cast_slice(&g_normal);
         let triangle_normals = vectors(&triangle_normals);
-        let forward = self.scene.camera.frame(self.scene.resolution).forward.as_vec3();
+        let forward = self
+            .scene
+            .camera
+            .frame(self.scene.resolution)
+            .forward
+            .as_vec3();
         let mut g = GBuffer {
             width: self.scene.resolution[0],
             height: self.scene.resolution[1],
@@ -134,7 +142,13 @@ impl ShadowPass<'_> {
         if normals != 0 {
             g.depth_uncertainty = Some(
                 (0..pixels)
-                    .map(|i| if g.triangle_id[i] == DEPTH_SURFACE { g_normal[i][3] } else { 0.0 })
+                    .map(|i| {
+                        if g.triangle_id[i] == DEPTH_SURFACE {
+                            g_normal[i][3]
+                        } else {
+                            0.0
+                        }
+                    })
                     .collect(),
             );
         }
