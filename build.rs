@@ -178,6 +178,7 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ("shadow_rays", "shadow_rays.comp", &[]),
     ("visibility_raster_vert", "visibility_raster.vert", &[]),
     ("visibility_raster_frag", "visibility_raster.frag", &[]),
+    ("depth_normal_raster_frag", "depth_normal_raster.frag", &[]),
 ];
 
 /// Resolves `#include "x"` against `OUT_DIR` (the generated

@@ -4,18 +4,25 @@
 // positions from the host's vertex buffer (location 0, three floats,
 // relative to the origin of `view.eye`), a pinhole camera whose pixel
 // centres see exactly the rays of `izb::scene::CameraFrame::direction`,
-// reverse Z with a finite far plane, so the near and far planes clip as
-// the ray cast's [near, far] view depths do. Its fragment shader writes
-// the triangle id the shadow pass reads (`GBufferInput::Visibility`).
+// the depth of `view.depth_offset / depth_scale` (reverse Z with a finite
+// far plane for a visibility buffer, so the near and far planes clip as
+// the ray cast's [near, far] view depths do; any `DepthConvention` for a
+// depth + normal G-buffer). Its fragment shaders write the triangle id the
+// shadow pass reads (`GBufferInput::Visibility`), and with
+// `depth_normal_raster.frag` the geometric normal too
+// (`GBufferInput::DepthNormal`).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
 #include "contract.glsl"
 
 layout(location = 0) in vec3 position;
 layout(push_constant, scalar) uniform ViewBlock { VisibilityView view; };
+// The eye-relative position, whose screen derivatives span the surface.
+layout(location = 0) out vec3 eye_relative;
 
 void main() {
     vec3 q = position - view.eye;
+    eye_relative = q;
     float depth = dot(q, view.forward);
     gl_Position = vec4(dot(q, view.right), dot(q, view.down),
                        view.depth_offset + view.depth_scale * depth, depth);

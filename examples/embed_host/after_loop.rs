@@ -93,13 +93,14 @@ pub fn record_alone(
     Ok(micros)
 }
 
-/// The visibility image (left in `SHADER_READ_ONLY_OPTIMAL` by the pass)
-/// and the masks (`GENERAL`; one `R32_UINT` word a pixel, the example's
-/// format) copied back, one submission, waited on.
+/// The visibility image (in `visibility_layout`: `SHADER_READ_ONLY_OPTIMAL`
+/// when the pass read it, `COLOR_ATTACHMENT_OPTIMAL` when only the raster
+/// wrote it) and the masks (`GENERAL`; one `R32_UINT` word a pixel, the
+/// example's format) copied back, one submission, waited on.
 pub fn read_back(
     gpu: &HostGpu,
     pool: vk::CommandPool,
-    visibility: &OwnedImage,
+    (visibility, visibility_layout): (&OwnedImage, vk::ImageLayout),
     masks: &OwnedImage,
     extent: [u32; 2],
 ) -> (Vec<u32>, Vec<u32>) {
@@ -123,14 +124,16 @@ pub fn read_back(
         d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
             .unwrap();
         let barriers = [
-            (visibility.image, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL),
+            (visibility.image, visibility_layout),
             (masks.image, vk::ImageLayout::GENERAL),
         ]
         .map(|(image, old)| {
             vk::ImageMemoryBarrier::default()
-                // The masks' compute writes; the visibility image was only
-                // read (a write-after-read needs no access scope).
-                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                // The masks' compute writes, the visibility image's raster
+                // writes (a read by the pass needs no access scope).
+                .src_access_mask(
+                    vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                )
                 .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
                 .old_layout(old)
                 .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
@@ -141,7 +144,8 @@ pub fn read_back(
         });
         d.cmd_pipeline_barrier(
             cmd,
-            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::PipelineStageFlags::COMPUTE_SHADER
+                | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
             vk::PipelineStageFlags::TRANSFER,
             vk::DependencyFlags::empty(),
             &[],

@@ -9,14 +9,14 @@
 use crate::after_loop::{read_back, record_alone};
 use crate::host_device::HostGpu;
 use crate::raster::{OwnedBuffer, OwnedImage};
-use crate::targets::Targets;
+use crate::targets::{HostDepth, Targets};
 use ash::vk;
 use glam::{DMat3, DVec3, Vec3};
 use gpu_allocator::MemoryLocation;
 use izb::cpu::{IzbSettings, SampleMode};
 use izb::gpu::host_images::{FrameImages, HostImage};
 use izb::gpu::shadow_pass::{FrameView, GBufferInput, PassStatus, ShadowPass, ShadowPassConfig};
-use izb::gpu::visibility_raster::visibility_view;
+use izb::gpu::visibility_raster::raster_view;
 use izb::gpu::GpuRenderer;
 use izb::scene::{Light, Scene};
 use std::collections::HashMap;
@@ -34,6 +34,9 @@ pub struct HostOptions {
     pub heavy_entries: Option<u32>,
     /// Before frame `.0`, the image becomes `.1` (a resized window).
     pub resize: Option<(usize, [u32; 2])>,
+    /// The G-buffer the pass reads: the host's depth and normal in this
+    /// format and convention, or (`None`) its visibility buffer.
+    pub depth: Option<HostDepth>,
 }
 
 /// What a run measured, and its last frame read back after the loop.
@@ -70,6 +73,10 @@ pub struct HostRun {
     /// are cut short), with the trips.
     pub loop_capped_frames: Vec<(usize, u32)>,
     pub validation_messages: Vec<String>,
+    /// With a depth + normal G-buffer: the pass's G-buffer of the last
+    /// frame read back and fed to the CPU twin (`render_cpu_on`) — of its
+    /// pixels, how many masks equal the pass's, and how many there are.
+    pub twin_masks_equal: Option<[usize; 2]>,
     /// The last frame's view (not serialised).
     #[serde(skip)]
     pub last_view: Option<FrameView>,
@@ -140,7 +147,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         settings,
         frames_in_flight: options.frames_in_flight,
         cell_capacity: options.cell_capacity,
-        gbuffer: GBufferInput::Visibility,
+        gbuffer: match options.depth {
+            Some(d) => GBufferInput::DepthNormal(d.convention),
+            None => GBufferInput::Visibility,
+        },
     };
     let mut pass = ShadowPass::new(&renderer, scene.clone(), config).map_err(|e| e.to_string())?;
     let (lo, hi) = scene.bounds();
@@ -160,7 +170,12 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         bytemuck::cast_slice(&indices),
         vk::BufferUsageFlags::INDEX_BUFFER,
     );
-    let mut targets = Targets::new(gpu, scene.resolution, options.frames_in_flight);
+    let mut targets = Targets::new(
+        gpu,
+        scene.resolution,
+        options.frames_in_flight,
+        options.depth,
+    );
     let pool_info = vk::CommandPoolCreateInfo::default()
         .queue_family_index(gpu.family)
         .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
@@ -194,6 +209,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         overruns: 0,
         loop_capped_frames: Vec::new(),
         validation_messages: Vec::new(),
+        twin_masks_equal: None,
         last_view: None,
         last_ids: Vec::new(),
         last_masks: Vec::new(),
@@ -226,7 +242,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 }
                 fresh.fill(true);
                 targets.destroy(gpu);
-                targets = Targets::new(gpu, size, options.frames_in_flight);
+                targets = Targets::new(gpu, size, options.frames_in_flight, options.depth);
                 let before = renderer.context.shared.allocations();
                 pass.resize(size).map_err(|e| e.to_string())?;
                 let after = renderer.context.shared.allocations();
@@ -246,16 +262,38 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 vk::PipelineStageFlags::COMPUTE_SHADER,
                 vk::AccessFlags::SHADER_WRITE,
             );
+            let colour_written = (
+                vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+                vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            );
+            let attachment = vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL;
+            let (visibility, depth, normal) = match &images.normal {
+                None => (
+                    Some(declared(
+                        &images.visibility,
+                        extent,
+                        attachment,
+                        colour_written,
+                    )),
+                    None,
+                    None,
+                ),
+                Some(normal) => (
+                    None,
+                    Some(declared(
+                        &images.depth,
+                        extent,
+                        vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                        (
+                            vk::PipelineStageFlags::LATE_FRAGMENT_TESTS,
+                            vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                        ),
+                    )),
+                    Some(declared(normal, extent, attachment, colour_written)),
+                ),
+            };
             view.images = FrameImages {
-                visibility: Some(declared(
-                    &images.visibility,
-                    extent,
-                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                    (
-                        vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
-                        vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
-                    ),
-                )),
+                visibility,
                 masks: Some(declared(
                     &images.masks,
                     extent,
@@ -263,8 +301,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                     compute_write,
                 )),
                 lit_fraction: Some(declared(&images.lit, extent, output_layout, compute_write)),
-                depth: None,
-                normal: None,
+                depth,
+                normal,
             };
             let cmd = cmds[slot];
             let begin = vk::CommandBufferBeginInfo::default()
@@ -272,7 +310,13 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             // SAFETY: the slot's previous submission is done (its fence), so
             // its command buffer may be reset and recorded again.
             unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
-            let push = visibility_view(&view.camera, extent, origin, 0);
+            let reverse_z = izb::gbuffer::DepthConvention {
+                near: view.camera.near,
+                far: Some(view.camera.far),
+                reversed: true,
+            };
+            let convention = options.depth.map_or(reverse_z, |d| d.convention);
+            let push = raster_view(&view.camera, extent, origin, 0, &convention);
             let mesh = (
                 vertex_buffer.buffer,
                 index_buffer.buffer,
@@ -347,8 +391,24 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     }
     if failure.is_none() && options.frames > 0 {
         let last = &targets.slots[(options.frames - 1) % options.frames_in_flight];
-        (run.last_ids, run.last_masks) =
-            read_back(gpu, pool, &last.visibility, &last.masks, targets.extent);
+        let visibility_layout = match options.depth {
+            Some(_) => vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+            None => vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        };
+        (run.last_ids, run.last_masks) = read_back(
+            gpu,
+            pool,
+            (&last.visibility, visibility_layout),
+            &last.masks,
+            targets.extent,
+        );
+    }
+    if let (None, Some(_), Some(view)) = (&failure, options.depth, run.last_view) {
+        // SAFETY: every frame is done (the waits above).
+        match unsafe { twin_on_pass_gbuffer(&pass, scene, &view, settings) } {
+            Ok(counts) => run.twin_masks_equal = Some(counts),
+            Err(e) => failure = Some(e),
+        }
     }
     run.validation_messages = gpu.take_messages();
     // SAFETY: nothing executes (the waits above); each object is
@@ -368,6 +428,36 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         Some(e) => Err(e),
         None => Ok(run),
     }
+}
+
+/// The CPU twin's masks on the pass's last G-buffer, read back, against
+/// the pass's: [equal, pixels].
+///
+/// # Safety
+/// No frame of the pass is executing.
+unsafe fn twin_on_pass_gbuffer(
+    pass: &ShadowPass,
+    scene: &Scene,
+    view: &FrameView,
+    settings: IzbSettings,
+) -> Result<[usize; 2], String> {
+    // SAFETY: the caller's promise.
+    let (g, images) = unsafe { (pass.read_back_gbuffer(), pass.read_back()) };
+    let (g, images) = (
+        g.map_err(|e| e.to_string())?,
+        images.map_err(|e| e.to_string())?,
+    );
+    let mut moved = scene.clone();
+    (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
+    moved.resolution = pass.resolution();
+    let twin = izb::cpu::render_cpu_on(&moved, g, settings);
+    let equal = twin
+        .masks
+        .iter()
+        .zip(&images.masks)
+        .filter(|(a, b)| a == b)
+        .count();
+    Ok([equal, twin.masks.len()])
 }
 
 /// The pass's settings for `mode` (edge pixels' extra surfaces are not

@@ -1,15 +1,18 @@
 //! The shadow pass inside a host's frame (issue 29): a host that makes
 //! its own Vulkan instance, device and queue, draws the scene into a
-//! visibility buffer on the rasteriser, and records izb's shadow pass into
+//! visibility buffer (or, with `--depth`, a depth and normal G-buffer) on
+//! the rasteriser, and records izb's shadow pass into
 //! the same command buffer each frame, with the camera and light moving
 //! and two frames in flight. Prints the run's counters as JSON: izb's
 //! allocations after the first frame (0), `record`'s host time, the
 //! validation layer's messages (with `IZB_VALIDATION=1`, synchronization
 //! validation on), and how many shadow-tested pixels of the last frame
-//! equal `izb render`'s masks of the same view.
+//! equal `izb render`'s masks of the same view (with `--depth`, also how
+//! many equal the CPU twin's on the pass's G-buffer read back).
 //!
 //! ```text
 //! cargo run --release --example embed_host -- [SCENE ...] [--frames N] [--resolution WxH]
+//!     [--depth d32|d24s8|x8d24|d32s8] [--standard-z] [--infinite-far]
 //! ```
 //!
 //! SCENE: a procedural name (`default`) or a `*.scene.json` spec;
@@ -21,14 +24,18 @@ mod host_device;
 mod raster;
 mod targets;
 
+use ash::vk;
 use frames::{run, HostOptions};
 use izb::cpu::SampleMode;
+use izb::gbuffer::DepthConvention;
+use targets::HostDepth;
 
 fn main() -> Result<(), String> {
     let mut args = std::env::args().skip(1);
     let mut scenes = Vec::new();
     let mut frames = 30;
     let mut resolution = [160, 90];
+    let (mut depth_format, mut standard_z, mut infinite_far) = (None, false, false);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--frames" => {
@@ -45,6 +52,17 @@ fn main() -> Result<(), String> {
                     h.parse().map_err(|_| "--resolution WxH")?,
                 ];
             }
+            "--depth" => {
+                depth_format = Some(match args.next().as_deref() {
+                    Some("d32") => vk::Format::D32_SFLOAT,
+                    Some("d24s8") => vk::Format::D24_UNORM_S8_UINT,
+                    Some("x8d24") => vk::Format::X8_D24_UNORM_PACK32,
+                    Some("d32s8") => vk::Format::D32_SFLOAT_S8_UINT,
+                    _ => return Err("--depth d32|d24s8|x8d24|d32s8".into()),
+                })
+            }
+            "--standard-z" => standard_z = true,
+            "--infinite-far" => infinite_far = true,
             _ => scenes.push(a),
         }
     }
@@ -64,6 +82,14 @@ fn main() -> Result<(), String> {
             mode: SampleMode::Exact32,
             cell_capacity: None,
             resize: None,
+            depth: depth_format.map(|format| HostDepth {
+                format,
+                convention: DepthConvention {
+                    near: scene.camera.near,
+                    far: (!infinite_far).then_some(scene.camera.far),
+                    reversed: !standard_z,
+                },
+            }),
             heavy_entries: std::env::var("IZB_GPU_HEAVY_ENTRIES")
                 .ok()
                 .and_then(|v| v.parse().ok()),

@@ -2,20 +2,32 @@
 //! draws one: its own render pass, pipeline and framebuffers over images
 //! it owns, the scene's triangles from its own vertex and index buffers,
 //! drawn with izb's visibility shaders and push constants
-//! (`izb::gpu::visibility_raster`). The colour attachment is left in
-//! `COLOR_ATTACHMENT_OPTIMAL`, written at `COLOR_ATTACHMENT_OUTPUT`: what
-//! the host declares to the shadow pass.
+//! (`izb::gpu::visibility_raster`). The colour attachments are left in
+//! `COLOR_ATTACHMENT_OPTIMAL`, written at `COLOR_ATTACHMENT_OUTPUT`, and
+//! the depth in `DEPTH_STENCIL_ATTACHMENT_OPTIMAL`, written at
+//! `LATE_FRAGMENT_TESTS`: what the host declares to the shadow pass. With
+//! a depth + normal G-buffer the pass also writes the geometric normal
+//! (`depth_normal_raster.frag`) and keeps the depth, in the host's chosen
+//! format and convention.
 
 use crate::host_device::HostGpu;
+use crate::targets::HostDepth;
 use ash::vk;
 use gpu_allocator::vulkan::Allocation;
 use gpu_allocator::MemoryLocation;
-use izb::gpu::visibility_raster::{VisibilityView, FRAGMENT_SPIRV, VERTEX_SPIRV};
+use izb::gpu::host_images::format_aspects;
+use izb::gpu::visibility_raster::{
+    VisibilityView, DEPTH_NORMAL_FRAGMENT_SPIRV, FRAGMENT_SPIRV, VERTEX_SPIRV,
+};
 
 /// An image of the host's with its view and memory.
 pub struct OwnedImage {
     pub image: vk::Image,
+    /// The view a shader reads (a depth image's: its depth aspect alone).
     pub view: vk::ImageView,
+    /// The view a framebuffer binds: every aspect of the format (the
+    /// same view but for a combined depth-stencil format).
+    pub attachment_view: vk::ImageView,
     pub format: vk::Format,
     pub usage: vk::ImageUsageFlags,
     allocation: Option<Allocation>,
@@ -29,10 +41,11 @@ impl OwnedImage {
         format: vk::Format,
         usage: vk::ImageUsageFlags,
     ) -> Self {
-        let aspect = if format == vk::Format::D32_SFLOAT {
+        let aspects = format_aspects(format);
+        let aspect = if aspects.contains(vk::ImageAspectFlags::DEPTH) {
             vk::ImageAspectFlags::DEPTH
         } else {
-            vk::ImageAspectFlags::COLOR
+            aspects
         };
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
@@ -57,16 +70,25 @@ impl OwnedImage {
         // SAFETY: fresh memory of the image's requirements, bound once.
         unsafe { device.bind_image_memory(image, allocation.memory(), allocation.offset()) }
             .expect("image memory");
-        let view_info = vk::ImageViewCreateInfo::default()
-            .image(image)
-            .view_type(vk::ImageViewType::TYPE_2D)
-            .format(format)
-            .subresource_range(whole(aspect));
-        // SAFETY: `image` is live and bound.
-        let view = unsafe { device.create_image_view(&view_info, None) }.expect("a view");
+        let make_view = |aspect| {
+            let view_info = vk::ImageViewCreateInfo::default()
+                .image(image)
+                .view_type(vk::ImageViewType::TYPE_2D)
+                .format(format)
+                .subresource_range(whole(aspect));
+            // SAFETY: `image` is live and bound.
+            unsafe { device.create_image_view(&view_info, None) }.expect("a view")
+        };
+        let view = make_view(aspect);
+        let attachment_view = if aspect == aspects {
+            view
+        } else {
+            make_view(aspects)
+        };
         OwnedImage {
             image,
             view,
+            attachment_view,
             format,
             usage,
             allocation: Some(allocation),
@@ -77,6 +99,9 @@ impl OwnedImage {
     pub fn destroy(&mut self, gpu: &HostGpu) {
         // SAFETY: the caller's promise; each handle is destroyed once.
         unsafe {
+            if self.attachment_view != self.view {
+                gpu.device.destroy_image_view(self.attachment_view, None);
+            }
             gpu.device.destroy_image_view(self.view, None);
             gpu.device.destroy_image(self.image, None);
         }
@@ -145,47 +170,78 @@ impl OwnedBuffer {
     }
 }
 
-/// The visibility pass: a render pass with an `R32_UINT` colour and a
-/// `D32_SFLOAT` depth attachment (reverse Z), its pipeline, and one
-/// framebuffer per frame slot.
+/// The raster pass: a render pass with an `R32_UINT` colour attachment
+/// (the visibility buffer), with a depth + normal G-buffer an
+/// `R32G32B32A32_SFLOAT` one (the normal), and a depth attachment (`D32`
+/// under reverse Z, or the G-buffer's format and convention); its
+/// pipeline, and one framebuffer per frame slot.
 pub struct VisibilityRaster {
     render_pass: vk::RenderPass,
     layout: vk::PipelineLayout,
     pipeline: vk::Pipeline,
     framebuffers: Vec<vk::Framebuffer>,
     extent: [u32; 2],
+    /// The depth clear value: 0 under reverse Z, 1 under standard Z.
+    depth_clear: f32,
+    draws_normal: bool,
 }
 
 impl VisibilityRaster {
-    /// The pass drawing into `targets`' (visibility, depth) pairs.
-    pub fn new(gpu: &HostGpu, extent: [u32; 2], targets: &[(&OwnedImage, &OwnedImage)]) -> Self {
+    /// The pass drawing into `targets`' (visibility, normal, depth) images;
+    /// `depth`: the depth + normal G-buffer's format and convention.
+    pub fn new(
+        gpu: &HostGpu,
+        extent: [u32; 2],
+        targets: &[(&OwnedImage, Option<&OwnedImage>, &OwnedImage)],
+        depth: Option<HostDepth>,
+    ) -> Self {
         let device = &gpu.device;
-        let attachments = [
+        let draws_normal = depth.is_some();
+        let reversed = depth.is_none_or(|d| d.convention.reversed);
+        let colour_attachment = |format| {
             vk::AttachmentDescription::default()
-                .format(vk::Format::R32_UINT)
+                .format(format)
                 .samples(vk::SampleCountFlags::TYPE_1)
                 .load_op(vk::AttachmentLoadOp::CLEAR)
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .initial_layout(vk::ImageLayout::UNDEFINED)
-                .final_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL),
+                .final_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+        };
+        let mut attachments = vec![colour_attachment(vk::Format::R32_UINT)];
+        if draws_normal {
+            attachments.push(colour_attachment(vk::Format::R32G32B32A32_SFLOAT));
+        }
+        // The depth is kept for the pass only with a depth + normal G-buffer.
+        let depth_store = if draws_normal {
+            vk::AttachmentStoreOp::STORE
+        } else {
+            vk::AttachmentStoreOp::DONT_CARE
+        };
+        attachments.push(
             vk::AttachmentDescription::default()
-                .format(vk::Format::D32_SFLOAT)
+                .format(depth.map_or(vk::Format::D32_SFLOAT, |d| d.format))
                 .samples(vk::SampleCountFlags::TYPE_1)
                 .load_op(vk::AttachmentLoadOp::CLEAR)
-                .store_op(vk::AttachmentStoreOp::DONT_CARE)
+                .store_op(depth_store)
+                .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+                .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
                 .initial_layout(vk::ImageLayout::UNDEFINED)
                 .final_layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
-        ];
-        let colour = [vk::AttachmentReference::default()
-            .attachment(0)
-            .layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)];
-        let depth = vk::AttachmentReference::default()
-            .attachment(1)
+        );
+        let colour: Vec<vk::AttachmentReference> = (0..attachments.len() as u32 - 1)
+            .map(|a| {
+                vk::AttachmentReference::default()
+                    .attachment(a)
+                    .layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+            })
+            .collect();
+        let depth_ref = vk::AttachmentReference::default()
+            .attachment(attachments.len() as u32 - 1)
             .layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL);
         let subpass = [vk::SubpassDescription::default()
             .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
             .color_attachments(&colour)
-            .depth_stencil_attachment(&depth)];
+            .depth_stencil_attachment(&depth_ref)];
         // The previous frame's shadow pass read the colour attachment in
         // compute shaders (the frame before on this slot, and the barrier
         // at the pass's start orders nothing before the clear): wait for
@@ -224,11 +280,13 @@ impl VisibilityRaster {
         let layout_info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
         // SAFETY: as above.
         let layout = unsafe { device.create_pipeline_layout(&layout_info, None) }.expect("layout");
-        let pipeline = pipeline(gpu, render_pass, layout, extent);
+        let pipeline = pipeline(gpu, (render_pass, layout), extent, draws_normal, reversed);
         let framebuffers = targets
             .iter()
-            .map(|(visibility, depth)| {
-                let views = [visibility.view, depth.view];
+            .map(|(visibility, normal, depth)| {
+                let mut views = vec![visibility.view];
+                views.extend(normal.map(|n| n.view));
+                views.push(depth.attachment_view);
                 let info = vk::FramebufferCreateInfo::default()
                     .render_pass(render_pass)
                     .attachments(&views)
@@ -245,6 +303,8 @@ impl VisibilityRaster {
             pipeline,
             framebuffers,
             extent,
+            depth_clear: if reversed { 0.0 } else { 1.0 },
+            draws_normal,
         }
     }
 
@@ -262,19 +322,22 @@ impl VisibilityRaster {
         (vertices, indices, triangles): (vk::Buffer, vk::Buffer, u32),
         view: &VisibilityView,
     ) {
-        let clear = [
-            vk::ClearValue {
-                color: vk::ClearColorValue {
-                    uint32: [u32::MAX; 4],
-                },
+        let mut clear = vec![vk::ClearValue {
+            color: vk::ClearColorValue {
+                uint32: [u32::MAX; 4],
             },
-            vk::ClearValue {
-                depth_stencil: vk::ClearDepthStencilValue {
-                    depth: 0.0,
-                    stencil: 0,
-                },
+        }];
+        if self.draws_normal {
+            clear.push(vk::ClearValue {
+                color: vk::ClearColorValue { float32: [0.0; 4] },
+            });
+        }
+        clear.push(vk::ClearValue {
+            depth_stencil: vk::ClearDepthStencilValue {
+                depth: self.depth_clear,
+                stencil: 0,
             },
-        ];
+        });
         let begin = vk::RenderPassBeginInfo::default()
             .render_pass(self.render_pass)
             .framebuffer(self.framebuffers[slot])
@@ -313,12 +376,15 @@ impl VisibilityRaster {
 }
 
 /// The graphics pipeline: positions at location 0, no culling (the pass
-/// shadow-tests back faces too: it flips their normal), depth `GREATER`.
+/// shadow-tests back faces too: it flips their normal), depth `GREATER`
+/// under reverse Z and `LESS` under standard Z; with `draws_normal` the
+/// depth + normal fragment shader and two colour attachments.
 fn pipeline(
     gpu: &HostGpu,
-    render_pass: vk::RenderPass,
-    layout: vk::PipelineLayout,
+    (render_pass, layout): (vk::RenderPass, vk::PipelineLayout),
     extent: [u32; 2],
+    draws_normal: bool,
+    reversed: bool,
 ) -> vk::Pipeline {
     let d = &gpu.device;
     let module = |bytes: &[u8]| {
@@ -327,7 +393,12 @@ fn pipeline(
         // SAFETY: `words` is whole SPIR-V compiled by izb's build script.
         unsafe { d.create_shader_module(&info, None) }.expect("shader module")
     };
-    let (vert, frag) = (module(VERTEX_SPIRV), module(FRAGMENT_SPIRV));
+    let fragment = if draws_normal {
+        DEPTH_NORMAL_FRAGMENT_SPIRV
+    } else {
+        FRAGMENT_SPIRV
+    };
+    let (vert, frag) = (module(VERTEX_SPIRV), module(fragment));
     let stages = [
         vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::VERTEX)
@@ -375,9 +446,16 @@ fn pipeline(
     let depth = vk::PipelineDepthStencilStateCreateInfo::default()
         .depth_test_enable(true)
         .depth_write_enable(true)
-        .depth_compare_op(vk::CompareOp::GREATER);
-    let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
-        .color_write_mask(vk::ColorComponentFlags::R)];
+        .depth_compare_op(if reversed {
+            vk::CompareOp::GREATER
+        } else {
+            vk::CompareOp::LESS
+        });
+    // Without the independentBlend feature every attachment's state is the
+    // same: all channels written (an R32_UINT target has only R).
+    let write_all = vk::PipelineColorBlendAttachmentState::default()
+        .color_write_mask(vk::ColorComponentFlags::RGBA);
+    let blend_attachments = vec![write_all; if draws_normal { 2 } else { 1 }];
     let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
     let info = [vk::GraphicsPipelineCreateInfo::default()
         .stages(&stages)

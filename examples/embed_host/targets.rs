@@ -1,17 +1,30 @@
 //! The host's per-frame-slot render targets at one size: the raster's
-//! visibility and depth images, the pass's mask and lit-fraction outputs,
-//! and the visibility pass drawing into them. A resize makes them anew
+//! visibility, depth and (for a depth + normal G-buffer) normal images,
+//! the pass's mask and lit-fraction outputs, and the raster pass drawing
+//! into them. A resize makes them anew
 //! (as a swapchain's recreation does).
 
 use crate::host_device::HostGpu;
 use crate::raster::{OwnedImage, VisibilityRaster};
 use ash::vk;
+use izb::gbuffer::DepthConvention;
+
+/// A depth + normal G-buffer the host draws for the pass: its depth
+/// format and convention.
+#[derive(Clone, Copy, Debug)]
+pub struct HostDepth {
+    pub format: vk::Format,
+    pub convention: DepthConvention,
+}
 
 /// One frame slot's images: the raster's visibility and depth targets,
 /// the pass's mask and lit-fraction outputs.
 pub struct SlotImages {
     pub visibility: OwnedImage,
     pub depth: OwnedImage,
+    /// The geometric normal (`R32G32B32A32_SFLOAT`), with a depth + normal
+    /// G-buffer.
+    pub normal: Option<OwnedImage>,
     pub masks: OwnedImage,
     pub lit: OwnedImage,
 }
@@ -24,7 +37,15 @@ pub struct Targets {
 }
 
 impl Targets {
-    pub fn new(gpu: &HostGpu, extent: [u32; 2], frames_in_flight: usize) -> Self {
+    /// `depth`: a depth + normal G-buffer for the pass (its depth sampled,
+    /// a normal image drawn), else a visibility buffer and a `D32` depth
+    /// the raster alone uses.
+    pub fn new(
+        gpu: &HostGpu,
+        extent: [u32; 2],
+        frames_in_flight: usize,
+        depth: Option<HostDepth>,
+    ) -> Self {
         let sampled_colour = vk::ImageUsageFlags::COLOR_ATTACHMENT
             | vk::ImageUsageFlags::SAMPLED
             | vk::ImageUsageFlags::TRANSFER_SRC;
@@ -42,15 +63,25 @@ impl Targets {
                     gpu,
                     "depth",
                     extent,
-                    vk::Format::D32_SFLOAT,
-                    vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+                    depth.map_or(vk::Format::D32_SFLOAT, |d| d.format),
+                    vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+                        | depth.map_or(vk::ImageUsageFlags::empty(), |_| {
+                            vk::ImageUsageFlags::SAMPLED
+                        }),
                 ),
+                normal: depth.map(|_| {
+                    let format = vk::Format::R32G32B32A32_SFLOAT;
+                    OwnedImage::new(gpu, "normal", extent, format, sampled_colour)
+                }),
                 masks: OwnedImage::new(gpu, "masks", extent, vk::Format::R32_UINT, storage),
                 lit: OwnedImage::new(gpu, "lit", extent, vk::Format::R16_UNORM, storage),
             })
             .collect();
-        let targets: Vec<_> = slots.iter().map(|s| (&s.visibility, &s.depth)).collect();
-        let raster = VisibilityRaster::new(gpu, extent, &targets);
+        let targets: Vec<_> = slots
+            .iter()
+            .map(|s| (&s.visibility, s.normal.as_ref(), &s.depth))
+            .collect();
+        let raster = VisibilityRaster::new(gpu, extent, &targets, depth);
         Targets {
             slots,
             raster,
@@ -64,6 +95,9 @@ impl Targets {
         for s in &mut self.slots {
             for image in [&mut s.visibility, &mut s.depth, &mut s.masks, &mut s.lit] {
                 image.destroy(gpu);
+            }
+            if let Some(n) = &mut s.normal {
+                n.destroy(gpu);
             }
         }
     }

@@ -22,6 +22,7 @@
 //! rasteriser's edge rules and depth rounding).
 
 pub use super::shared::VisibilityView;
+use crate::gbuffer::DepthConvention;
 use crate::scene::Camera;
 use glam::DVec3;
 
@@ -31,6 +32,12 @@ pub const VERTEX_SPIRV: &[u8] =
 /// The fragment shader's SPIR-V.
 pub const FRAGMENT_SPIRV: &[u8] =
     include_bytes!(concat!(env!("OUT_DIR"), "/visibility_raster_frag.spv"));
+/// The depth + normal G-buffer's fragment shader's SPIR-V: the id into
+/// attachment 0 and the geometric normal (`R32G32B32A32_SFLOAT`, xyz,
+/// from the position's screen derivatives) into attachment 1; the depth
+/// attachment under [`raster_view`]'s convention.
+pub const DEPTH_NORMAL_FRAGMENT_SPIRV: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/depth_normal_raster_frag.spv"));
 
 /// The push constants that draw `camera`'s view of an image of
 /// `resolution` pixels, for vertices relative to `origin` (subtracted in
@@ -42,18 +49,43 @@ pub fn visibility_view(
     origin: DVec3,
     first_triangle: u32,
 ) -> VisibilityView {
+    let reverse_z = DepthConvention {
+        near: camera.near,
+        far: Some(camera.far),
+        reversed: true,
+    };
+    raster_view(camera, resolution, origin, first_triangle, &reverse_z)
+}
+
+/// [`visibility_view`] with the depth written under `depth`: the clip z
+/// whose z / w is [`DepthConvention::depth_at`] of the view depth w.
+/// A host draws with depth test `GREATER` and clears to 0 under reverse
+/// Z, `LESS` and 1 under standard Z.
+pub fn raster_view(
+    camera: &Camera,
+    resolution: [u32; 2],
+    origin: DVec3,
+    first_triangle: u32,
+    depth: &DepthConvention,
+) -> VisibilityView {
     let frame = camera.frame(resolution);
     let f32s = |v: DVec3| v.as_vec3().to_array();
-    // Clip z = near · (far − d) / (far − near): z / w is 1 at d = near
-    // and 0 at d = far.
-    let span = camera.far - camera.near;
+    // The reversed value is u = (n/w − n/f) / (1 − n/f): offset n/(1 − r)
+    // over w, scale −r/(1 − r); standard Z is 1 − u.
+    let (n, r) = (depth.near, depth.near_over_far());
+    let (offset, scale) = (n / (1.0 - r), -r / (1.0 - r));
+    let (offset, scale) = if depth.reversed {
+        (offset, scale)
+    } else {
+        (-offset, 1.0 - scale)
+    };
     VisibilityView {
         eye: f32s(camera.eye - origin),
-        depth_offset: (camera.near * camera.far / span) as f32,
+        depth_offset: offset as f32,
         right: f32s(frame.right / (frame.tan_half_fov * frame.aspect)),
         first_triangle,
         down: f32s(-frame.up / frame.tan_half_fov),
-        depth_scale: (-camera.near / span) as f32,
+        depth_scale: scale as f32,
         forward: f32s(frame.forward),
     }
 }
@@ -101,5 +133,37 @@ mod tests {
             }
         }
         assert_eq!(checked, 12);
+    }
+
+    /// Every convention's clip z over w is its `depth_at` of the view
+    /// depth, from the near plane to far past the far one.
+    #[test]
+    fn raster_depth_follows_the_convention() {
+        let camera = Camera {
+            eye: DVec3::ZERO,
+            target: DVec3::Z,
+            up: DVec3::Y,
+            fov_y_deg: 60.0,
+            near: 0.1,
+            far: 500.0,
+        };
+        let mut checked = 0;
+        for reversed in [true, false] {
+            for far in [Some(camera.far), None] {
+                let c = DepthConvention {
+                    near: camera.near,
+                    far,
+                    reversed,
+                };
+                let view = raster_view(&camera, [64, 36], DVec3::ZERO, 0, &c);
+                for w in [0.1, 2.0, 77.0, 500.0, 4000.0] {
+                    let z = (f64::from(view.depth_offset) + f64::from(view.depth_scale) * w) / w;
+                    let want = c.depth_at(w);
+                    assert!((z - want).abs() < 1e-6, "{c:?} at {w}: {z}, want {want}");
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 20);
     }
 }
