@@ -34,7 +34,7 @@
 //! written into the command buffer (`vkCmdUpdateBuffer`), the counters
 //! cleared, the host's images acquired (one barrier each, from the state
 //! the host declares: [`super::host_images`]), then `gbuffer` (or
-//! `gbuffer_from_visibility`), `light_setup`, `bin`, `evaluate`,
+//! `gbuffer_from_visibility`, `gbuffer_from_depth`), `light_setup`, `bin`, `evaluate`,
 //! `resolve` and `export_images` (into the host's mask and lit-fraction
 //! images, when given), and the counters copied into the frame slot's
 //! status buffer. Afterwards the masks and the shaded image are also in
