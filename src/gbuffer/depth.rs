@@ -20,7 +20,7 @@
 //!   candidate equals, and its normal is stored per entry
 //!   (`B_G_NORMAL` on the GPU, [`GBuffer::normal`] here).
 
-use super::{faces_light, microquad_axes, GBuffer, PixelSurface, SurfaceHit, VisibilityGBuffer};
+use super::{GBuffer, PixelSurface, SurfaceHit, VisibilityGBuffer};
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
 
@@ -104,7 +104,7 @@ impl DepthConvention {
 
     /// The view depth of depth value `depth`, `None` at or beyond the far
     /// plane (u ≤ 0) or where it is not finite. Standard Z's 1 − D is
-    /// exact for D ≥ ½ (Sterbenz), so no cancellation hides in
+    /// exact for D ≥ ½ (Sterbenz 1974), so no cancellation hides in
     /// n·f / (f − D(f − n)), which loses log₂(f/n) bits near the far plane.
     pub fn view_depth(&self, depth: f64) -> Option<f64> {
         let u = if self.reversed { depth } else { 1.0 - depth };
@@ -165,14 +165,7 @@ pub fn gbuffer_from_depth(
                 position: direction * z,
                 normal,
             };
-            let (axis_x, axis_y, axes_clamped) = microquad_axes(&frame, px, py, &hit);
-            Some(PixelSurface {
-                hit,
-                axis_x,
-                axis_y,
-                axes_clamped,
-                shadow_tested: faces_light(&light, hit.position, hit.normal),
-            })
+            Some(PixelSurface::of_hit(&frame, (px, py), hit, &light))
         });
         rejected += usize::from(matches!(surface, Some(None)));
         let surface = surface.flatten();

@@ -283,6 +283,26 @@ pub struct PixelSurface {
     pub shadow_tested: bool,
 }
 
+impl PixelSurface {
+    /// The entry of `hit`, seen through image point (`px`, `py`): its
+    /// µQuad axes and whether it faces `light` (eye-relative).
+    pub fn of_hit(
+        frame: &CameraFrame,
+        (px, py): (f64, f64),
+        hit: SurfaceHit,
+        light: &Light,
+    ) -> Self {
+        let (axis_x, axis_y, axes_clamped) = microquad_axes(frame, px, py, &hit);
+        PixelSurface {
+            hit,
+            axis_x,
+            axis_y,
+            axes_clamped,
+            shadow_tested: faces_light(light, hit.position, hit.normal),
+        }
+    }
+}
+
 /// The `f64` G-buffer entry of pixel (`x`, `y`), or `None` for a miss.
 pub fn pixel_surface(
     bvh: &SceneBvh,
@@ -293,15 +313,8 @@ pub fn pixel_surface(
 ) -> Option<PixelSurface> {
     let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
     let hit = trace_primary(bvh, frame, scene.camera.near, scene.camera.far, px, py)?;
-    let (axis_x, axis_y, axes_clamped) = microquad_axes(frame, px, py, &hit);
     let light = scene.light.relative_to(scene.camera.eye);
-    Some(PixelSurface {
-        hit,
-        axis_x,
-        axis_y,
-        axes_clamped,
-        shadow_tested: faces_light(&light, hit.position, hit.normal),
-    })
+    Some(PixelSurface::of_hit(frame, (px, py), hit, &light))
 }
 
 /// Primary visibility for the whole image (rayon over rows): one surface

@@ -8,9 +8,7 @@
 //! G-buffer applies to its hit — so a raster that sees the triangle the ray
 //! cast sees gives the same entry, with no depth-buffer quantisation.
 
-use super::{
-    faces_light, facing_normal, microquad_axes, GBuffer, PixelSurface, SurfaceHit, NO_HIT,
-};
+use super::{facing_normal, GBuffer, PixelSurface, SurfaceHit, NO_HIT};
 use crate::scene::Scene;
 
 /// [`gbuffer_from_visibility`]'s G-buffer, and how many pixels it stored
@@ -58,14 +56,7 @@ pub fn gbuffer_from_visibility(
                 position: d * t,
                 normal,
             };
-            let (axis_x, axis_y, axes_clamped) = microquad_axes(&frame, px, py, &hit);
-            Some(PixelSurface {
-                hit,
-                axis_x,
-                axis_y,
-                axes_clamped,
-                shadow_tested: faces_light(&light, hit.position, hit.normal),
-            })
+            Some(PixelSurface::of_hit(&frame, (px, py), hit, &light))
         });
         rejected += usize::from(matches!(surface, Some(None)));
         g.push(surface.flatten().as_ref());
