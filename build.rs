@@ -177,6 +177,11 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ),
     ("shadow_rays", "shadow_rays.comp", &[]),
     ("visibility_raster_vert", "visibility_raster.vert", &[]),
+    (
+        "depth_normal_raster_vert",
+        "visibility_raster.vert",
+        &[("EYE_RELATIVE_OUT", "1")],
+    ),
     ("visibility_raster_frag", "visibility_raster.frag", &[]),
     ("depth_normal_raster_frag", "depth_normal_raster.frag", &[]),
 ];

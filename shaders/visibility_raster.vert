@@ -17,12 +17,19 @@
 
 layout(location = 0) in vec3 position;
 layout(push_constant, scalar) uniform ViewBlock { VisibilityView view; };
-// The eye-relative position, whose screen derivatives span the surface.
+#ifdef EYE_RELATIVE_OUT
+// For `depth_normal_raster.frag` (compiled as `depth_normal_raster_vert`):
+// the eye-relative position, whose screen derivatives span the surface.
+// Only that build declares it: an output no fragment shader reads is a
+// validation warning.
 layout(location = 0) out vec3 eye_relative;
+#endif
 
 void main() {
     vec3 q = position - view.eye;
+#ifdef EYE_RELATIVE_OUT
     eye_relative = q;
+#endif
     float depth = dot(q, view.forward);
     gl_Position = vec4(dot(q, view.right), dot(q, view.down),
                        view.depth_offset + view.depth_scale * depth, depth);

@@ -17,7 +17,8 @@ use gpu_allocator::vulkan::Allocation;
 use gpu_allocator::MemoryLocation;
 use izb::gpu::host_images::format_aspects;
 use izb::gpu::visibility_raster::{
-    VisibilityView, DEPTH_NORMAL_FRAGMENT_SPIRV, FRAGMENT_SPIRV, VERTEX_SPIRV,
+    VisibilityView, DEPTH_NORMAL_FRAGMENT_SPIRV, DEPTH_NORMAL_VERTEX_SPIRV, FRAGMENT_SPIRV,
+    VERTEX_SPIRV,
 };
 
 /// An image of the host's with its view and memory.
@@ -393,12 +394,12 @@ fn pipeline(
         // SAFETY: `words` is whole SPIR-V compiled by izb's build script.
         unsafe { d.create_shader_module(&info, None) }.expect("shader module")
     };
-    let fragment = if draws_normal {
-        DEPTH_NORMAL_FRAGMENT_SPIRV
+    let (vertex, fragment) = if draws_normal {
+        (DEPTH_NORMAL_VERTEX_SPIRV, DEPTH_NORMAL_FRAGMENT_SPIRV)
     } else {
-        FRAGMENT_SPIRV
+        (VERTEX_SPIRV, FRAGMENT_SPIRV)
     };
-    let (vert, frag) = (module(VERTEX_SPIRV), module(fragment));
+    let (vert, frag) = (module(vertex), module(fragment));
     let stages = [
         vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::VERTEX)

@@ -138,7 +138,7 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 35] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 37] = [
     ("gbuffer", spirv!("gbuffer")),
     ("translate_vertices", spirv!("translate_vertices")),
     ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
@@ -174,6 +174,14 @@ pub const SPIRV_MODULES: [(&str, &[u8]); 35] = [
     ("shadow_rays", spirv!("shadow_rays")),
     ("visibility_raster_vert", spirv!("visibility_raster_vert")),
     ("visibility_raster_frag", spirv!("visibility_raster_frag")),
+    (
+        "depth_normal_raster_vert",
+        spirv!("depth_normal_raster_vert"),
+    ),
+    (
+        "depth_normal_raster_frag",
+        spirv!("depth_normal_raster_frag"),
+    ),
 ];
 
 /// The compiled pipelines of every pass.

@@ -32,6 +32,10 @@ pub const VERTEX_SPIRV: &[u8] =
 /// The fragment shader's SPIR-V.
 pub const FRAGMENT_SPIRV: &[u8] =
     include_bytes!(concat!(env!("OUT_DIR"), "/visibility_raster_frag.spv"));
+/// The depth + normal G-buffer's vertex shader's SPIR-V: the same, with
+/// the eye-relative position passed on for the normal.
+pub const DEPTH_NORMAL_VERTEX_SPIRV: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/depth_normal_raster_vert.spv"));
 /// The depth + normal G-buffer's fragment shader's SPIR-V: the id into
 /// attachment 0 and the geometric normal (`R32G32B32A32_SFLOAT`, xyz,
 /// from the position's screen derivatives) into attachment 1; the depth
