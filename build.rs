@@ -89,6 +89,7 @@ type Defines = &'static [(&'static str, &'static str)];
 const SHADERS: &[(&str, &str, Defines)] = &[
     ("gbuffer", "gbuffer.comp", &[]),
     ("translate_vertices", "translate_vertices.comp", &[]),
+    ("gather_draws", "gather_draws.comp", &[]),
     (
         "gbuffer_from_visibility",
         "gbuffer_from_visibility.comp",

@@ -14,7 +14,8 @@ mod structs;
 use macros::{shared_constants, GlslConstant, SharedStruct};
 pub use pcss_taps::pcss;
 pub use structs::{
-    BvhNode, CascadeGrid, FrameParams, GpuTriangle, GpuTriangleCorners, LightState, VisibilityView,
+    BvhNode, CascadeGrid, FrameParams, GpuDraw, GpuTriangle, GpuTriangleCorners, LightState,
+    VisibilityView,
 };
 
 shared_constants! {
@@ -93,11 +94,17 @@ shared_constants! {
         /// (`vec4`; `DEPTH_INPUT_SPACINGS`); 4 bytes where every entry
         /// names its triangle.
         G_NORMAL = 26;
+        /// The shadow pass fed the host's vertex and index buffers: this
+        /// frame's draws (`Draw`, `FrameParams::draw_count` of them, in
+        /// triangle order), from which `gather_draws` writes
+        /// `B_TRIANGLES`, `B_VERTICES` and `B_TRIANGLE_NORMALS`; 4 bytes
+        /// elsewhere.
+        DRAWS = 27;
     }
 }
 
 /// Number of bindings (one past the last of [`binding`]).
-pub const BINDING_COUNT: u32 = binding::G_NORMAL + 1;
+pub const BINDING_COUNT: u32 = binding::DRAWS + 1;
 
 shared_constants! {
     /// The second descriptor set (`HOST_*`): the host's images a frame of
@@ -123,8 +130,18 @@ shared_constants! {
         /// float or snorm colour image (a sampled image), with the depth +
         /// normal input.
         NORMAL = 4;
+        /// The host's vertex and index buffers (storage buffers, an array
+        /// of `HOST_GEOMETRY_SLOTS`), which a frame's draws name by slot,
+        /// with the host's vertex and index buffers as the geometry.
+        GEOMETRY = 5;
+        /// Elements of the `GEOMETRY` array: distinct buffers a frame's
+        /// draws may read (a slot the frame leaves free repeats slot 0).
+        /// With the pass's own set (`BINDING_COUNT` storage buffers) they
+        /// fill 32 per-stage storage buffers, lavapipe's budget (gallium's
+        /// `PIPE_MAX_SHADER_BUFFERS`).
+        GEOMETRY_SLOTS = 4;
         /// Bindings of the set.
-        BINDING_COUNT = 5;
+        BINDING_COUNT = 6;
     }
 }
 
@@ -197,8 +214,16 @@ shared_constants! {
         /// depth in front of the eye or whose normal is zero or not
         /// finite. Each is stored as a miss.
         VISIBILITY_REJECTED = 41;
+        /// `gather_draws`: triangles of the host's draws with an index at
+        /// or past their draw's vertex count (each collapsed onto its
+        /// draw's vertex 0: it casts no shadow and is never read out of
+        /// bounds), and vertices outside the bounds the pass was made for
+        /// (the precision envelope's); either makes the frame unusable
+        /// (`PassStatus::geometry_error`).
+        INDEX_OUT_OF_RANGE = 42;
+        OUTSIDE_BOUNDS = 43;
         /// Words in the counters buffer.
-        WORDS = 42;
+        WORDS = 44;
     }
 }
 
@@ -261,6 +286,8 @@ shared_constants! {
     pub mod word: u32 as Uint, prefix "" {
         /// A triangle id of no triangle (a miss).
         NO_HIT = u32::MAX;
+        /// `Draw::index_slot` of a draw without indices.
+        NO_INDICES = u32::MAX;
         /// Id field of a miss in the G-buffer word.
         ID_MASK = (1 << crate::size::ID_BITS) - 1;
         /// Id field of a G-buffer entry made from the host's depth and
@@ -511,6 +538,7 @@ pub fn glsl_header() -> String {
     out += &glsl_struct::<GpuTriangleCorners>();
     out += &glsl_struct::<BvhNode>();
     out += &glsl_struct::<VisibilityView>();
+    out += &glsl_struct::<GpuDraw>();
     out
 }
 
@@ -536,6 +564,7 @@ pub fn shared_structs() -> Vec<(&'static str, usize, Vec<macros::Member>)> {
         entry::<LightState>(),
         entry::<GpuTriangleCorners>(),
         entry::<BvhNode>(),
+        entry::<GpuDraw>(),
     ]
 }
 
@@ -566,7 +595,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 97, "members of the five shared structs");
+        assert_eq!(checked, 115, "members of the six shared structs");
     }
 
     #[test]

@@ -139,6 +139,13 @@ shared_struct! {
         /// a 24-bit unorm); 0 for a float depth, whose spacing at D the
         /// shader takes from D's exponent.
         pub depth_step: f32 => "float depth_step",
+        /// `gather_draws`: the frame's draws (`B_DRAWS`), and the bounds
+        /// the pass was made for relative to this frame's eye (rounded
+        /// outward), outside which a gathered vertex is counted
+        /// (`COUNTER_OUTSIDE_BOUNDS`).
+        pub draw_count: u32 => "uint draw_count",
+        pub bounds_lo: [f32; 3] => "vec3 bounds_lo",
+        pub bounds_hi: [f32; 3] => "vec3 bounds_hi",
         pub pattern: [[f32; 2]; 32] => "vec2 pattern[32]",
         /// The µQuad's samples, paired with `pattern`'s light samples in a
         /// paired frame (`MODE_PAIRED32`, `MODE_PAIRED64`) under an area
@@ -281,5 +288,38 @@ shared_struct! {
         pub depth_scale: f32 => "float depth_scale",
         /// Unit view direction: clip w = view depth.
         pub forward: [f32; 3] => "vec3 forward",
+    }
+}
+
+shared_struct! {
+    /// `Draw`: one of the host's draws as `gather_draws` reads it — where
+    /// its positions and indices lie in the host's buffers (`HOST_GEOMETRY`
+    /// slots, in 4-byte words and in indices), and its object-to-eye
+    /// transform folded on the host in `f64` and rounded once: a gathered
+    /// vertex is `((row.x·v.x + row.y·v.y) + row.z·v.z) + row.w` per row,
+    /// and a triangle's normal the cofactor rows times its object-space
+    /// edge cross product (`izb::cpu::gather_draws`).
+    pub struct GpuDraw as "Draw" {
+        pub row_x: [f32; 4] => "vec4 row_x",
+        pub row_y: [f32; 4] => "vec4 row_y",
+        pub row_z: [f32; 4] => "vec4 row_z",
+        pub cofactor_x: [f32; 3] => "vec3 cofactor_x",
+        /// The draw's first triangle id (the sum of the counts before it).
+        pub first_triangle: u32 => "uint first_triangle",
+        pub cofactor_y: [f32; 3] => "vec3 cofactor_y",
+        pub triangle_count: u32 => "uint triangle_count",
+        pub cofactor_z: [f32; 3] => "vec3 cofactor_z",
+        /// The `HOST_GEOMETRY` slot of its positions, their first word and
+        /// stride in words, and how many vertices lie there.
+        pub vertex_slot: u32 => "uint vertex_slot",
+        pub vertex_offset: u32 => "uint vertex_offset",
+        pub vertex_stride: u32 => "uint vertex_stride",
+        pub vertex_count: u32 => "uint vertex_count",
+        /// The slot of its indices (`NO_INDICES`: none, triangle t's
+        /// corners are vertices 3t, 3t + 1, 3t + 2), their first index in
+        /// units of its size, and the size in bytes (2 or 4).
+        pub index_slot: u32 => "uint index_slot",
+        pub index_offset: u32 => "uint index_offset",
+        pub index_bytes: u32 => "uint index_bytes",
     }
 }

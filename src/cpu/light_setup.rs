@@ -353,6 +353,17 @@ impl From<&crate::settings::IzbSettings> for GridRequest {
 /// Fits the light view, the cascades and their grids to the shadow-tested
 /// pixels of `gbuffer`.
 pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> LightSetup {
+    light_setup_for(scene, gbuffer, request, scene.triangles.len())
+}
+
+/// [`light_setup`] for `triangles` occluders other than the scene's own
+/// (the host's draws: the default grid's side follows their count).
+pub fn light_setup_for(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    request: GridRequest,
+    triangles: usize,
+) -> LightSetup {
     let light = scene.light.relative_to(scene.camera.eye);
     let view_forward = scene.camera.frame(scene.resolution).forward.as_vec3();
     // Every shadow-tested receiver: the pixels' centre surfaces and the
@@ -477,7 +488,7 @@ pub fn light_setup(scene: &Scene, gbuffer: &GBuffer, request: GridRequest) -> Li
     }
     let side = request
         .cells
-        .unwrap_or_else(|| default_grid_side(tested.len(), scene.triangles.len()));
+        .unwrap_or_else(|| default_grid_side(tested.len(), triangles));
     let mut offset = 0;
     setup.cascades = (0..count)
         .map(|k| {

@@ -16,6 +16,7 @@ pub mod evaluate;
 pub mod evaluate_stats;
 mod export_images;
 pub mod footprint;
+pub mod gather_draws;
 pub mod light_samples;
 pub mod light_setup;
 pub mod penumbra;
@@ -179,6 +180,18 @@ pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Shado
 /// or the GPU's, read back (`ShadowPass::read_back_gbuffer`), so the
 /// twin's later passes run on exactly the entries the GPU's did.
 pub fn render_cpu_on(scene: &Scene, g: GBuffer, settings: IzbSettings) -> ShadowRender {
+    render_cpu_with(scene, g, &eye_relative_f32(scene), settings)
+}
+
+/// [`render_cpu_on`] with `triangles` (eye-relative `f32`) as the
+/// occluders instead of the scene's: the host's draws as the shadow pass
+/// gathered them ([`gather_draws`]), the scene giving the view and light.
+pub fn render_cpu_with(
+    scene: &Scene,
+    g: GBuffer,
+    triangles: &[[glam::Vec3; 3]],
+    settings: IzbSettings,
+) -> ShadowRender {
     let start = Instant::now();
     let soft = settings.light_samples(scene);
     let mut seconds = PassSeconds::default();
@@ -190,9 +203,9 @@ pub fn render_cpu_on(scene: &Scene, g: GBuffer, settings: IzbSettings) -> Shadow
             s
         }
     };
-    let setup = light_setup(scene, &g, GridRequest::from(&settings));
+    let request = GridRequest::from(&settings);
+    let setup = light_setup::light_setup_for(scene, &g, request, triangles.len());
     seconds.light_setup = lap();
-    let triangles = eye_relative_f32(scene);
     // With edge surfaces every bit is one of the pixel's own samples (a
     // µQuad sample's line toward the light, or a paired ray), so a
     // surface's mask is full once its own samples are set; under a
@@ -200,12 +213,12 @@ pub fn render_cpu_on(scene: &Scene, g: GBuffer, settings: IzbSettings) -> Shadow
     // samples span.
     let boxes = setup.receiver_boxes(&g, settings.skips, !soft);
     let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
-    let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
+    let bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
     let mut eval_stats = evaluate::EvaluateStats::default();
     let masks = evaluate_half(
-        (&setup, &bins, &triangles),
+        (&setup, &bins, triangles),
         &g,
         (g.edges.as_deref(), boxes.edges.as_deref()),
         &boxes,
@@ -216,7 +229,7 @@ pub fn render_cpu_on(scene: &Scene, g: GBuffer, settings: IzbSettings) -> Shadow
     // (and that half's own edge surfaces).
     let masks_high = if settings.mask_halves(scene) == 2 {
         evaluate_half(
-            (&setup, &bins, &triangles),
+            (&setup, &bins, triangles),
             &g,
             (g.edges_high.as_deref(), boxes.edges_high.as_deref()),
             &boxes,

@@ -196,6 +196,7 @@ impl GpuRenderer {
             vertices: upload.vertices.len() as u64,
             world_vertices: 0,
             normal_entries: 0,
+            draws: 0,
             bvh_nodes: bvh.nodes.len() as u64,
             bvh_prims: bvh.prims.len() as u64,
             max_cells,

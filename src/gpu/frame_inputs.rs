@@ -13,6 +13,7 @@ use glam::Vec3;
 /// The scene as the GPU receives it, built once per render (a capacity
 /// rerun reuses it): eye-relative `f32` vertices and the unit normals the
 /// CPU twin computes from the `f64` vertices, rounded.
+#[derive(Default)]
 pub(super) struct SceneUpload {
     /// Each triangle's three vertices, for the host's own uses (the BVH
     /// build, a shadow map's fit).
@@ -250,6 +251,9 @@ pub(super) fn frame_params(
         depth_span: 0.0,
         depth_reversed: 0,
         depth_step: 0.0,
+        draw_count: 0,
+        bounds_lo: [0.0; 3],
+        bounds_hi: [0.0; 3],
         pattern: *pattern,
         pair_pattern: *crate::lut::sample_pattern(),
         second_pattern: *crate::lut::paired_patterns(1).0,

@@ -4,7 +4,7 @@
 use super::frame_inputs::{grid_budget_side, SceneUpload};
 use super::frame_report::PassMemory;
 use super::resources::{BufferDesc, GpuBuffer};
-use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
+use super::shared::{binding, counter, FrameParams, GpuDraw, LightState, BINDING_COUNT};
 use super::GpuError;
 use crate::scene::Scene;
 use crate::settings::IzbSettings;
@@ -41,6 +41,9 @@ pub struct FrameSizes {
     /// G-buffer entries that carry their own normal (`B_G_NORMAL`): the
     /// pixels with the shadow pass's depth + normal input, 0 elsewhere.
     pub normal_entries: u64,
+    /// Draws of the host's a frame may give (`B_DRAWS`): the shadow
+    /// pass's `max_draws` with the host's geometry, 0 elsewhere.
+    pub draws: u64,
 }
 
 /// A frame's room for edge surfaces: extra surfaces (G-buffer rows and
@@ -156,6 +159,10 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
             binding::G_NORMAL,
             d("gbuffer", "g_normal_and_uncertainty", z.normal_entries * 16),
         ),
+        (
+            binding::DRAWS,
+            d("scene", "host_draws", z.draws * size_of::<GpuDraw>() as u64),
+        ),
     ])
 }
 
@@ -247,6 +254,7 @@ pub fn planned_memory(
         vertices: upload.vertices.len() as u64,
         world_vertices: 0,
         normal_entries: 0,
+        draws: 0,
         bvh_nodes: bvh.nodes.len() as u64,
         bvh_prims: bvh.prims.len() as u64,
         max_cells: crate::cascades::max_total_cells(side),
@@ -369,6 +377,7 @@ mod tests {
             vertices: 12,
             world_vertices: 0,
             normal_entries: 0,
+            draws: 0,
             bvh_nodes: 50_000,
             bvh_prims: 10,
             max_cells: 16,

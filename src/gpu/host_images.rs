@@ -371,6 +371,9 @@ impl HostImageSets {
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::STORAGE_IMAGE)
                 .descriptor_count(2 * slots_u32),
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count(host_image::GEOMETRY_SLOTS * slots_u32),
         ];
         let info = vk::DescriptorPoolCreateInfo::default()
             .max_sets(slots as u32)
@@ -436,6 +439,31 @@ impl HostImageSets {
             .collect();
         // SAFETY: the caller's promise: the set is not in use.
         unsafe { self.shared.device.update_descriptor_sets(&writes, &[]) };
+    }
+
+    /// Points slot `slot`'s `HOST_GEOMETRY` array at `buffers` (at most
+    /// `GEOMETRY_SLOTS`, at least one), whole; the slots past them repeat
+    /// the first (the shader names every slot, so each must be valid).
+    ///
+    /// # Safety
+    /// No submitted frame that binds slot `slot`'s set is pending, and
+    /// every buffer is a live buffer of this device's made with
+    /// `STORAGE_BUFFER` usage.
+    pub unsafe fn write_geometry(&self, slot: usize, buffers: &[vk::Buffer]) {
+        let infos: Vec<vk::DescriptorBufferInfo> = (0..host_image::GEOMETRY_SLOTS as usize)
+            .map(|k| {
+                vk::DescriptorBufferInfo::default()
+                    .buffer(*buffers.get(k).unwrap_or(&buffers[0]))
+                    .range(vk::WHOLE_SIZE)
+            })
+            .collect();
+        let write = vk::WriteDescriptorSet::default()
+            .dst_set(self.sets[slot])
+            .dst_binding(host_image::GEOMETRY)
+            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+            .buffer_info(&infos);
+        // SAFETY: the caller's promise: the set is not in use.
+        unsafe { self.shared.device.update_descriptor_sets(&[write], &[]) };
     }
 
     /// Slot `slot`'s set (binding it is `unsafe`, as every recording is).

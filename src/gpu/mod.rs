@@ -5,6 +5,7 @@
 //! |---|---|---|---|
 //! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
 //! | 0, moving eye | [`translate_vertices`] | `translate_vertices.comp` | [`crate::cpu::translate_vertices`] |
+//! | 0, host geometry | [`gather_draws`] | `gather_draws.comp` | [`crate::cpu::gather_draws`] |
 //! | 0, host input | [`gbuffer::gbuffer_from_visibility`] | `gbuffer_from_visibility.comp` | [`crate::gbuffer::gbuffer_from_visibility`] |
 //! | 0, host input | [`gbuffer::gbuffer_from_depth`] | `gbuffer_from_depth.comp` | [`crate::gbuffer::gbuffer_from_depth`] |
 //! | 1 | [`light_setup`] | `light_setup.comp` | [`mod@crate::cpu::light_setup`] |
@@ -37,6 +38,7 @@ pub mod frame;
 pub mod frame_inputs;
 pub mod frame_memory;
 pub mod frame_report;
+pub mod gather_draws;
 pub mod gbuffer;
 pub mod host_device;
 pub mod host_images;
@@ -138,9 +140,10 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 37] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 38] = [
     ("gbuffer", spirv!("gbuffer")),
     ("translate_vertices", spirv!("translate_vertices")),
+    ("gather_draws", spirv!("gather_draws")),
     ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
     ("gbuffer_from_depth", spirv!("gbuffer_from_depth")),
     ("edge_surfaces", spirv!("edge_surfaces")),
@@ -192,6 +195,7 @@ pub struct Kernels {
     pub gbuffer_from_depth: ComputeKernel,
     /// The shadow pass's eye-relative vertices for a moving eye.
     pub translate_vertices: ComputeKernel,
+    pub gather_draws: ComputeKernel,
     pub edge_surfaces: ComputeKernel,
     pub light_setup_receivers: ComputeKernel,
     pub light_setup_frame: ComputeKernel,
@@ -239,6 +243,7 @@ impl Kernels {
             )?,
             gbuffer_from_depth: k("gbuffer_from_depth", spirv!("gbuffer_from_depth"))?,
             translate_vertices: k("translate_vertices", spirv!("translate_vertices"))?,
+            gather_draws: k("gather_draws", spirv!("gather_draws"))?,
             edge_surfaces: k("edge_surfaces", spirv!("edge_surfaces"))?,
             light_setup_receivers: k("light_setup_receivers", spirv!("light_setup_receivers"))?,
             light_setup_frame: k("light_setup_frame", spirv!("light_setup_frame"))?,

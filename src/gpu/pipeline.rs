@@ -24,6 +24,17 @@ pub struct BindingLayout {
 
 impl BindingLayout {
     pub fn new(shared: &Arc<DeviceShared>) -> Result<Self, GpuError> {
+        // The pass's set and the host geometry's array, all storage
+        // buffers one compute stage may see.
+        let storage_buffers =
+            super::shared::BINDING_COUNT + super::shared::host_image::GEOMETRY_SLOTS;
+        let limit = shared.limits.max_per_stage_descriptor_storage_buffers;
+        if limit < storage_buffers {
+            return Err(GpuError::Unsupported(format!(
+                "this device lets a shader stage see {limit} storage buffers; the passes' \
+                 layout has {storage_buffers} (maxPerStageDescriptorStorageBuffers)"
+            )));
+        }
         let bindings: Vec<vk::DescriptorSetLayoutBinding> = (0..super::shared::BINDING_COUNT)
             .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
@@ -56,8 +67,10 @@ impl BindingLayout {
             host_binding(host_image::LIT, vk::DescriptorType::STORAGE_IMAGE),
             host_binding(host_image::DEPTH, vk::DescriptorType::SAMPLED_IMAGE),
             host_binding(host_image::NORMAL, vk::DescriptorType::SAMPLED_IMAGE),
+            host_binding(host_image::GEOMETRY, vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count(host_image::GEOMETRY_SLOTS),
         ];
-        const _: () = assert!(host_image::BINDING_COUNT == 5);
+        const _: () = assert!(host_image::BINDING_COUNT == 6);
         let host_images_layout = match create(&host_bindings) {
             Ok(l) => l,
             Err(e) => {

@@ -4,7 +4,7 @@
 //! under the names the passes use, and the host-side helpers of its words.
 
 pub use izb_contract::{
-    binding, counter, host_image, mode, BvhNode, CascadeGrid, FrameParams, GpuTriangle,
+    binding, counter, host_image, mode, BvhNode, CascadeGrid, FrameParams, GpuDraw, GpuTriangle,
     GpuTriangleCorners, LightState, VisibilityView,
 };
 

@@ -9,6 +9,7 @@
 #![allow(dead_code)]
 
 pub mod gpu;
+pub mod host_geometry;
 pub mod shadow_pass;
 
 use izb::scene::{Scene, SceneError};

@@ -79,6 +79,53 @@ impl ShadowPass<'_> {
         }
         sizes.tiles = edge_tiles(resolution);
         sizes.max_cells = max_cells(pixels as usize, self.triangles as usize, settings)?;
+        self.replace_sized(sizes)?;
+        self.scene.resolution = resolution;
+        Ok(true)
+    }
+
+    /// Makes room for frames of up to `max_triangles` in `max_draws`
+    /// draws of the host's geometry (a pass made with
+    /// [`ShadowPass::with_host_geometry`]): the buffers sized by them —
+    /// the triangles, vertices, normals, draw table, the cell pyramid —
+    /// are made anew, the rest kept; whether any changed. Frames in flight
+    /// keep the old buffers until every slot has recorded again.
+    pub fn reserve_host_geometry(
+        &mut self,
+        max_triangles: u32,
+        max_draws: u32,
+    ) -> Result<bool, GpuError> {
+        let Some(mut limits) = self.host_geometry() else {
+            return Err(GpuError::Unsupported(
+                "reserve_host_geometry: this pass holds the scene's triangles".into(),
+            ));
+        };
+        if (limits.max_triangles, limits.max_draws) == (max_triangles, max_draws) {
+            return Ok(false);
+        }
+        (limits.max_triangles, limits.max_draws) = (max_triangles, max_draws);
+        limits.check(&self.config)?;
+        let mut sizes = self.sizes;
+        sizes.triangles = u64::from(max_triangles);
+        sizes.vertices = 3 * u64::from(max_triangles);
+        sizes.draws = u64::from(max_draws);
+        let pixels = sizes.pixels as usize;
+        sizes.max_cells = max_cells(pixels, max_triangles as usize, self.config.settings)?;
+        self.replace_sized(sizes)?;
+        self.triangles = max_triangles;
+        if let Some(h) = &mut self.host_geometry {
+            h.config = limits;
+            h.table.reserve(max_draws as usize);
+        }
+        Ok(true)
+    }
+
+    /// New buffers for those whose size differs under `sizes`, bound from
+    /// the next frame on.
+    fn replace_sized(
+        &mut self,
+        sizes: crate::gpu::frame_memory::FrameSizes,
+    ) -> Result<(), GpuError> {
         let shared = self.renderer.shared();
         let (old, new) = (frame_buffer_descs(&self.sizes), frame_buffer_descs(&sizes));
         let mut buffers = self.buffers.clone();
@@ -88,9 +135,8 @@ impl ShadowPass<'_> {
             }
         }
         self.replace_buffers(buffers)?;
-        self.scene.resolution = resolution;
         self.sizes = sizes;
-        Ok(true)
+        Ok(())
     }
 
     /// Descriptor sets (with their buffers) replaced by [`Self::grow`]

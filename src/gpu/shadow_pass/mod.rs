@@ -43,14 +43,19 @@
 //! are in `GENERAL`, written by compute shaders.
 
 mod capacity;
+mod host_geometry;
 mod read_back;
+mod status;
 
+pub use host_geometry::HostGeometryConfig;
 pub use read_back::PassImages;
+pub use status::PassStatus;
 
 use super::frame::{GBufferSource, GpuRenderer};
-use super::frame_inputs::{frame_params, loop_budget, LLVMPIPE_LOOP_CAP};
+use super::frame_inputs::{frame_params, loop_budget};
 use super::frame_memory::FrameSizes;
 use super::frame_memory::{frame_buffer_descs, initial_cell_capacity, reset_pass_state};
+use super::gather_draws::FrameGeometry;
 use super::host_images::{FrameImages, HostImageSets, ImageUse, InputImages};
 use super::pass_copies::upload_into;
 use super::pipeline::DescriptorSet;
@@ -58,6 +63,7 @@ use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
 use super::translate_vertices::WorldVertices;
 use super::{GpuError, Recorder};
+use crate::cpu::gather_draws::eye_relative_bounds;
 use crate::scene::{Camera, Light, Scene};
 use crate::settings::IzbSettings;
 use ash::vk;
@@ -136,27 +142,6 @@ pub struct FrameView {
     pub images: FrameImages,
 }
 
-/// What a frame's status buffer says, read once the host knows the
-/// frame is done.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct PassStatus {
-    /// Entries the cell list needed.
-    pub cell_entries: u64,
-    /// The list was smaller: the frame ran the slow exact way, and
-    /// [`ShadowPass::grow`] makes room for the next.
-    pub cell_list_overrun: bool,
-    /// A shader stopped at lavapipe's loop cap in this frame after this
-    /// many trips (0: none): its masks are cut short, and the frame must
-    /// not be used.
-    pub loop_cap_trips: u32,
-    /// Pixels shadow-tested.
-    pub shadow_tested: u32,
-    /// Pixels of the host's visibility buffer stored as misses because
-    /// their id named no triangle of the pass, or a triangle whose plane
-    /// their centre ray does not cross in front of the eye.
-    pub visibility_rejected: u32,
-}
-
 /// The IZB, resident on a device, recorded into the caller's command
 /// buffers.
 pub struct ShadowPass<'r> {
@@ -165,7 +150,14 @@ pub struct ShadowPass<'r> {
     /// The scene; its camera and light are the last recorded frame's.
     scene: Scene,
     bounds: (DVec3, DVec3),
+    /// Triangles the buffers hold: the scene's, or with the host's
+    /// geometry the most a frame may draw.
     triangles: u32,
+    /// Triangles of the last recorded frame.
+    frame_triangles: u32,
+    /// With the host's geometry: its limits and the draw table reused
+    /// every frame.
+    host_geometry: Option<host_geometry::HostGeometryState>,
     /// `FrameParams::loop_budget` on this device.
     loop_budget: u32,
     buffers: [Arc<GpuBuffer>; BINDINGS],
@@ -207,6 +199,18 @@ impl<'r> ShadowPass<'r> {
         scene: Scene,
         config: ShadowPassConfig,
     ) -> Result<Self, GpuError> {
+        Self::make(renderer, scene, config, None)
+    }
+
+    /// [`Self::new`], or with `host` the pass for the host's own vertex
+    /// and index buffers ([`Self::with_host_geometry`]): the scene's
+    /// triangles are then neither read nor uploaded.
+    fn make(
+        renderer: &'r GpuRenderer,
+        scene: Scene,
+        config: ShadowPassConfig,
+        host: Option<HostGeometryConfig>,
+    ) -> Result<Self, GpuError> {
         let settings = config.settings;
         if settings.uses_edge_surfaces(&scene) {
             return Err(GpuError::Unsupported(
@@ -225,13 +229,22 @@ impl<'r> ShadowPass<'r> {
             convention.check().map_err(GpuError::Unsupported)?;
         }
         let shared = renderer.shared();
-        let upload = renderer.prepare_frame(&scene, GBufferSource::Gpu)?;
+        if let Some(h) = &host {
+            h.check(&config)?;
+        }
+        let upload = match host {
+            None => renderer.prepare_frame(&scene, GBufferSource::Gpu)?,
+            Some(_) => {
+                super::frame_inputs::check_workgroups(&shared.limits, scene.resolution)?;
+                super::frame_inputs::SceneUpload::default()
+            }
+        };
         // With a visibility buffer nothing holds the eye's frame but the
         // vertices, which `translate_vertices` makes for each frame's eye.
-        let bounds = scene.bounds();
-        let world = (config.gbuffer != GBufferInput::RayCast)
+        let bounds = host.map_or_else(|| scene.bounds(), |h| h.bounds);
+        let world = (config.gbuffer != GBufferInput::RayCast && host.is_none())
             .then(|| WorldVertices::new(&scene, (bounds.0 + bounds.1) * 0.5));
-        let triangles = upload.triangles.len();
+        let triangles = host.map_or(upload.triangles.len(), |h| h.max_triangles as usize);
         let bvh = match config.gbuffer {
             GBufferInput::RayCast => super::gbuffer::build_bvh(&upload.triangles)?,
             GBufferInput::Visibility | GBufferInput::DepthNormal(_) => {
@@ -250,9 +263,11 @@ impl<'r> ShadowPass<'r> {
             receivers: pixels,
             edge_surfaces: None,
             triangles: triangles as u64,
-            vertices: world
-                .as_ref()
-                .map_or(upload.vertices.len(), |w| w.pairs.len()) as u64,
+            vertices: match (&world, host) {
+                (Some(w), _) => w.pairs.len() as u64,
+                (None, Some(_)) => 3 * triangles as u64,
+                (None, None) => upload.vertices.len() as u64,
+            },
             world_vertices: world.as_ref().map_or(0, |w| w.pairs.len()) as u64,
             bvh_nodes: bvh.nodes.len() as u64,
             bvh_prims: bvh.prims.len() as u64,
@@ -265,6 +280,7 @@ impl<'r> ShadowPass<'r> {
                 GBufferInput::DepthNormal(_) => pixels,
                 _ => 0,
             },
+            draws: host.map_or(0, |h| u64::from(h.max_draws)),
         };
         let descs = frame_buffer_descs(&sizes);
         // One buffer per binding: a batch frame lets the bin's lists
@@ -330,6 +346,8 @@ impl<'r> ShadowPass<'r> {
             bounds,
             scene,
             triangles: triangles as u32,
+            frame_triangles: triangles as u32,
+            host_geometry: host.map(host_geometry::HostGeometryState::new),
             loop_budget: loop_budget(&shared.info.name),
             buffers,
             set,
@@ -359,7 +377,8 @@ impl<'r> ShadowPass<'r> {
     /// Checks `view` against the scene (the eye, the light's kind of size,
     /// the precision envelope) and takes it as the scene's.
     fn take_view(&mut self, view: &FrameView) -> Result<(), GpuError> {
-        if self.world.is_none() && view.camera.eye != self.scene.camera.eye {
+        let ray_cast = self.config.gbuffer == GBufferInput::RayCast;
+        if ray_cast && view.camera.eye != self.scene.camera.eye {
             return Err(GpuError::Unsupported(format!(
                 "the eye moved from {} to {}: a ray-cast pass holds the scene's vertices and \
                  BVH relative to its eye; make the pass again for the new eye, or with \
@@ -407,6 +426,22 @@ impl<'r> ShadowPass<'r> {
         slot: usize,
         view: &FrameView,
     ) -> Result<(), GpuError> {
+        // SAFETY: the caller's promise.
+        unsafe { self.record_frame(cmd, slot, view, None) }
+    }
+
+    /// [`Self::record`] or [`Self::record_host_geometry`]: `geometry`
+    /// must be given exactly to a pass made for the host's geometry.
+    ///
+    /// # Safety
+    /// As [`Self::record_host_geometry`]'s.
+    unsafe fn record_frame(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        slot: usize,
+        view: &FrameView,
+        geometry: Option<&FrameGeometry>,
+    ) -> Result<(), GpuError> {
         if slot >= self.status.len() {
             return Err(GpuError::Unsupported(format!(
                 "frame slot {slot}: the pass has {} frames in flight",
@@ -417,6 +452,7 @@ impl<'r> ShadowPass<'r> {
         let halves = self.config.settings.mask_halves(&self.scene);
         images.check(self.config.gbuffer.images(), self.scene.resolution, halves)?;
         self.take_view(view)?;
+        let drawn = self.take_geometry(geometry)?;
         // This slot's previous frame is done (the caller): what only it
         // still held is released.
         for retired in &mut self.retired {
@@ -431,7 +467,7 @@ impl<'r> ShadowPass<'r> {
         let mut params = frame_params(
             scene,
             settings,
-            self.triangles as usize,
+            self.frame_triangles as usize,
             self.sizes.max_cells,
             self.sizes.cell_capacity,
             self.loop_budget,
@@ -450,6 +486,11 @@ impl<'r> ShadowPass<'r> {
             params.depth_reversed = u32::from(c.reversed);
             params.depth_step = images.depth.map_or(0.0, |d| unorm_depth_step(d.format));
         }
+        if let Some(h) = &self.host_geometry {
+            params.draw_count = h.table.len() as u32;
+            let [lo, hi] = eye_relative_bounds(self.bounds, scene.camera.eye);
+            (params.bounds_lo, params.bounds_hi) = (lo.to_array(), hi.to_array());
+        }
         let device = &shared.device;
         let buffer = |b: u32| self.buffers[b as usize].buffer;
         // SAFETY: the caller's promise covers `cmd`, and the set, layout
@@ -465,6 +506,9 @@ impl<'r> ShadowPass<'r> {
             device.cmd_update_buffer(cmd, buffer(binding::FRAME), 0, bytemuck::bytes_of(&params));
             let start = LightState::reset();
             device.cmd_update_buffer(cmd, buffer(binding::LIGHT), 0, bytemuck::bytes_of(&start));
+            if let Some(h) = &self.host_geometry {
+                h.record_table(device, cmd, buffer(binding::DRAWS));
+            }
         }
         reset_pass_state(device, cmd, buffer, false);
         rec.barrier();
@@ -479,7 +523,19 @@ impl<'r> ShadowPass<'r> {
             (images.masks, ImageUse::Write),
             (images.lit_fraction, ImageUse::Write),
         ];
-        if host.iter().any(|(image, _)| image.is_some()) {
+        if let (Some(g), Some(h)) = (geometry, &mut self.host_geometry) {
+            // SAFETY: `cmd` is recording (the caller); the host declared
+            // the buffers (checked in `take_geometry`) and keeps them
+            // alive through the frame; the slot's previous frame is done.
+            unsafe {
+                super::gather_draws::acquire(device, cmd, g.buffers);
+                h.buffer_handles.clear();
+                h.buffer_handles.extend(g.buffers.iter().map(|b| b.buffer));
+                self.host_sets.write_geometry(slot, &h.buffer_handles);
+            }
+        }
+        let bind_host_set = self.host_geometry.is_some();
+        if bind_host_set || host.iter().any(|(image, _)| image.is_some()) {
             // SAFETY: `cmd` is recording (the caller); the host declared
             // the images (checked above) and keeps them alive through the
             // frame (`record`'s contract); the slot's previous frame, the
@@ -493,6 +549,9 @@ impl<'r> ShadowPass<'r> {
                 self.host_sets.write(slot, &images);
                 rec.bind_host_images(self.host_sets.handle(slot));
             }
+        }
+        if let Some(triangles) = drawn {
+            super::gather_draws::gather_draws(&rec, &renderer.kernels, triangles);
         }
         match self.config.gbuffer {
             GBufferInput::RayCast => {
@@ -508,7 +567,13 @@ impl<'r> ShadowPass<'r> {
         super::light_setup::light_setup(&rec, &renderer.kernels, [w, h]);
         let gather = settings.skips.behind_receivers.then_some(w * h);
         let kernels = &renderer.kernels;
-        super::bin::bin(&rec, kernels, self.triangles, self.sizes.max_cells, gather);
+        super::bin::bin(
+            &rec,
+            kernels,
+            self.frame_triangles,
+            self.sizes.max_cells,
+            gather,
+        );
         let heavy = super::evaluate::heavy_step(&params, &shared.info);
         let halves = settings.mask_halves(scene);
         super::evaluate::evaluate(&rec, kernels, [w, h], heavy, halves);
@@ -524,31 +589,5 @@ impl<'r> ShadowPass<'r> {
         }
         rec.end_label();
         Ok(())
-    }
-
-    /// What slot `slot`'s last frame wrote to its status buffer.
-    ///
-    /// # Safety
-    /// That frame has finished executing (the host waited for its fence)
-    /// and no frame of the slot is executing now.
-    pub unsafe fn status(&self, slot: usize) -> Result<PassStatus, GpuError> {
-        let bytes = self.status[slot].mapped()?;
-        let c: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[..counter::WORDS * 4]);
-        Ok(PassStatus {
-            cell_entries: u64::from(c[counter::CELL_ENTRIES]),
-            cell_list_overrun: c[counter::CAPACITY_EXCEEDED] != 0,
-            loop_cap_trips: c[counter::LOOP_BUDGET_EXCEEDED],
-            shadow_tested: c[counter::SHADOW_TESTED],
-            visibility_rejected: c[counter::VISIBILITY_REJECTED],
-        })
-    }
-
-    /// `LLVMPIPE_LOOP_CAP` as a status's refusal.
-    pub fn loop_cap_error(&self, status: &PassStatus) -> Option<GpuError> {
-        (status.loop_cap_trips != 0).then(|| GpuError::LoopCap {
-            device: self.renderer.context.info().name.clone(),
-            cap: LLVMPIPE_LOOP_CAP,
-            trips: status.loop_cap_trips,
-        })
     }
 }

@@ -54,6 +54,26 @@ impl ShadowPass<'_> {
             .collect())
     }
 
+    /// The last frame's triangle normals (`B_TRIANGLE_NORMALS`: the
+    /// scene's, or those `gather_draws` made), copied back — for tests:
+    /// it allocates, submits and waits.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing.
+    pub unsafe fn read_back_triangle_normals(&self) -> Result<Vec<Vec3>, GpuError> {
+        let count = self.frame_triangles as usize;
+        let [words] = read_back(
+            self.renderer,
+            &self.buffers,
+            [binding::TRIANGLE_NORMALS],
+            [count * 3],
+        )?;
+        Ok(bytemuck::cast_slice::<u32, [f32; 3]>(&words)
+            .iter()
+            .map(|&v| Vec3::from(v))
+            .collect())
+    }
+
     /// The last frame's G-buffer, copied back as the CPU twin's
     /// [`GBuffer`] (normals per entry: the host's where its depth and
     /// normal made the entry, else the triangle's facing the camera;
@@ -75,7 +95,7 @@ impl ShadowPass<'_> {
             binding::TRIANGLE_NORMALS,
             binding::COUNTERS,
         ];
-        let triangles = self.triangles as usize;
+        let triangles = self.frame_triangles as usize;
         let words = [
             pixels,
             3 * pixels,
