@@ -8,6 +8,7 @@ use crate::raster::{whole, OwnedBuffer, OwnedImage};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use izb::cpu::SampleMode;
+use izb::gpu::gather_draws::FrameGeometry;
 use izb::gpu::shadow_pass::{FrameView, ShadowPass};
 use izb::scene::Scene;
 use std::time::Instant;
@@ -62,6 +63,7 @@ pub fn record_alone(
     pass: &mut ShadowPass,
     slot: usize,
     view: &FrameView,
+    geometry: &FrameGeometry,
 ) -> Result<Vec<f64>, String> {
     let d = &gpu.device;
     let alloc = vk::CommandBufferAllocateInfo::default()
@@ -78,7 +80,7 @@ pub fn record_alone(
         unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
         let start = Instant::now();
         // SAFETY: as above; the recording is never submitted.
-        let recorded = unsafe { pass.record(cmd, slot, view) };
+        let recorded = unsafe { pass.record_host_geometry(cmd, slot, view, geometry) };
         micros.push(start.elapsed().as_secs_f64() * 1e6);
         // SAFETY: `cmd` is recording, then executable and not pending.
         unsafe {

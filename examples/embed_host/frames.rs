@@ -1,5 +1,7 @@
 //! The host's frame loop with the shadow pass inside: each frame records
-//! the host's visibility raster and `ShadowPass::record` into the host's
+//! the host's visibility raster and `ShadowPass::record_host_geometry`
+//! (the raster's own vertex and index buffers as the pass's geometry,
+//! one draw placed by the mesh's origin) into the host's
 //! command buffer for its frame slot and submits it under the host's
 //! queue lock; the only wait is the host's own, on the fence of the frame
 //! that last used the slot, before the slot is recorded again. Nothing of
@@ -14,8 +16,11 @@ use ash::vk;
 use glam::{DMat3, DVec3, Vec3};
 use gpu_allocator::MemoryLocation;
 use izb::cpu::{IzbSettings, SampleMode};
+use izb::gpu::gather_draws::{draw_table, FrameGeometry, HostBuffer, HostDraw, HostIndices};
 use izb::gpu::host_images::{FrameImages, HostImage};
-use izb::gpu::shadow_pass::{FrameView, GBufferInput, PassStatus, ShadowPass, ShadowPassConfig};
+use izb::gpu::shadow_pass::{
+    FrameView, GBufferInput, HostGeometryConfig, PassStatus, ShadowPass, ShadowPassConfig,
+};
 use izb::gpu::visibility_raster::raster_view;
 use izb::gpu::GpuRenderer;
 use izb::scene::{Light, Scene};
@@ -152,24 +157,69 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             None => GBufferInput::Visibility,
         },
     };
-    let mut pass = ShadowPass::new(&renderer, scene.clone(), config).map_err(|e| e.to_string())?;
+    // The pass reads the host's own vertex and index buffers (the raster's).
+    let triangles = scene.triangles.len() as u32;
+    let limits = HostGeometryConfig {
+        max_triangles: triangles,
+        max_draws: 1,
+        bounds: scene.bounds(),
+    };
+    let mut pass = ShadowPass::with_host_geometry(&renderer, scene.clone(), config, limits)
+        .map_err(|e| e.to_string())?;
     let (lo, hi) = scene.bounds();
     let origin = (lo + hi) * 0.5;
 
     // The host's resources, made once.
     let (vertices, indices) = indexed_mesh(scene, origin);
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let mut vertex_buffer = host_buffer(
         gpu,
         "vertices",
         bytemuck::cast_slice(&vertices),
-        vk::BufferUsageFlags::VERTEX_BUFFER,
+        vk::BufferUsageFlags::VERTEX_BUFFER | storage,
     );
     let mut index_buffer = host_buffer(
         gpu,
         "indices",
         bytemuck::cast_slice(&indices),
-        vk::BufferUsageFlags::INDEX_BUFFER,
+        vk::BufferUsageFlags::INDEX_BUFFER | storage,
     );
+    // Written through a mapping before the first submission, which makes
+    // the writes visible: no barrier to ask for.
+    let unwritten = (vk::PipelineStageFlags::empty(), vk::AccessFlags::empty());
+    let geometry_buffers = [
+        HostBuffer {
+            buffer: vertex_buffer.buffer,
+            size: (vertices.len() * 12).max(4) as u64,
+            usage: vk::BufferUsageFlags::VERTEX_BUFFER | storage,
+            written_by: unwritten,
+        },
+        HostBuffer {
+            buffer: index_buffer.buffer,
+            size: (indices.len() * 4).max(4) as u64,
+            usage: vk::BufferUsageFlags::INDEX_BUFFER | storage,
+            written_by: unwritten,
+        },
+    ];
+    // One draw: the mesh's positions are relative to `origin`.
+    let draws = [HostDraw {
+        vertex_buffer: 0,
+        vertex_offset: 0,
+        vertex_stride: 12,
+        vertex_format: vk::Format::R32G32B32_SFLOAT,
+        vertex_count: vertices.len() as u32,
+        indices: Some(HostIndices {
+            buffer: 1,
+            offset: 0,
+            index_type: vk::IndexType::UINT32,
+        }),
+        triangle_count: triangles,
+        transform: glam::DAffine3::from_translation(origin),
+    }];
+    let geometry = FrameGeometry {
+        buffers: &geometry_buffers,
+        draws: &draws,
+    };
     let mut targets = Targets::new(
         gpu,
         scene.resolution,
@@ -332,7 +382,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             // the pass's queue after every earlier frame; the slot's previous
             // frame is done (its fence); the pass and the images outlive the
             // frame (the idle wait below comes before any is dropped).
-            let result = unsafe { pass.record(cmd, slot, &view) };
+            let result = unsafe { pass.record_host_geometry(cmd, slot, &view, &geometry) };
             run.record_us.push(recorded.elapsed().as_secs_f64() * 1e6);
             let made = renderer.context.shared.allocations();
             if k > 0 {
@@ -384,7 +434,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     run.allocations_after_first_frame = after_first;
     if let (None, Some(view)) = (&failure, run.last_view) {
         let slot = (options.frames - 1) % options.frames_in_flight;
-        match record_alone(gpu, pool, &mut pass, slot, &view) {
+        match record_alone(gpu, pool, &mut pass, slot, &view, &geometry) {
             Ok(us) => run.record_alone_us = us,
             Err(e) => failure = Some(e),
         }
@@ -405,7 +455,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     }
     if let (None, Some(_), Some(view)) = (&failure, options.depth, run.last_view) {
         // SAFETY: every frame is done (the waits above).
-        match unsafe { twin_on_pass_gbuffer(&pass, scene, &view, settings) } {
+        let mesh = (&vertices[..], &indices[..]);
+        match unsafe { twin_on_pass_gbuffer(&pass, scene, &view, &geometry, mesh, settings) } {
             Ok(counts) => run.twin_masks_equal = Some(counts),
             Err(e) => failure = Some(e),
         }
@@ -439,6 +490,8 @@ unsafe fn twin_on_pass_gbuffer(
     pass: &ShadowPass,
     scene: &Scene,
     view: &FrameView,
+    geometry: &FrameGeometry,
+    (vertices, indices): (&[Vec3], &[u32]),
     settings: IzbSettings,
 ) -> Result<[usize; 2], String> {
     // SAFETY: the caller's promise.
@@ -450,7 +503,13 @@ unsafe fn twin_on_pass_gbuffer(
     let mut moved = scene.clone();
     (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
     moved.resolution = pass.resolution();
-    let twin = izb::cpu::render_cpu_on(&moved, g, settings);
+    // The pass's triangles, gathered by the twin from the same words.
+    let mut table = Vec::new();
+    draw_table(geometry, view.camera.eye, u64::MAX, &mut table).map_err(|e| e.to_string())?;
+    let words: [&[u32]; 2] = [bytemuck::cast_slice(vertices), indices];
+    let bounds = izb::cpu::gather_draws::eye_relative_bounds(scene.bounds(), view.camera.eye);
+    let gathered = izb::cpu::gather_draws::gather_draws(&table, &words, bounds);
+    let twin = izb::cpu::render_cpu_with(&moved, g, &gathered.triangles, settings);
     let equal = twin
         .masks
         .iter()

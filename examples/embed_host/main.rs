@@ -1,9 +1,10 @@
 //! The shadow pass inside a host's frame (issue 29): a host that makes
 //! its own Vulkan instance, device and queue, draws the scene into a
 //! visibility buffer (or, with `--depth`, a depth and normal G-buffer) on
-//! the rasteriser, and records izb's shadow pass into
-//! the same command buffer each frame, with the camera and light moving
-//! and two frames in flight. Prints the run's counters as JSON: izb's
+//! the rasteriser, and records izb's shadow pass into the same command
+//! buffer each frame — the pass reading the raster's own vertex and index
+//! buffers (`ShadowPass::with_host_geometry`) — with the camera and light
+//! moving and two frames in flight. Prints the run's counters as JSON: izb's
 //! allocations after the first frame (0), `record`'s host time, the
 //! validation layer's messages (with `IZB_VALIDATION=1`, synchronization
 //! validation on), and how many shadow-tested pixels of the last frame

@@ -68,6 +68,9 @@ pub(super) struct HostGeometryState {
     pub(super) config: HostGeometryConfig,
     /// The last recorded frame's draws, as `B_DRAWS` holds them.
     pub(super) table: Vec<GpuDraw>,
+    /// The buffers the slot being recorded names, rewritten into its set
+    /// every frame: a handle equal to last frame's may be a new buffer
+    /// (handles are reused after destruction), so nothing is skipped.
     pub(super) buffer_handles: Vec<vk::Buffer>,
 }
 

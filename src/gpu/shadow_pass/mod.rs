@@ -15,6 +15,12 @@
 //!   the GPU each frame (the twin: [`crate::cpu::translate_vertices`]); a
 //!   ray-cast pass's BVH is built around one eye, so there a moved eye is
 //!   refused by name.
+//! - Or the geometry is the host's own: a pass made with
+//!   [`ShadowPass::with_host_geometry`] reads each frame's draws from the
+//!   host's vertex and index buffers (`u16`/`u32`/none, any 4-byte offset
+//!   and stride, a transform per draw) and gathers them on the GPU into
+//!   its eye-relative triangles (`gather_draws.comp`, the twin
+//!   [`crate::cpu::gather_draws`]; `host_geometry.rs`).
 //! - The G-buffer is the pass's first step, from one of three producers
 //!   ([`GBufferInput`]): the ray-cast one (`gbuffer.comp`, over a BVH
 //!   built once), the host's visibility buffer (`R32_UINT` triangle ids,
