@@ -361,58 +361,19 @@ pub(super) fn read_back_gbuffer(
     upload: &SceneUpload,
     out: &mut FrameOutput,
 ) -> GBuffer {
-    let [w, h] = scene.resolution;
-    let frame = scene.camera.frame(scene.resolution);
-    let forward = frame.forward.as_vec3();
+    let forward = scene.camera.frame(scene.resolution).forward.as_vec3();
     match source {
         GBufferSource::Upload(g) => g.clone(),
         GBufferSource::Gpu => {
-            let (triangle_id, gpu_flags): (Vec<u32>, Vec<u32>) = out
-                .id_flags
-                .iter()
-                .map(|&w| shared::unpack_id_flags(w))
-                .unzip();
-            let normal = triangle_id
-                .iter()
-                .zip(&gpu_flags)
-                .map(|(&id, &f)| upload.receiver_normal(id, f))
-                .collect();
-            let flags: Vec<u32> = gpu_flags
-                .iter()
-                .map(|f| f & !shared::FLAG_NORMAL_FLIPPED)
-                .collect();
-            let depth = out
-                .position
-                .iter()
-                .zip(&flags)
-                .map(|(p, &f)| {
-                    if f & flags::HIT != 0 {
-                        p.dot(forward)
-                    } else {
-                        f32::INFINITY
-                    }
-                })
-                .collect();
-            let mut g = GBuffer {
-                width: w,
-                height: h,
-                triangle_id,
-                depth,
-                position: std::mem::take(&mut out.position),
-                normal,
-                axis_x: std::mem::take(&mut out.axis_x),
-                axis_y: std::mem::take(&mut out.axis_y),
-                flags,
-                stats: GBufferStats {
-                    pixels: scene.pixel_count(),
-                    hits: out.counters[counter::HITS] as usize,
-                    shadow_tested: out.counters[counter::SHADOW_TESTED] as usize,
-                    clamped_microquads: out.counters[counter::CLAMPED] as usize,
-                },
-                edges: None,
-                edges_high: None,
-                depth_uncertainty: None,
-            };
+            let vectors = [&mut out.position, &mut out.axis_x, &mut out.axis_y].map(std::mem::take);
+            let mut g = gbuffer_from_gpu(
+                scene.resolution,
+                forward,
+                &out.id_flags,
+                vectors,
+                &out.counters,
+                |_, id, gpu_flags| upload.receiver_normal(id, gpu_flags),
+            );
             // The `edge_surfaces` pass's slots follow the pixels.
             if let Some((records, coverage)) = out.edge_tables.take() {
                 let pixels = scene.pixel_count();
@@ -509,4 +470,54 @@ impl FrameOutput {
             })
             .collect()
     }
+}
+
+/// The CPU twin's [`GBuffer`] from a GPU frame's G-buffer words,
+/// positions and axes (one per entry, the image's pixels first): each
+/// entry's id and flags unpacked (the GPU-only `FLAG_NORMAL_FLIPPED`
+/// dropped), its normal `normal_of(entry, id, gpu_flags)`, its depth along
+/// `forward` where it hit, and the counters' G-buffer statistics — the one
+/// read-back both the batch frame and the shadow pass use.
+pub(super) fn gbuffer_from_gpu(
+    resolution: [u32; 2],
+    forward: Vec3,
+    words: &[u32],
+    [position, axis_x, axis_y]: [Vec<Vec3>; 3],
+    counters: &[u32],
+    normal_of: impl Fn(usize, u32, u32) -> Vec3,
+) -> GBuffer {
+    let entries = words.len();
+    let mut g = GBuffer {
+        width: resolution[0],
+        height: resolution[1],
+        triangle_id: Vec::with_capacity(entries),
+        depth: Vec::with_capacity(entries),
+        position,
+        normal: Vec::with_capacity(entries),
+        axis_x,
+        axis_y,
+        flags: Vec::with_capacity(entries),
+        stats: GBufferStats {
+            pixels: resolution[0] as usize * resolution[1] as usize,
+            hits: counters[counter::HITS] as usize,
+            shadow_tested: counters[counter::SHADOW_TESTED] as usize,
+            clamped_microquads: counters[counter::CLAMPED] as usize,
+        },
+        edges: None,
+        edges_high: None,
+        depth_uncertainty: None,
+    };
+    for (i, &word) in words.iter().enumerate() {
+        let (id, gpu_flags) = shared::unpack_id_flags(word);
+        let f = gpu_flags & !shared::FLAG_NORMAL_FLIPPED;
+        g.triangle_id.push(id);
+        g.normal.push(normal_of(i, id, gpu_flags));
+        g.depth.push(if f & flags::HIT != 0 {
+            g.position[i].dot(forward)
+        } else {
+            f32::INFINITY
+        });
+        g.flags.push(f);
+    }
+    g
 }

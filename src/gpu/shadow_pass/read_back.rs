@@ -2,7 +2,8 @@
 //! tests and tools only: each call allocates, submits and waits.
 
 use super::ShadowPass;
-use crate::gbuffer::{GBuffer, GBufferStats, DEPTH_SURFACE, NO_HIT};
+use crate::gbuffer::{GBuffer, DEPTH_SURFACE, NO_HIT};
+use crate::gpu::frame_report::gbuffer_from_gpu;
 use crate::gpu::pass_copies::read_back;
 use crate::gpu::shared::{self, binding, counter};
 use crate::gpu::GpuError;
@@ -121,44 +122,19 @@ impl ShadowPass<'_> {
             .frame(self.scene.resolution)
             .forward
             .as_vec3();
-        let mut g = GBuffer {
-            width: self.scene.resolution[0],
-            height: self.scene.resolution[1],
-            triangle_id: Vec::with_capacity(pixels),
-            depth: Vec::with_capacity(pixels),
-            position: vectors(&position),
-            normal: Vec::with_capacity(pixels),
-            axis_x: vectors(&axis_x),
-            axis_y: vectors(&axis_y),
-            flags: Vec::with_capacity(pixels),
-            stats: GBufferStats {
-                pixels,
-                hits: counters[counter::HITS] as usize,
-                shadow_tested: counters[counter::SHADOW_TESTED] as usize,
-                clamped_microquads: counters[counter::CLAMPED] as usize,
-            },
-            edges: None,
-            edges_high: None,
-            depth_uncertainty: None,
-        };
-        for (i, &word) in words.iter().enumerate() {
-            let (id, flags) = shared::unpack_id_flags(word);
-            let normal = match id {
+        let mut g = gbuffer_from_gpu(
+            self.scene.resolution,
+            forward,
+            &words,
+            [vectors(&position), vectors(&axis_x), vectors(&axis_y)],
+            &counters,
+            |i, id, gpu_flags| match id {
                 NO_HIT => Vec3::ZERO,
                 DEPTH_SURFACE => Vec3::from_slice(&g_normal[i][..3]),
-                _ if flags & shared::FLAG_NORMAL_FLIPPED != 0 => -triangle_normals[id as usize],
+                _ if gpu_flags & shared::FLAG_NORMAL_FLIPPED != 0 => -triangle_normals[id as usize],
                 _ => triangle_normals[id as usize],
-            };
-            let depth = if id == NO_HIT {
-                f32::INFINITY
-            } else {
-                g.position[i].dot(forward)
-            };
-            g.triangle_id.push(id);
-            g.flags.push(flags & !shared::FLAG_NORMAL_FLIPPED);
-            g.normal.push(normal);
-            g.depth.push(depth);
-        }
+            },
+        );
         if normals != 0 {
             g.depth_uncertainty = Some(
                 (0..pixels)
