@@ -43,16 +43,8 @@ impl ShadowPass<'_> {
     /// No frame of this pass is executing.
     pub unsafe fn read_back_vertices(&self) -> Result<Vec<Vec3>, GpuError> {
         let count = self.buffers[binding::VERTICES as usize].size() as usize / 12;
-        let [words] = read_back(
-            self.renderer,
-            &self.buffers,
-            [binding::VERTICES],
-            [count * 3],
-        )?;
-        Ok(bytemuck::cast_slice::<u32, [f32; 3]>(&words)
-            .iter()
-            .map(|&v| Vec3::from(v))
-            .collect())
+        // SAFETY: the caller's promise.
+        unsafe { self.read_back_vec3s(binding::VERTICES, count) }
     }
 
     /// The last frame's triangle normals (`B_TRIANGLE_NORMALS`: the
@@ -62,13 +54,16 @@ impl ShadowPass<'_> {
     /// # Safety
     /// No frame of this pass is executing.
     pub unsafe fn read_back_triangle_normals(&self) -> Result<Vec<Vec3>, GpuError> {
-        let count = self.frame_triangles as usize;
-        let [words] = read_back(
-            self.renderer,
-            &self.buffers,
-            [binding::TRIANGLE_NORMALS],
-            [count * 3],
-        )?;
+        // SAFETY: the caller's promise.
+        unsafe { self.read_back_vec3s(binding::TRIANGLE_NORMALS, self.frame_triangles as usize) }
+    }
+
+    /// The first `count` `vec3`s of binding `b`'s buffer, copied back.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing.
+    unsafe fn read_back_vec3s(&self, b: u32, count: usize) -> Result<Vec<Vec3>, GpuError> {
+        let [words] = read_back(self.renderer, &self.buffers, [b], [count * 3])?;
         Ok(bytemuck::cast_slice::<u32, [f32; 3]>(&words)
             .iter()
             .map(|&v| Vec3::from(v))
