@@ -380,8 +380,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             let recorded = Instant::now();
             // SAFETY: `cmd` records on this thread and is submitted below to
             // the pass's queue after every earlier frame; the slot's previous
-            // frame is done (its fence); the pass and the images outlive the
-            // frame (the idle wait below comes before any is dropped).
+            // frame is done (its fence); the pass, the images and the vertex
+            // and index buffers (declared as made: STORAGE_BUFFER usage, no
+            // write after their mapping) outlive the frame (the idle wait
+            // below comes before any is dropped).
             let result = unsafe { pass.record_host_geometry(cmd, slot, &view, &geometry) };
             run.record_us.push(recorded.elapsed().as_secs_f64() * 1e6);
             let made = renderer.context.shared.allocations();

@@ -450,13 +450,13 @@ impl HostImageSets {
     /// every buffer is a live buffer of this device's made with
     /// `STORAGE_BUFFER` usage.
     pub unsafe fn write_geometry(&self, slot: usize, buffers: &[vk::Buffer]) {
-        let infos: Vec<vk::DescriptorBufferInfo> = (0..host_image::GEOMETRY_SLOTS as usize)
-            .map(|k| {
+        // Every frame records this: a fixed array, nothing on the heap.
+        let infos: [vk::DescriptorBufferInfo; host_image::GEOMETRY_SLOTS as usize] =
+            std::array::from_fn(|k| {
                 vk::DescriptorBufferInfo::default()
                     .buffer(*buffers.get(k).unwrap_or(&buffers[0]))
                     .range(vk::WHOLE_SIZE)
-            })
-            .collect();
+            });
         let write = vk::WriteDescriptorSet::default()
             .dst_set(self.sets[slot])
             .dst_binding(host_image::GEOMETRY)
