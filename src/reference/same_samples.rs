@@ -185,9 +185,11 @@ pub const FLOAT_DECISION_TOLERANCE: f64 = 1.0 / 65536.0;
 /// triangle other than the receiver, the smallest relative margin among the
 /// conditions of the shadow rule — the two per-pixel depth conditions of
 /// [`may_shadow`] (distance above the tangent plane and beyond the triangle
-/// plane, minus the tolerance) and, for triangles passing them, the signed
-/// distance of the sample to each side plane — each divided by the scale
-/// of its inputs (the triangle's distance from P plus the µQuad size).
+/// plane, minus the tolerance; the latter divided by the plane's condition,
+/// reach over the triangle's smallest height) and, for triangles passing
+/// them, the signed distance of the sample to each side plane — each
+/// divided by the scale of its inputs (the triangle's distance from P plus
+/// the µQuad size).
 /// A sample with a margin below [`FLOAT_DECISION_TOLERANCE`] lies within
 /// float rounding of a shadow boundary. `f64`, brute force: meant for the
 /// few samples where the IZB and this reference disagree.
@@ -262,7 +264,23 @@ fn sample_margins(
             n.dot(t[0]) * facing.signum() / n.length() - tolerance
         };
         let depth = (height - tolerance).min(beyond);
-        let depth_margin = (height - tolerance).abs().min(beyond.abs()) / scale;
+        // The plane's orientation is only as good as its vertices: moving
+        // one by δ turns the normal by δ / h, h the triangle's smallest
+        // height, so P's distance to the plane moves by reach · δ / h. A
+        // sliver (h → 0) makes the `f32` plane test a coin toss however far
+        // P lies from its plane (fuzz_extremes seed 1796324431 case 42492:
+        // a 1.6e-6 sliver, P 0.035 on the lit side in `f64`, beyond it in
+        // `f32`, the sample's shadow ray within 10⁻⁷ of the sliver).
+        let longest = (0..3)
+            .map(|k| (t[(k + 1) % 3] - t[k]).length())
+            .fold(0.0, f64::max);
+        let plane_condition = (longest * reach / n.length()).max(1.0);
+        let beyond_margin = if plane_condition.is_finite() {
+            beyond.abs() / plane_condition
+        } else {
+            0.0
+        };
+        let depth_margin = (height - tolerance).abs().min(beyond_margin) / scale;
         margins.decision = margins.decision.min(depth_margin);
         if depth > 0.0 {
             for e in edge_functions(&t, px.axis_x, px.axis_y, rel) {
@@ -277,4 +295,68 @@ fn sample_margins(
         }
     }
     margins
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gbuffer::{PixelSurface, SurfaceHit};
+    use glam::DVec3;
+
+    /// The receiver and light of fuzz_extremes seed 1796324431 case 42492
+    /// (eye-relative): a ground pixel under a nearby point light.
+    fn receiver() -> (PixelSurface, Light) {
+        let surface = PixelSurface {
+            hit: SurfaceHit {
+                triangle: 0,
+                t: 14.73,
+                position: DVec3::new(-6.531249043503523, -9.688767545307696, -8.989857112544167),
+                normal: DVec3::new(
+                    0.062352163717679335,
+                    0.9962227848399421,
+                    -0.06043484628485583,
+                ),
+            },
+            axis_x: DVec3::new(
+                0.7168240245463586,
+                -0.08048706386948644,
+                -0.5872029161636574,
+            ),
+            axis_y: DVec3::new(0.8194609165493408, 0.019846873303613722, 1.1726193244173757),
+            axes_clamped: false,
+            shadow_tested: true,
+        };
+        let position = DVec3::new(-4.280338887881931, -7.036175447205654, -12.155432424403351);
+        (surface, Light::Point { position })
+    }
+
+    /// The case's sliver (smallest height 1.6e-6 of its longest edge): P
+    /// lies 0.035 on its lit side in `f64`, but the plane of its `f32`
+    /// vertices may put P beyond it, and sample 31's shadow ray passes
+    /// within 10⁻⁷ of it. Its depth decision is within rounding; a
+    /// well-shaped triangle in the same place keeps a decisive margin.
+    #[test]
+    fn a_slivers_plane_test_is_within_rounding_a_solid_triangles_is_not() {
+        let (surface, light) = receiver();
+        let sliver = [
+            DVec3::new(-5.626588715247192, -9.510462705746166, -9.41483580391088),
+            DVec3::new(-6.07053075572526, -9.307626701385644, -9.240222410082115),
+            DVec3::new(-5.880698220307198, -9.394359870257654, -9.31488839045719),
+        ];
+        let sample_31 = [0.984375, 0.734375];
+        let margin = decision_margin(&[sliver, sliver], &surface, &light, sample_31);
+        assert!(
+            margin < FLOAT_DECISION_TOLERANCE,
+            "sliver margin {margin:e}"
+        );
+        // The same triangle with its third vertex 0.2 off the line, moved
+        // 0.3 aside so that no edge passes near the sample's ray.
+        let mut solid = sliver.map(|v| v + DVec3::new(0.0, 0.0, 0.3));
+        solid[2] += DVec3::new(0.2, 0.0, 0.0);
+        let margin = decision_margin(&[solid, solid], &surface, &light, sample_31);
+        assert!(
+            margin > 100.0 * FLOAT_DECISION_TOLERANCE,
+            "solid margin {margin:e}"
+        );
+    }
 }
