@@ -16,23 +16,32 @@
 //! [`output`] writes files atomically.
 
 pub mod baseline;
+#[cfg(feature = "cli")]
 pub mod bench;
+#[cfg(feature = "cli")]
 pub mod bvh;
 pub mod cascades;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod cpu;
 pub mod frustum;
 pub mod gbuffer;
 pub mod gpu;
 pub mod lut;
+#[cfg(feature = "cli")]
 pub mod metrics;
+#[cfg(feature = "cli")]
 pub mod output;
+#[cfg(feature = "cli")]
 pub mod peer;
+#[cfg(feature = "cli")]
 pub mod reference;
+#[cfg(feature = "cli")]
 pub mod report;
 pub mod scene;
 pub mod settings;
 pub mod skips;
+#[cfg(feature = "cli")]
 pub mod view;
 
 /// Visibility samples per pixel: one bit each in a `u32` occlusion mask.

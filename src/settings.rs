@@ -6,9 +6,8 @@ use crate::cascades::CascadeCount;
 use crate::skips::Skips;
 
 /// Samples per pixel and how each triangle's mask is formed.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum SampleMode {
     /// One point test at the µQuad centre: the mask is all or nothing.

@@ -31,9 +31,12 @@ pub use evaluate::{MaskRule, FULL};
 pub use export_images::{export_images, ExportedImages};
 pub use light_setup::{light_setup, GridRequest, LightSetup};
 
+#[cfg(feature = "cli")]
 use crate::bvh::SceneBvh;
 use crate::gbuffer::edge_surfaces::{EdgeStats, EdgeSurfaces};
-use crate::gbuffer::{flags, gbuffer, gbuffer_with, GBuffer, GBufferStats};
+use crate::gbuffer::{flags, GBuffer, GBufferStats};
+#[cfg(feature = "cli")]
+use crate::gbuffer::{gbuffer, gbuffer_with};
 use crate::scene::Scene;
 use glam::Vec3;
 use light_setup::MicroquadBoxes;
@@ -165,6 +168,7 @@ fn evaluate_half(
 }
 
 /// Renders the shadow mask of `scene` on the CPU.
+#[cfg(feature = "cli")]
 pub fn render_cpu(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> ShadowRender {
     let start = Instant::now();
     let g = gbuffer_with(scene, bvh, settings.edge_halves(scene));
@@ -270,6 +274,7 @@ pub fn render_cpu_with(
 /// each shadow-tested pixel (every cell list under its µQuad and the
 /// overflow list, no early exit), 0 elsewhere. The heat map of the
 /// viewer (`izb view`): where the grid concentrates its work.
+#[cfg(feature = "cli")]
 pub fn candidate_counts(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Vec<u32> {
     use rayon::prelude::*;
     let g = gbuffer(scene, bvh);

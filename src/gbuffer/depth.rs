@@ -186,6 +186,7 @@ pub fn gbuffer_from_depth(
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(feature = "cli")]
     use crate::bvh::SceneBvh;
 
     /// Each convention maps view depth to depth and back within a few
@@ -235,6 +236,7 @@ mod tests {
     /// depth tolerance); standard Z does not at a distance: the reason
     /// for a per-format note (paper-notes/embedding.md).
     #[test]
+    #[cfg(feature = "cli")]
     fn ray_cast_depths_and_normals_give_the_ray_cast_g_buffer() {
         let mut checked = 0;
         for reversed in [true, false] {

@@ -70,6 +70,7 @@ pub fn gbuffer_from_visibility(
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(feature = "cli")]
     use crate::bvh::SceneBvh;
 
     /// The longer µQuad axis of entry `i` (tolerances scale with it).
@@ -83,6 +84,7 @@ mod tests {
     /// within a few ulps of the µQuad (the ray cast's t comes from its
     /// hit test, this one's from the plane), and the same stats.
     #[test]
+    #[cfg(feature = "cli")]
     fn the_ray_cast_ids_give_the_ray_cast_g_buffer() {
         let mut checked = 0;
         for name in ["default", "city"] {

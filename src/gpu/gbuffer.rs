@@ -12,8 +12,9 @@
 
 use super::shared::{BvhNode, GpuTriangle};
 use super::{GpuError, Kernels, Recorder};
-use obvhs::aabb::Aabb;
-use obvhs::BvhBuildParams;
+#[cfg(feature = "cli")]
+use obvhs::{aabb::Aabb, BvhBuildParams};
+#[cfg(feature = "cli")]
 use std::time::Duration;
 
 /// Deepest BVH the shader's traversal stack holds (`STACK_SIZE`).
@@ -48,7 +49,23 @@ pub fn frame_bvh(
     }
 }
 
+/// Without the `cli` feature (the pass alone) there is no BVH builder: a
+/// ray-cast G-buffer is refused by name, and the host's G-buffer is the
+/// input.
+#[cfg(not(feature = "cli"))]
+pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
+    if triangles.is_empty() {
+        return Ok(GpuBvh::EMPTY);
+    }
+    Err(GpuError::Unsupported(
+        "the ray-cast G-buffer builds its BVH with obvhs, part of the `cli` feature: build izb \
+         with it, or give the pass the host's G-buffer (depth + normal or a visibility buffer)"
+            .into(),
+    ))
+}
+
 /// Builds the BVH over eye-relative `f32` triangles.
+#[cfg(feature = "cli")]
 pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
     if triangles.is_empty() {
         return Ok(GpuBvh::EMPTY);
@@ -113,6 +130,7 @@ pub fn build_bvh(triangles: &[GpuTriangle]) -> Result<GpuBvh, GpuError> {
 /// every member: a group of identical boxes becomes one leaf's flat run,
 /// which the shader's leaf loop tests one by one (no tree over identical
 /// boxes could cull any of them).
+#[cfg(feature = "cli")]
 fn expand_leaves(
     nodes: &mut [BvhNode],
     heads: &[u32],
@@ -169,4 +187,29 @@ pub fn gbuffer_from_depth(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
     rec.dispatch_pixels(&kernels.gbuffer_from_depth, size);
     rec.barrier();
     rec.end_label();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without the `cli` feature the ray cast's BVH is refused by name
+    /// (an empty scene needs none); with it, one triangle is one leaf.
+    #[test]
+    fn the_bvh_is_built_or_refused_by_name() {
+        let triangle = GpuTriangle {
+            a: [0.0, 0.0, -1.0],
+            b: [1.0, 0.0, -1.0],
+            c: [0.0, 1.0, -1.0],
+        };
+        assert!(build_bvh(&[]).is_ok_and(|b| b.nodes.is_empty()));
+        let built = build_bvh(&[triangle]);
+        if cfg!(feature = "cli") {
+            let bvh = built.expect("one triangle");
+            assert_eq!((bvh.prims, bvh.depth), (vec![0], 1));
+        } else {
+            let message = built.err().expect("refused").to_string();
+            assert!(message.contains("`cli` feature"), "{message}");
+        }
+    }
 }

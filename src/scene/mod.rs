@@ -9,12 +9,14 @@
 
 mod camera;
 pub mod envelope;
+#[cfg(feature = "cli")]
 mod gltf_load;
 mod light;
 pub mod procedural;
 mod spec;
 
 pub use camera::{Camera, CameraFrame};
+#[cfg(feature = "cli")]
 pub use gltf_load::{load_gltf, load_gltf_bytes, GltfMeshes};
 pub use light::{light_disk, light_disk_f32, Light, LightDisk, MAX_ANGULAR_RADIUS_DEG};
 pub(crate) use spec::check_resolution;
