@@ -8,8 +8,10 @@
 //   MASKS_PAIRED, R32G32_UINT (bits 32–63 of MODE_PAIRED64 in .y);
 // - STEP_LIT with LIT_FORMAT r16 or r8: the lit fraction as UNORM, from
 //   resolve's exact lit-sample count: 1 − hidden / samples where
-//   shadow-tested, 0 on a surface facing away from the light (its
-//   geometry shadows it), 1 where no surface is seen.
+//   shadow-tested (with edge surfaces over the samples that count, the
+//   pixel's record's; none counting: 0, as the twin's NaN converts), 0
+//   on a surface facing away from the light (its geometry shadows it),
+//   1 where no surface is seen.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -29,6 +31,7 @@ layout(set = HOST_SET, binding = HOST_MASKS, r32ui) uniform writeonly uimage2D m
 layout(scalar, binding = B_G_ID_FLAGS) readonly buffer GidBuf { uint g_id_flags[]; };
 layout(scalar, binding = B_SHADED) readonly buffer ShadedBuf { uint shaded[]; };
 layout(set = HOST_SET, binding = HOST_LIT, LIT_FORMAT) uniform writeonly image2D lit_out;
+#include "edge_receivers.glsl"
 #endif
 
 void main() {
@@ -46,9 +49,17 @@ void main() {
     uint flags = gbuffer_flags(g_id_flags[i]);
     float lit = (flags & FLAG_HIT) != 0u ? 0.0 : 1.0;
     if (alpha != ALPHA_NOT_TESTED) {
-        // resolve's alpha: the lit samples of 32 per mask half (the pass
-        // has no edge surfaces: every sample counts).
-        lit = float(alpha) / float(32u * frame.mask_halves);
+        // resolve's alpha: the lit samples of those that count, 32 per
+        // mask half without edge surfaces. 1 − hidden / samples, as the
+        // twin forms it (the other form can round the other way).
+        uint samples = 32u * frame.mask_halves;
+        if (frame.edge_surfaces != 0u) {
+            samples = 0u;
+            for (uint mask_half = 0u; mask_half < frame.mask_halves; ++mask_half) {
+                samples += uint(bitCount(edge_pixel_record(i, mask_half).y));
+            }
+        }
+        lit = samples > 0u ? 1.0 - float(samples - alpha) / float(samples) : 0.0;
     }
     imageStore(lit_out, ivec2(pixel), vec4(lit, 0.0, 0.0, 0.0));
 #endif

@@ -177,6 +177,7 @@ fn pass_for<'r>(
         settings: settings(mode),
         frames_in_flight: 2,
         cell_capacity: None,
+        edge_slots: None,
         gbuffer: GBufferInput::DepthNormal(case.convention),
     };
     ShadowPass::new(r, scene.clone(), config).unwrap()
@@ -349,6 +350,7 @@ fn bad_depth_inputs_are_refused_or_counted() {
         settings: settings(SampleMode::Lut32),
         frames_in_flight: 2,
         cell_capacity: None,
+        edge_slots: None,
         gbuffer: GBufferInput::DepthNormal(bad_convention),
     };
     let refused = ShadowPass::new(&r, scene.clone(), config).err().unwrap();

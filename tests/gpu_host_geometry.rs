@@ -62,6 +62,7 @@ fn the_host_s_meshes_give_the_twin_s_triangles_and_render_s_masks() {
             settings: s,
             frames_in_flight: 2,
             cell_capacity: None,
+            edge_slots: None,
             gbuffer: GBufferInput::Visibility,
         };
         let limits = geometry_config(&scene, n, 4);
@@ -238,6 +239,7 @@ fn bad_host_geometry_is_refused_or_counted() {
         settings: settings(SampleMode::Lut32),
         frames_in_flight: 2,
         cell_capacity: None,
+        edge_slots: None,
         gbuffer: GBufferInput::Visibility,
     };
     let ray_cast = ShadowPassConfig {

@@ -46,6 +46,7 @@ fn a_host_visibility_buffer_gives_render_s_masks_bit_for_bit() {
             settings: s,
             frames_in_flight: 2,
             cell_capacity: None,
+            edge_slots: None,
             gbuffer: GBufferInput::Visibility,
         };
         let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
@@ -106,6 +107,7 @@ fn bad_visibility_inputs_are_refused_or_counted() {
         settings: settings(SampleMode::Lut32),
         frames_in_flight: 2,
         cell_capacity: None,
+        edge_slots: None,
         gbuffer: GBufferInput::Visibility,
     };
     let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
@@ -209,6 +211,7 @@ fn the_eye_moves_with_a_visibility_buffer() {
             settings: s,
             frames_in_flight: 2,
             cell_capacity: None,
+            edge_slots: None,
             gbuffer: GBufferInput::Visibility,
         };
         let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();

@@ -42,6 +42,7 @@ fn a_resident_pass_records_frames_equal_to_render_allocating_nothing() {
             settings: s,
             frames_in_flight: 2,
             cell_capacity: None,
+            edge_slots: None,
             gbuffer: GBufferInput::RayCast,
         };
         let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
@@ -99,6 +100,7 @@ fn an_overrun_frame_is_exact_says_so_and_the_pass_grows() {
         settings: s,
         frames_in_flight: 2,
         cell_capacity: Some(64),
+        edge_slots: None,
         gbuffer: GBufferInput::RayCast,
     };
     let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
@@ -141,12 +143,23 @@ fn bad_views_and_configurations_are_refused_by_name() {
         },
         frames_in_flight: 2,
         cell_capacity: None,
-        gbuffer: GBufferInput::RayCast,
+        edge_slots: None,
+        gbuffer: GBufferInput::Visibility,
     };
-    let refused = ShadowPass::new(&r, scene.clone(), edge).err().unwrap();
-    assert!(refused.to_string().contains("edge_surfaces"), "{refused}");
+    // Edge surfaces with a visibility buffer (one surface a pixel), and
+    // with no slot for them.
+    let no_slots = ShadowPassConfig {
+        edge_slots: Some(0),
+        gbuffer: GBufferInput::RayCast,
+        ..edge
+    };
+    for (config, said) in [(edge, "edge_surfaces"), (no_slots, "edge_slots is 0")] {
+        let refused = ShadowPass::new(&r, scene.clone(), config).err().unwrap();
+        assert!(refused.to_string().contains(said), "{refused}");
+    }
     let config = ShadowPassConfig {
         settings: settings(SampleMode::Lut32),
+        gbuffer: GBufferInput::RayCast,
         ..edge
     };
     let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
@@ -177,6 +190,74 @@ fn bad_views_and_configurations_are_refused_by_name() {
     assert_no_validation_messages(&r, "refused views");
 }
 
+/// Edge pixels' per-sample surfaces in a ray-cast pass: with slots far
+/// too few the first frame keeps the surfaces that fit, says so with the
+/// need, grows, and the next frames' masks equal `render`'s, whose batch
+/// frame traces the same surfaces.
+#[test]
+fn edge_surfaces_in_the_pass_overrun_say_so_grow_and_equal_render() {
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([96, 54])
+        .unwrap();
+    const SLOTS: u64 = 16;
+    let mut checked = 0;
+    for mode in [SampleMode::Exact32, SampleMode::Lut32] {
+        let s = IzbSettings {
+            edge_surfaces: true,
+            ..settings(mode)
+        };
+        assert!(s.uses_edge_surfaces(&scene));
+        let config = ShadowPassConfig {
+            settings: s,
+            frames_in_flight: 2,
+            cell_capacity: None,
+            edge_slots: Some(SLOTS),
+            gbuffer: GBufferInput::RayCast,
+        };
+        let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+        let mut first_need = 0;
+        for k in 0..3 {
+            let view = view_at(&scene, k);
+            let before = r.context.shared.allocations();
+            run_frame(&r, &mut pass, k, &view);
+            assert_eq!(r.context.shared.allocations(), before, "frame {k}");
+            // SAFETY: the frame was waited for; nothing is executing.
+            let (status, images) =
+                unsafe { (pass.status(k % 2).unwrap(), pass.read_back().unwrap()) };
+            assert_eq!(
+                status.edge_slots_overrun,
+                k == 0,
+                "{mode:?} frame {k}: {status:?}"
+            );
+            assert!(status.edge_slots_needed > SLOTS, "{status:?}");
+            let batch = r
+                .render(&scene_at(&scene, &view), s, GBufferSource::Gpu)
+                .unwrap();
+            let differing = images
+                .masks
+                .iter()
+                .zip(&batch.masks)
+                .filter(|(a, b)| a != b)
+                .count();
+            if k == 0 {
+                // The pixels past the slots kept tangent-plane masks.
+                first_need = status.edge_slots_needed;
+                println!("{mode:?}: {differing} pixels without their edge surfaces");
+                assert!(differing > 0);
+            } else {
+                assert_eq!(differing, 0, "{mode:?} frame {k}");
+            }
+            assert_eq!(pass.grow(&status).unwrap(), k == 0);
+            checked += 1;
+        }
+        assert_eq!(pass.edge_slots(), first_need + first_need / 2);
+    }
+    assert_eq!(checked, 6);
+    assert_no_validation_messages(&r, "edge surfaces in the pass");
+}
+
 /// The pass writes the host's output images — the masks (`R32_UINT`, or
 /// `R32G32_UINT` with `Paired64`'s two halves under an area light) and the
 /// lit fraction (`R16_UNORM`, `R8_UNORM`) — equal to the CPU twin's
@@ -193,6 +274,8 @@ fn the_pass_writes_the_host_s_mask_and_lit_fraction_images() {
         .unwrap();
     let mut area = point.clone();
     area.light_radius = 0.02;
+    // The last case traces edge surfaces: its lit fraction is over the
+    // samples each edge pixel counts.
     let cases = [
         (
             &point,
@@ -200,6 +283,7 @@ fn the_pass_writes_the_host_s_mask_and_lit_fraction_images() {
             vk::Format::R32_UINT,
             vk::Format::R16_UNORM,
             16,
+            false,
         ),
         (
             &area,
@@ -207,15 +291,29 @@ fn the_pass_writes_the_host_s_mask_and_lit_fraction_images() {
             vk::Format::R32G32_UINT,
             vk::Format::R8_UNORM,
             8,
+            false,
+        ),
+        (
+            &point,
+            SampleMode::Lut32,
+            vk::Format::R32_UINT,
+            vk::Format::R16_UNORM,
+            16,
+            true,
         ),
     ];
     let mut checked = 0;
-    for (scene, mode, mask_format, lit_format, bits) in cases {
-        let s = settings(mode);
+    for (scene, mode, mask_format, lit_format, bits, edge_surfaces) in cases {
+        let s = IzbSettings {
+            edge_surfaces,
+            ..settings(mode)
+        };
+        assert_eq!(s.uses_edge_surfaces(scene), edge_surfaces);
         let config = ShadowPassConfig {
             settings: s,
             frames_in_flight: 2,
             cell_capacity: None,
+            edge_slots: None,
             gbuffer: GBufferInput::RayCast,
         };
         let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
@@ -292,7 +390,7 @@ fn the_pass_writes_the_host_s_mask_and_lit_fraction_images() {
         }
         assert_no_validation_messages(&r, "output images");
     }
-    assert_eq!(checked, 4);
+    assert_eq!(checked, 2 * cases.len());
 
     // Bad declarations, refused before any command.
     let scene = &point;
@@ -300,6 +398,7 @@ fn the_pass_writes_the_host_s_mask_and_lit_fraction_images() {
         settings: settings(SampleMode::Lut32),
         frames_in_flight: 1,
         cell_capacity: None,
+        edge_slots: None,
         gbuffer: GBufferInput::RayCast,
     };
     let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();

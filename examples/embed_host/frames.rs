@@ -152,6 +152,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         settings,
         frames_in_flight: options.frames_in_flight,
         cell_capacity: options.cell_capacity,
+        edge_slots: None,
         gbuffer: match options.depth {
             Some(d) => GBufferInput::DepthNormal(d.convention),
             None => GBufferInput::Visibility,

@@ -8,7 +8,8 @@
 
 use super::{PassStatus, ShadowPass};
 use crate::gpu::edge_surfaces::edge_tiles;
-use crate::gpu::frame_memory::frame_buffer_descs;
+use crate::gpu::frame_inputs::check_workgroups;
+use crate::gpu::frame_memory::{frame_buffer_descs, receivers};
 use crate::gpu::izb_frame::max_cells;
 use crate::gpu::pipeline::DescriptorSet;
 use crate::gpu::resources::{BufferDesc, GpuBuffer};
@@ -26,6 +27,15 @@ pub(super) struct Retired {
 }
 
 impl ShadowPass<'_> {
+    /// Makes room after a frame whose `status` says it overran: the cell
+    /// list, the edge surfaces' slots or both (new buffers and a new
+    /// descriptor set); whether anything grew.
+    pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
+        let edges = status.edge_slots_overrun && self.grow_edge_slots(status.edge_slots_needed)?;
+        let cells = self.grow_cells(status)?;
+        Ok(edges || cells)
+    }
+
     /// Makes the cell list hold half again `status`'s need when it
     /// overran (a new buffer and descriptor set); whether it grew. A frame
     /// slot's status says the need of its own frame; the half again is
@@ -35,7 +45,7 @@ impl ShadowPass<'_> {
     /// name; the pass goes on exact the slow way. Frames in flight may
     /// still use the old list and set: they are released once every slot
     /// has recorded again.
-    pub fn grow(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
+    fn grow_cells(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
         if !status.cell_list_overrun || status.cell_entries <= self.sizes.cell_capacity {
             return Ok(false);
         }
@@ -73,7 +83,10 @@ impl ShadowPass<'_> {
         let settings = self.config.settings;
         let mut sizes = self.sizes;
         sizes.pixels = pixels;
-        sizes.receivers = pixels;
+        let slots = sizes.edge_surfaces;
+        sizes.receivers = receivers(resolution, slots.map_or(0, |s| s.surfaces));
+        let rows = super::edge_slots::receiver_rows(resolution, slots);
+        check_workgroups(&self.renderer.shared().limits, [resolution[0], rows])?;
         if sizes.normal_entries != 0 {
             sizes.normal_entries = pixels;
         }
@@ -122,7 +135,7 @@ impl ShadowPass<'_> {
 
     /// New buffers for those whose size differs under `sizes`, bound from
     /// the next frame on.
-    fn replace_sized(
+    pub(super) fn replace_sized(
         &mut self,
         sizes: crate::gpu::frame_memory::FrameSizes,
     ) -> Result<(), GpuError> {

@@ -27,8 +27,12 @@
 //!   `gbuffer_from_visibility.comp`), or the host's depth and normal
 //!   images (`gbuffer_from_depth.comp`), read under the state contract
 //!   of [`super::host_images`].
-//! - Edge pixels' per-sample surfaces are not traced: settings that ask
-//!   for them are refused (`--no-edge-surfaces` renders the same masks).
+//! - With the ray-cast G-buffer, edge pixels' per-sample surfaces are
+//!   traced as the batch frame traces them (`edge_slots.rs`: slots sized
+//!   once, a frame past them keeps tangent-plane masks at the pixels that
+//!   did not fit and says so, [`ShadowPass::grow`] makes room); the host's
+//!   visibility buffer and depth carry one surface a pixel, so there they
+//!   are refused by name (`--no-edge-surfaces`).
 //! - A frame whose cell list overruns stays exact the slow way
 //!   (`bin.comp`) and says so in its status; [`ShadowPass::grow`] makes
 //!   room between frames and [`ShadowPass::resize`] follows a new image
@@ -49,20 +53,24 @@
 //! are in `GENERAL`, written by compute shaders.
 
 mod capacity;
+mod edge_slots;
+mod frame_view;
 mod host_geometry;
 mod read_back;
 mod status;
 
+pub use frame_view::FrameView;
 pub use host_geometry::HostGeometryConfig;
 pub use read_back::PassImages;
 pub use status::PassStatus;
 
 use super::frame::{GBufferSource, GpuRenderer};
-use super::frame_inputs::{frame_params, loop_budget};
-use super::frame_memory::FrameSizes;
-use super::frame_memory::{frame_buffer_descs, initial_cell_capacity, reset_pass_state};
+use super::frame_inputs::{check_workgroups, frame_params, loop_budget};
+use super::frame_memory::{
+    frame_buffer_descs, initial_cell_capacity, receivers, reset_pass_state, FrameSizes,
+};
 use super::gather_draws::FrameGeometry;
-use super::host_images::{FrameImages, HostImageSets, ImageUse, InputImages};
+use super::host_images::{HostImageSets, ImageUse, InputImages};
 use super::pass_copies::upload_into;
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
@@ -70,9 +78,10 @@ use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
 use super::translate_vertices::WorldVertices;
 use super::{GpuError, Recorder};
 use crate::cpu::gather_draws::eye_relative_bounds;
-use crate::scene::{Camera, Light, Scene};
+use crate::scene::Scene;
 use crate::settings::IzbSettings;
 use ash::vk;
+use frame_view::unorm_depth_step;
 use glam::{DVec3, Vec3};
 use std::sync::Arc;
 
@@ -87,13 +96,16 @@ const _: () =
 /// What a pass is made for.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadowPassConfig {
-    /// Sample mode, skips, cascades (edge surfaces off).
+    /// Sample mode, skips, cascades, edge surfaces (ray cast only).
     pub settings: IzbSettings,
     /// Frames the host records before it waits for the oldest: each has
     /// its own status buffer.
     pub frames_in_flight: usize,
     /// Entries of the cell list; `None`: max(4 × triangles, 2¹⁶).
     pub cell_capacity: Option<u64>,
+    /// Slots for edge pixels' extra surfaces, with edge surfaces on;
+    /// `None`: one per 8 pixels, at least 1 024.
+    pub edge_slots: Option<u64>,
     /// Where the G-buffer comes from.
     pub gbuffer: GBufferInput,
 }
@@ -130,24 +142,6 @@ impl GBufferInput {
     }
 }
 
-/// What may change between frames.
-#[derive(Clone, Copy, Debug)]
-pub struct FrameView {
-    /// The camera; with the ray-cast G-buffer its eye must stay the
-    /// scene's (the BVH is built around it), with a visibility buffer it
-    /// may move.
-    pub camera: Camera,
-    pub light: Light,
-    /// The light's size (`Scene::light_radius`); whether it is 0 must stay
-    /// as the scene had it (it decides the masks' layout).
-    pub light_radius: f64,
-    /// The host's images: the visibility buffer in (with
-    /// [`GBufferInput::Visibility`], and only then), the masks and lit
-    /// fraction out (optional); their declared state, barriers and the
-    /// layouts they are left in: [`super::host_images`].
-    pub images: FrameImages,
-}
-
 /// The IZB, resident on a device, recorded into the caller's command
 /// buffers.
 pub struct ShadowPass<'r> {
@@ -172,6 +166,9 @@ pub struct ShadowPass<'r> {
     host_sets: HostImageSets,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
+    /// Per frame slot, the edge surfaces' slots of its last frame (its
+    /// status's overrun is against them, whatever grew since).
+    slot_edge_slots: Vec<u64>,
     /// Sets replaced by `grow` or `resize` that frames in flight may
     /// still use.
     retired: Vec<capacity::Retired>,
@@ -181,16 +178,6 @@ pub struct ShadowPass<'r> {
     /// cell pyramid's size among them ([`Self::grow`] and
     /// [`Self::resize`] change it).
     sizes: FrameSizes,
-}
-
-/// The spacing of a unorm depth format's values (0 for a float one).
-fn unorm_depth_step(format: vk::Format) -> f32 {
-    match format {
-        vk::Format::D24_UNORM_S8_UINT | vk::Format::X8_D24_UNORM_PACK32 => {
-            crate::gbuffer::UNORM24_DEPTH_STEP
-        }
-        _ => 0.0,
-    }
 }
 
 /// Most frame slots (a bit each in `Retired::slots_pending`).
@@ -218,13 +205,7 @@ impl<'r> ShadowPass<'r> {
         host: Option<HostGeometryConfig>,
     ) -> Result<Self, GpuError> {
         let settings = config.settings;
-        if settings.uses_edge_surfaces(&scene) {
-            return Err(GpuError::Unsupported(
-                "the shadow pass does not trace edge pixels' per-sample surfaces yet: make it \
-                 with `edge_surfaces: false` (--no-edge-surfaces)"
-                    .into(),
-            ));
-        }
+        let edge_slots = edge_slots::edge_slots_for(&scene, &config)?;
         if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&config.frames_in_flight) {
             return Err(GpuError::Unsupported(format!(
                 "frames_in_flight is {}: from 1 to {MAX_FRAMES_IN_FLIGHT}",
@@ -263,11 +244,13 @@ impl<'r> ShadowPass<'r> {
             .unwrap_or_else(|| initial_cell_capacity(triangles));
         let (lut, _) = crate::lut::tables_for(settings.light_samples(&scene));
         let pixels = scene.pixel_count() as u64;
+        let receiver_rows = edge_slots::receiver_rows(scene.resolution, edge_slots);
+        check_workgroups(&shared.limits, [scene.resolution[0], receiver_rows])?;
         let sizes = FrameSizes {
             pixels,
             tiles: super::edge_surfaces::edge_tiles(scene.resolution),
-            receivers: pixels,
-            edge_surfaces: None,
+            receivers: receivers(scene.resolution, edge_slots.map_or(0, |s| s.surfaces)),
+            edge_surfaces: edge_slots,
             triangles: triangles as u64,
             vertices: match (&world, host) {
                 (Some(w), _) => w.pairs.len() as u64,
@@ -299,7 +282,7 @@ impl<'r> ShadowPass<'r> {
         let buffers: [Arc<GpuBuffer>; BINDINGS] = std::array::from_fn(|b| made[b].clone());
         let set = DescriptorSet::new(shared, &renderer.layout, buffers.clone())?;
         let host_sets = HostImageSets::new(shared, &renderer.layout, config.frames_in_flight)?;
-        let status = (0..config.frames_in_flight)
+        let status: Vec<GpuBuffer> = (0..config.frames_in_flight)
             .map(|_| {
                 let desc = BufferDesc {
                     name: "pass_status",
@@ -358,6 +341,7 @@ impl<'r> ShadowPass<'r> {
             buffers,
             set,
             host_sets,
+            slot_edge_slots: vec![0; config.frames_in_flight],
             status,
             retired: Vec::new(),
             world,
@@ -378,39 +362,6 @@ impl<'r> ShadowPass<'r> {
     /// Entries of the cell list now.
     pub fn cell_capacity(&self) -> u64 {
         self.sizes.cell_capacity
-    }
-
-    /// Checks `view` against the scene (the eye, the light's kind of size,
-    /// the precision envelope) and takes it as the scene's.
-    fn take_view(&mut self, view: &FrameView) -> Result<(), GpuError> {
-        let ray_cast = self.config.gbuffer == GBufferInput::RayCast;
-        if ray_cast && view.camera.eye != self.scene.camera.eye {
-            return Err(GpuError::Unsupported(format!(
-                "the eye moved from {} to {}: a ray-cast pass holds the scene's vertices and \
-                 BVH relative to its eye; make the pass again for the new eye, or with \
-                 the host's visibility buffer or depth, whose vertices follow the eye",
-                self.scene.camera.eye, view.camera.eye
-            )));
-        }
-        if (view.light_radius > 0.0) != self.scene.has_area_light() {
-            return Err(GpuError::Unsupported(
-                "the light turned from point-like to area or back: the masks' layout follows \
-                 it; make the pass again"
-                    .into(),
-            ));
-        }
-        let scene = &mut self.scene;
-        let previous = (scene.camera, scene.light, scene.light_radius);
-        (scene.camera, scene.light, scene.light_radius) =
-            (view.camera, view.light, view.light_radius);
-        let checked = scene.validate_view(self.bounds);
-        if let Err(e) = checked {
-            (scene.camera, scene.light, scene.light_radius) = previous;
-            return Err(GpuError::Unsupported(format!(
-                "this view cannot be rendered: {e}"
-            )));
-        }
-        Ok(())
     }
 
     /// Records frame `slot`'s shadow pass for `view` into `cmd`.
@@ -492,6 +443,10 @@ impl<'r> ShadowPass<'r> {
             params.depth_reversed = u32::from(c.reversed);
             params.depth_step = images.depth.map_or(0.0, |d| unorm_depth_step(d.format));
         }
+        self.edge_params(&mut params);
+        self.slot_edge_slots[slot] = self.edge_slots();
+        let traced_edges = self.sizes.edge_surfaces.is_some();
+        let rows = [w, self.receiver_rows()];
         if let Some(h) = &self.host_geometry {
             params.draw_count = h.table.len() as u32;
             let [lo, hi] = eye_relative_bounds(self.bounds, scene.camera.eye);
@@ -516,7 +471,7 @@ impl<'r> ShadowPass<'r> {
                 h.record_table(device, cmd, buffer(binding::DRAWS));
             }
         }
-        reset_pass_state(device, cmd, buffer, false);
+        reset_pass_state(device, cmd, buffer, traced_edges);
         rec.barrier();
         if let Some(w) = &self.world {
             let vertices = w.pairs.len() as u32;
@@ -561,7 +516,7 @@ impl<'r> ShadowPass<'r> {
         }
         match self.config.gbuffer {
             GBufferInput::RayCast => {
-                super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], false);
+                super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], traced_edges);
             }
             GBufferInput::Visibility => {
                 super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
@@ -570,8 +525,8 @@ impl<'r> ShadowPass<'r> {
                 super::gbuffer::gbuffer_from_depth(&rec, &renderer.kernels, [w, h]);
             }
         }
-        super::light_setup::light_setup(&rec, &renderer.kernels, [w, h]);
-        let gather = settings.skips.behind_receivers.then_some(w * h);
+        super::light_setup::light_setup(&rec, &renderer.kernels, rows);
+        let gather = settings.skips.behind_receivers.then_some(rows[0] * rows[1]);
         let kernels = &renderer.kernels;
         super::bin::bin(
             &rec,
@@ -582,7 +537,7 @@ impl<'r> ShadowPass<'r> {
         );
         let heavy = super::evaluate::heavy_step(&params, &shared.info);
         let halves = settings.mask_halves(scene);
-        super::evaluate::evaluate(&rec, kernels, [w, h], heavy, halves);
+        super::evaluate::evaluate(&rec, kernels, rows, heavy, halves);
         super::resolve::resolve(&rec, kernels, [w, h]);
         super::export_images::export_images(&rec, kernels, [w, h], &images, halves);
         let status = &self.status[slot];

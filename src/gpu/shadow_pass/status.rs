@@ -33,6 +33,13 @@ pub struct PassStatus {
     /// bounds the pass was made for ([`Self::geometry_error`]).
     pub index_out_of_range: u32,
     pub outside_bounds: u32,
+    /// With edge surfaces: the slots the frame's edge pixels needed
+    /// (extra surfaces or records, whichever is more).
+    pub edge_slots_needed: u64,
+    /// They were more than the frame had: the pixels past them kept
+    /// tangent-plane masks (all samples on the centre's surface), and
+    /// [`ShadowPass::grow`] makes room for the next frame.
+    pub edge_slots_overrun: bool,
 }
 
 impl PassStatus {
@@ -60,6 +67,7 @@ impl ShadowPass<'_> {
     pub unsafe fn status(&self, slot: usize) -> Result<PassStatus, GpuError> {
         let bytes = self.status[slot].mapped()?;
         let c: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[..counter::WORDS * 4]);
+        let needed = crate::gpu::edge_surfaces::slots_needed(&c);
         Ok(PassStatus {
             cell_entries: u64::from(c[counter::CELL_ENTRIES]),
             cell_list_overrun: c[counter::CAPACITY_EXCEEDED] != 0,
@@ -68,6 +76,8 @@ impl ShadowPass<'_> {
             visibility_rejected: c[counter::VISIBILITY_REJECTED],
             index_out_of_range: c[counter::INDEX_OUT_OF_RANGE],
             outside_bounds: c[counter::OUTSIDE_BOUNDS],
+            edge_slots_needed: needed,
+            edge_slots_overrun: needed > self.slot_edge_slots[slot],
         })
     }
 

@@ -1,0 +1,110 @@
+//! Edge pixels' per-sample surfaces in the pass (Wyman et al. 2015 §4
+//! put all 32 samples on the tangent plane at P; `edge_surfaces.comp`
+//! traces them at pixels whose neighbours leave P's plane): with the
+//! ray-cast G-buffer the pass runs the batch frame's `edge_surfaces` step,
+//! its extra surfaces as receivers in rows below the image.
+//!
+//! Their slots are sized once ([`super::ShadowPassConfig::edge_slots`],
+//! else one per 8 pixels) and never grown inside a frame: a frame whose
+//! edge pixels need more keeps the surfaces that fit, and the pixels past
+//! the capacity see all their samples on their centre's surface — the
+//! pass without edge surfaces, tangent-plane masks, no occluder lost —
+//! and its status says so ([`super::PassStatus::edge_slots_overrun`],
+//! with the need). [`ShadowPass::grow`] makes room between frames.
+
+use super::{GBufferInput, ShadowPass, ShadowPassConfig};
+use crate::gpu::frame_inputs::check_workgroups;
+use crate::gpu::frame_memory::{heavy_capacity, initial_edge_capacity, receivers, EdgeSlots};
+use crate::gpu::shared::FrameParams;
+use crate::gpu::GpuError;
+use crate::scene::Scene;
+
+/// The slots a pass for `scene` under `config` gives edge surfaces
+/// (`None`: the pass traces none), or why it cannot trace them.
+pub(super) fn edge_slots_for(
+    scene: &Scene,
+    config: &ShadowPassConfig,
+) -> Result<Option<EdgeSlots>, GpuError> {
+    if !config.settings.uses_edge_surfaces(scene) {
+        return Ok(None);
+    }
+    if config.gbuffer != GBufferInput::RayCast {
+        return Err(GpuError::Unsupported(
+            "edge pixels' per-sample surfaces need the ray-cast G-buffer (its BVH traces their \
+             32 sample rays; the host's visibility buffer or depth carry one surface a pixel): \
+             make the pass with `edge_surfaces: false` (--no-edge-surfaces) for this input"
+                .into(),
+        ));
+    }
+    let slots = match config.edge_slots {
+        Some(0) => {
+            return Err(GpuError::Unsupported(
+                "edge_slots is 0: give edge surfaces at least one slot, or turn them off".into(),
+            ))
+        }
+        Some(n) => n,
+        None => initial_edge_capacity(scene.pixel_count() as u64),
+    };
+    Ok(Some(EdgeSlots {
+        surfaces: slots,
+        pixels: slots,
+    }))
+}
+
+/// Rows of receivers at `resolution` with `slots`: the image's, then the
+/// edge surfaces' below it.
+pub(super) fn receiver_rows([w, h]: [u32; 2], slots: Option<EdgeSlots>) -> u32 {
+    let extra = slots.map_or(0, |s| s.surfaces);
+    (receivers([w, h], extra) / u64::from(w.max(1))) as u32
+}
+
+impl ShadowPass<'_> {
+    /// Slots for edge pixels' extra surfaces (0: the pass traces none).
+    pub fn edge_slots(&self) -> u64 {
+        self.sizes.edge_surfaces.map_or(0, |s| s.surfaces)
+    }
+
+    /// Rows of receivers now: the image's and the edge surfaces'.
+    pub(super) fn receiver_rows(&self) -> u32 {
+        receiver_rows(self.scene.resolution, self.sizes.edge_surfaces)
+    }
+
+    /// `params` for a frame with edge surfaces, as the batch frame sets
+    /// them; nothing without.
+    pub(super) fn edge_params(&self, params: &mut FrameParams) {
+        let Some(slots) = self.sizes.edge_surfaces else {
+            return;
+        };
+        params.receiver_rows = self.receiver_rows();
+        params.edge_surfaces = 1;
+        params.edge_capacity = slots.surfaces.max(slots.pixels) as u32;
+        // LightSetup::receiver_boxes' `covered_only`.
+        params.covered_boxes = u32::from(!self.config.settings.light_samples(&self.scene));
+        params.heavy_capacity = heavy_capacity(self.sizes.receivers) as u32;
+    }
+
+    /// Makes the edge surfaces hold half again `need` slots (new G-buffer,
+    /// mask and receiver buffers, a new descriptor set); whether they
+    /// grew. As the cell list's growth, for a moving view.
+    pub(super) fn grow_edge_slots(&mut self, need: u64) -> Result<bool, GpuError> {
+        let Some(slots) = self.sizes.edge_surfaces else {
+            return Ok(false);
+        };
+        if need <= slots.surfaces {
+            return Ok(false);
+        }
+        let grown = need.saturating_add(need / 2);
+        let slots = Some(EdgeSlots {
+            surfaces: grown,
+            pixels: grown,
+        });
+        let resolution = self.scene.resolution;
+        let limits = &self.renderer.shared().limits;
+        check_workgroups(limits, [resolution[0], receiver_rows(resolution, slots)])?;
+        let mut sizes = self.sizes;
+        sizes.edge_surfaces = slots;
+        sizes.receivers = receivers(resolution, grown);
+        self.replace_sized(sizes)?;
+        Ok(true)
+    }
+}

@@ -1,0 +1,71 @@
+//! What may change between a pass's frames ([`FrameView`]), and how a
+//! frame takes it: checked against the scene and the precision envelope.
+
+use super::{GBufferInput, ShadowPass};
+use crate::gpu::host_images::FrameImages;
+use crate::gpu::GpuError;
+use crate::scene::{Camera, Light};
+use ash::vk;
+
+/// What may change between frames.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameView {
+    /// The camera; with the ray-cast G-buffer its eye must stay the
+    /// scene's (the BVH is built around it), with a visibility buffer it
+    /// may move.
+    pub camera: Camera,
+    pub light: Light,
+    /// The light's size (`Scene::light_radius`); whether it is 0 must stay
+    /// as the scene had it (it decides the masks' layout).
+    pub light_radius: f64,
+    /// The host's images: the visibility buffer in (with
+    /// [`GBufferInput::Visibility`], and only then), the masks and lit
+    /// fraction out (optional); their declared state, barriers and the
+    /// layouts they are left in: [`crate::gpu::host_images`].
+    pub images: FrameImages,
+}
+
+/// The spacing of a unorm depth format's values (0 for a float one).
+pub(super) fn unorm_depth_step(format: vk::Format) -> f32 {
+    match format {
+        vk::Format::D24_UNORM_S8_UINT | vk::Format::X8_D24_UNORM_PACK32 => {
+            crate::gbuffer::UNORM24_DEPTH_STEP
+        }
+        _ => 0.0,
+    }
+}
+
+impl ShadowPass<'_> {
+    /// Checks `view` against the scene (the eye, the light's kind of size,
+    /// the precision envelope) and takes it as the scene's.
+    pub(super) fn take_view(&mut self, view: &FrameView) -> Result<(), GpuError> {
+        let ray_cast = self.config.gbuffer == GBufferInput::RayCast;
+        if ray_cast && view.camera.eye != self.scene.camera.eye {
+            return Err(GpuError::Unsupported(format!(
+                "the eye moved from {} to {}: a ray-cast pass holds the scene's vertices and \
+                 BVH relative to its eye; make the pass again for the new eye, or with \
+                 the host's visibility buffer or depth, whose vertices follow the eye",
+                self.scene.camera.eye, view.camera.eye
+            )));
+        }
+        if (view.light_radius > 0.0) != self.scene.has_area_light() {
+            return Err(GpuError::Unsupported(
+                "the light turned from point-like to area or back: the masks' layout follows \
+                 it; make the pass again"
+                    .into(),
+            ));
+        }
+        let scene = &mut self.scene;
+        let previous = (scene.camera, scene.light, scene.light_radius);
+        (scene.camera, scene.light, scene.light_radius) =
+            (view.camera, view.light, view.light_radius);
+        let checked = scene.validate_view(self.bounds);
+        if let Err(e) = checked {
+            (scene.camera, scene.light, scene.light_radius) = previous;
+            return Err(GpuError::Unsupported(format!(
+                "this view cannot be rendered: {e}"
+            )));
+        }
+        Ok(())
+    }
+}
