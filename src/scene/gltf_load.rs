@@ -3,20 +3,10 @@
 //! chain, triangles/strips/fans, any index width or none, flattened into one
 //! world-space `f64` array.
 
-use super::{SceneError, Triangle};
+use super::{GltfMeshes, SceneError};
 use glam::{DMat4, DVec3};
 use gltf::mesh::Mode;
 use std::path::Path;
-
-/// Triangles read from a glTF file, before degenerate ones are dropped.
-#[derive(Debug, Default)]
-pub struct GltfMeshes {
-    /// World-space triangles in traversal order (the stable source id is the
-    /// index here).
-    pub triangles: Vec<Triangle>,
-    pub skipped_non_triangle_primitives: usize,
-    pub warnings: Vec<String>,
-}
 
 /// Loads every mesh instance of the file's default scene (or its first
 /// scene; or every root node when it declares no scene).

@@ -17,7 +17,27 @@ mod spec;
 
 pub use camera::{Camera, CameraFrame};
 #[cfg(feature = "cli")]
-pub use gltf_load::{load_gltf, load_gltf_bytes, GltfMeshes};
+pub use gltf_load::{load_gltf, load_gltf_bytes};
+
+/// Triangles read from a glTF file, before degenerate ones are dropped.
+#[derive(Debug, Default)]
+pub struct GltfMeshes {
+    /// World-space triangles in traversal order (the stable source id is the
+    /// index here).
+    pub triangles: Vec<Triangle>,
+    pub skipped_non_triangle_primitives: usize,
+    pub warnings: Vec<String>,
+}
+
+/// Without the `cli` feature (the pass alone) there is no glTF loader: a
+/// scene naming a glTF file is refused by name.
+#[cfg(not(feature = "cli"))]
+pub fn load_gltf(path: &Path) -> Result<GltfMeshes, SceneError> {
+    Err(SceneError::Gltf {
+        path: path.display().to_string(),
+        message: "this build has no glTF loader (it is part of the `cli` feature)".into(),
+    })
+}
 pub use light::{light_disk, light_disk_f32, Light, LightDisk, MAX_ANGULAR_RADIUS_DEG};
 pub(crate) use spec::check_resolution;
 pub use spec::{CameraSpec, LightSpec, SceneSpec, MAX_RESOLUTION};

@@ -182,7 +182,7 @@ impl SceneSpec {
         match (&self.gltf, &self.procedural) {
             (Some(gltf), None) => {
                 let base = self.path.parent().unwrap_or(Path::new("."));
-                let meshes = load_meshes(&base.join(gltf))?;
+                let meshes = super::load_gltf(&base.join(gltf))?;
                 let mut scene = Scene::new(name, meshes.triangles, camera, light, self.resolution)?;
                 scene.light_radius = light_radius;
                 scene.validate()?;
@@ -211,28 +211,4 @@ impl SceneSpec {
             )),
         }
     }
-}
-
-/// The spec's glTF, loaded.
-#[cfg(feature = "cli")]
-fn load_meshes(path: &Path) -> Result<super::GltfMeshes, SceneError> {
-    super::load_gltf(path)
-}
-
-/// Without the `cli` feature (the pass alone) there is no glTF loader: a
-/// spec naming a glTF is refused by name.
-#[cfg(not(feature = "cli"))]
-fn load_meshes(path: &Path) -> Result<GltfMeshes, SceneError> {
-    Err(SceneError::Gltf {
-        path: path.display().to_string(),
-        message: "this build has no glTF loader (it is part of the `cli` feature)".into(),
-    })
-}
-
-/// What [`load_meshes`] gives (the loader's own type with the `cli` feature).
-#[cfg(not(feature = "cli"))]
-struct GltfMeshes {
-    triangles: Vec<super::Triangle>,
-    skipped_non_triangle_primitives: usize,
-    warnings: Vec<String>,
 }

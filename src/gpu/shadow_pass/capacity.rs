@@ -6,10 +6,10 @@
 //! still use it, is then known done (Granite's per-frame destroy lists).
 //! Nothing is uploaded or waited on: the scene's buffers are kept.
 
+use super::edge_slots::checked_receivers;
 use super::{PassStatus, ShadowPass};
 use crate::gpu::edge_surfaces::edge_tiles;
-use crate::gpu::frame_inputs::check_workgroups;
-use crate::gpu::frame_memory::{frame_buffer_descs, receivers};
+use crate::gpu::frame_memory::frame_buffer_descs;
 use crate::gpu::izb_frame::max_cells;
 use crate::gpu::pipeline::DescriptorSet;
 use crate::gpu::resources::{BufferDesc, GpuBuffer};
@@ -83,10 +83,8 @@ impl ShadowPass<'_> {
         let settings = self.config.settings;
         let mut sizes = self.sizes;
         sizes.pixels = pixels;
-        let slots = sizes.edge_surfaces;
-        sizes.receivers = receivers(resolution, slots.map_or(0, |s| s.surfaces));
-        let rows = super::edge_slots::receiver_rows(resolution, slots);
-        check_workgroups(&self.renderer.shared().limits, [resolution[0], rows])?;
+        let limits = &self.renderer.shared().limits;
+        sizes.receivers = checked_receivers(limits, resolution, sizes.edge_surfaces)?;
         if sizes.normal_entries != 0 {
             sizes.normal_entries = pixels;
         }

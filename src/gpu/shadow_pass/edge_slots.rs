@@ -58,6 +58,18 @@ pub(super) fn receiver_rows([w, h]: [u32; 2], slots: Option<EdgeSlots>) -> u32 {
     (receivers([w, h], extra) / u64::from(w.max(1))) as u32
 }
 
+/// Receivers at `resolution` with `slots` (`FrameSizes::receivers`), once
+/// their rows are known to fit the device's workgroup counts.
+pub(super) fn checked_receivers(
+    limits: &ash::vk::PhysicalDeviceLimits,
+    resolution: [u32; 2],
+    slots: Option<EdgeSlots>,
+) -> Result<u64, GpuError> {
+    let rows = receiver_rows(resolution, slots);
+    check_workgroups(limits, [resolution[0], rows])?;
+    Ok(u64::from(resolution[0]) * u64::from(rows))
+}
+
 impl ShadowPass<'_> {
     /// Slots for edge pixels' extra surfaces (0: the pass traces none).
     pub fn edge_slots(&self) -> u64 {
@@ -98,12 +110,10 @@ impl ShadowPass<'_> {
             surfaces: grown,
             pixels: grown,
         });
-        let resolution = self.scene.resolution;
         let limits = &self.renderer.shared().limits;
-        check_workgroups(limits, [resolution[0], receiver_rows(resolution, slots)])?;
         let mut sizes = self.sizes;
+        sizes.receivers = checked_receivers(limits, self.scene.resolution, slots)?;
         sizes.edge_surfaces = slots;
-        sizes.receivers = receivers(resolution, grown);
         self.replace_sized(sizes)?;
         Ok(true)
     }

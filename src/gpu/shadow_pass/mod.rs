@@ -65,9 +65,9 @@ pub use read_back::PassImages;
 pub use status::PassStatus;
 
 use super::frame::{GBufferSource, GpuRenderer};
-use super::frame_inputs::{check_workgroups, frame_params, loop_budget};
+use super::frame_inputs::{frame_params, loop_budget};
 use super::frame_memory::{
-    frame_buffer_descs, initial_cell_capacity, receivers, reset_pass_state, FrameSizes,
+    frame_buffer_descs, initial_cell_capacity, reset_pass_state, FrameSizes,
 };
 use super::gather_draws::FrameGeometry;
 use super::host_images::{HostImageSets, ImageUse, InputImages};
@@ -244,12 +244,10 @@ impl<'r> ShadowPass<'r> {
             .unwrap_or_else(|| initial_cell_capacity(triangles));
         let (lut, _) = crate::lut::tables_for(settings.light_samples(&scene));
         let pixels = scene.pixel_count() as u64;
-        let receiver_rows = edge_slots::receiver_rows(scene.resolution, edge_slots);
-        check_workgroups(&shared.limits, [scene.resolution[0], receiver_rows])?;
         let sizes = FrameSizes {
             pixels,
             tiles: super::edge_surfaces::edge_tiles(scene.resolution),
-            receivers: receivers(scene.resolution, edge_slots.map_or(0, |s| s.surfaces)),
+            receivers: edge_slots::checked_receivers(&shared.limits, scene.resolution, edge_slots)?,
             edge_surfaces: edge_slots,
             triangles: triangles as u64,
             vertices: match (&world, host) {
