@@ -62,7 +62,7 @@ fn main() {
         // `Scene::new` alone: degenerate and coincident triangles dropped,
         // the scene validated (the part of `load` past reading the glTF).
         let assemble = median_ms(|| {
-            let t = scene.triangles.clone();
+            let t = scene.triangles.to_vec();
             std::hint::black_box(
                 izb::scene::Scene::new("again", t, scene.camera, scene.light, scene.resolution)
                     .expect("valid"),

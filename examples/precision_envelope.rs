@@ -188,7 +188,7 @@ fn main() {
         let pixel = camera.fov_y_deg.to_radians() / resolution[1] as f64;
         let zoomed = Scene::new(
             base.name.clone(),
-            base.triangles.clone(),
+            base.triangles.to_vec(),
             camera,
             base.light,
             base.resolution,
@@ -214,7 +214,7 @@ fn main() {
         camera.far = base.camera.far + d;
         let moved = Scene::new(
             base.name.clone(),
-            base.triangles.clone(),
+            base.triangles.to_vec(),
             camera,
             base.light,
             base.resolution,

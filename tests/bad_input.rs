@@ -353,7 +353,7 @@ fn degenerate_triangles_are_dropped_and_counted() {
     assert_eq!(scene.stats.dropped_degenerate, 3);
     assert_eq!(scene.triangles.len(), 3);
     // Survivors keep the ids they had in the source.
-    assert_eq!(scene.source_ids, [0, 2, 5]);
+    assert_eq!(scene.source_ids[..], [0, 2, 5]);
     for (tri, z) in scene.triangles.iter().zip([0.0, 1.0, 2.0]) {
         assert!(tri.iter().all(|p| p.z == z), "{tri:?} not at z = {z}");
     }

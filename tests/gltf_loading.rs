@@ -61,7 +61,7 @@ fn load_through_spec(dir: &Path, gltf_path: &Path) -> Scene {
     assert_eq!(scene.stats.dropped_degenerate, 0);
     assert_eq!(scene.triangles.len(), scene.stats.source_triangles);
     let ids: Vec<u32> = (0..scene.triangles.len() as u32).collect();
-    assert_eq!(scene.source_ids, ids);
+    assert_eq!(scene.source_ids[..], ids[..]);
     assert_eq!(scene.resolution, [64, 48]);
     scene
 }
@@ -392,5 +392,5 @@ fn a_mesh_instanced_by_two_nodes_gives_twice_the_triangles() {
     expected.extend(one.iter().map(|t| t.map(|p| p + shift)));
     let scene = check_both_ways(dir.path(), &path, &expected, 0.0);
     assert_eq!(scene.stats.source_triangles, 4);
-    assert_eq!(scene.source_ids, [0, 1, 2, 3]);
+    assert_eq!(scene.source_ids[..], [0, 1, 2, 3]);
 }

@@ -476,7 +476,7 @@ fn far_point_lights_stay_exact() {
 fn coincident_triangles_build_in_bounded_time() {
     use glam::DVec3;
     let base = izb::scene::load("default").unwrap();
-    let mut triangles = base.triangles.clone();
+    let mut triangles = base.triangles.to_vec();
     let copy = [
         DVec3::new(0.0, 1.0, 0.0),
         DVec3::new(1.0, 1.0, 0.0),

@@ -426,3 +426,99 @@ fn without_a_display_the_viewer_says_how_to_get_one() {
         "{stderr}"
     );
 }
+
+/// The viewer keeps each IZB method's shadow pass resident: turning the
+/// light records new parameters into the pass the first frame made (no
+/// scene clone, BVH build or upload), an orbit moves the eye and makes the
+/// pass anew, and every frame's masks and lit fraction equal the batch
+/// `render` of the same view (exact mode, edge surfaces on: bit for bit).
+#[test]
+fn the_viewer_keeps_its_pass_resident_while_the_light_moves() {
+    use izb::bench::MethodKind;
+    use izb::gpu::{GBufferSource, GpuOptions, GpuRenderer};
+    use izb::view::state::{method_kind, ViewState};
+    if !has_device() {
+        return;
+    }
+    let tmp = TempDir::new("viewer_resident");
+    // (screenshot, orbit, light turn, whether the frame makes its pass)
+    let views = [
+        ("first", [0.0, 0.0], [0.0, 0.0], None),
+        ("turned", [0.0, 0.0], [20.0, 5.0], Some(false)),
+        ("turned_more", [0.0, 0.0], [35.0, 12.0], Some(false)),
+        ("orbited", [12.0, 4.0], [35.0, 12.0], Some(true)),
+        ("orbited_turned", [12.0, 4.0], [10.0, 20.0], Some(false)),
+    ];
+    let method = "izb32-exact";
+    let mut script = format!("overlay off\nmethod {method}\n");
+    for (name, orbit, light, _) in &views {
+        let d = tmp.join(name).display().to_string();
+        script += &format!(
+            "orbit {} {}\nlight {} {}\nscreenshot {d}\n",
+            orbit[0], orbit[1], light[0], light[1]
+        );
+    }
+    script += "quit\n";
+    let args = ["default", "--resolution", "96x54", "--window", "640x400"];
+    let Some(stats) = run_script(&tmp, &args, &script, &[]) else {
+        return;
+    };
+    assert_eq!(
+        stats["errors"].as_array().unwrap().len(),
+        0,
+        "{}",
+        stats["errors"]
+    );
+    assert_eq!(
+        stats["validation_messages"].as_array().unwrap().len(),
+        0,
+        "{}",
+        stats["validation_messages"]
+    );
+    assert!(stats["resident_frames"].as_u64().unwrap() >= 3, "{stats}");
+
+    let base = izb::scene::load("default")
+        .unwrap()
+        .with_resolution([96, 54])
+        .unwrap();
+    let Ok(MethodKind::Izb(settings)) = method_kind(method) else {
+        panic!("{method} is an IZB method");
+    };
+    assert!(settings.uses_edge_surfaces(&base));
+    let renderer = GpuRenderer::new(&GpuOptions::from_env()).unwrap();
+    let mut compared = 0;
+    for (name, orbit, light, made) in &views {
+        let dir = tmp.join(name);
+        let r = report(&dir);
+        let resident = &r["methods"][0]["render"]["resident_pass"];
+        if let Some(made) = made {
+            assert_eq!(resident["made_pass"], *made, "{name}: {resident}");
+        }
+        let mut state = ViewState::new(&base);
+        state.orbit = [orbit[0], orbit[1], 1.0];
+        state.light_turn = *light;
+        let scene = state.scene(&base, base.bounds()).unwrap();
+        let batch = renderer
+            .render(&scene, settings, GBufferSource::Gpu)
+            .unwrap();
+        let exr = dir.join("visibility.exr");
+        let (_, _, masks) = izb::output::read_exr_mask(&exr, "mask").unwrap();
+        assert_eq!(
+            masks, batch.masks,
+            "{name}: the viewer's masks differ from render's"
+        );
+        let (_, _, lit) = read_exr_channel(&exr, "visibility").unwrap();
+        let same = |a: f32, b: f32| a == b || (a.is_nan() && b.is_nan());
+        let differ = lit
+            .iter()
+            .zip(&batch.visibility)
+            .filter(|(a, b)| !same(**a, **b));
+        assert_eq!(
+            differ.count(),
+            0,
+            "{name}: the lit fraction differs from render's"
+        );
+        compared += 1;
+    }
+    assert_eq!(compared, views.len());
+}

@@ -125,7 +125,7 @@ fn indexed_mesh(scene: &Scene, origin: DVec3) -> (Vec<Vec3>, Vec<u32>) {
     let mut at: HashMap<[u64; 3], u32> = HashMap::new();
     let mut vertices = Vec::new();
     let mut indices = Vec::with_capacity(scene.triangles.len() * 3);
-    for t in &scene.triangles {
+    for t in scene.triangles.iter() {
         for v in t {
             let key = v.to_array().map(f64::to_bits);
             let i = *at.entry(key).or_insert_with(|| {

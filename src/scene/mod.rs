@@ -44,6 +44,7 @@ pub use spec::{CameraSpec, LightSpec, SceneSpec, MAX_RESOLUTION};
 
 use glam::DVec3;
 use std::path::Path;
+use std::sync::Arc;
 
 /// One triangle in world space, `f64`.
 pub type Triangle = [DVec3; 3];
@@ -176,11 +177,13 @@ fn coincidence_key(t: &Triangle) -> u64 {
 pub struct Scene {
     pub name: String,
     /// Non-degenerate world-space triangles. The index into this array is the
-    /// triangle id used by every pass.
-    pub triangles: Vec<Triangle>,
+    /// triangle id used by every pass. Shared, never changed in place: a
+    /// scene seen from another camera or light (the viewer's every frame)
+    /// is a clone that copies no triangle.
+    pub triangles: Arc<[Triangle]>,
     /// For each triangle, its index in the flattened source array (before
     /// degenerate triangles were dropped): a stable id across runs.
-    pub source_ids: Vec<u32>,
+    pub source_ids: Arc<[u32]>,
     pub stats: GeometryStats,
     pub camera: Camera,
     pub light: Light,
@@ -235,8 +238,8 @@ impl Scene {
         };
         let scene = Scene {
             name: name.into(),
-            triangles: kept,
-            source_ids,
+            triangles: kept.into(),
+            source_ids: source_ids.into(),
             stats,
             camera,
             light,
@@ -312,13 +315,24 @@ impl Scene {
     /// Same scene under a light of another size, in the spec's units
     /// (`--light-size`: degrees for a directional light, scene units for
     /// a point light; 0 for hard shadows).
-    pub fn with_light_size(mut self, size: f64) -> Result<Self, SceneError> {
+    pub fn with_light_size(self, size: f64) -> Result<Self, SceneError> {
+        let bounds = self.bounds();
+        self.with_light_size_in(size, bounds)
+    }
+
+    /// [`Self::with_light_size`] with the triangles' `bounds` known (a
+    /// resident scene's: no pass over its triangles).
+    pub fn with_light_size_in(
+        mut self,
+        size: f64,
+        bounds: (DVec3, DVec3),
+    ) -> Result<Self, SceneError> {
         self.light
             .validate_size(size)
             .map_err(|m| SceneError::Invalid(format!("--light-size: {m}")))?;
         let radius = self.light.radius_from_spec(size);
         self.light
-            .validate_sphere_size(radius, self.radius())
+            .validate_sphere_size(radius, (bounds.1 - bounds.0).length() * 0.5)
             .map_err(|m| SceneError::Invalid(format!("--light-size: {m}")))?;
         self.light_radius = radius;
         Ok(self)
@@ -370,9 +384,11 @@ impl Scene {
 
     /// Moves the whole scene (geometry, camera, point light) by `offset`.
     pub fn translated(mut self, offset: DVec3) -> Self {
-        for v in self.triangles.iter_mut().flatten() {
-            *v += offset;
-        }
+        self.triangles = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| v + offset))
+            .collect();
         self.camera.eye += offset;
         self.camera.target += offset;
         if let Light::Point { position } = &mut self.light {

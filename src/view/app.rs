@@ -30,6 +30,8 @@ const BUSY_FRAME: Duration = Duration::from_millis(33);
 pub struct App {
     options: ViewOptions,
     base: Arc<Scene>,
+    /// `base`'s bounds, computed once (each view is checked against them).
+    base_bounds: (glam::DVec3, glam::DVec3),
     pub state: ViewState,
     /// The generation of the state the window asks for (bumped on each
     /// change of [`ShadowKey`]).
@@ -37,6 +39,9 @@ pub struct App {
     key: Option<ShadowKey>,
     /// When the current generation was requested, until its frame arrives.
     pending_since: Option<Instant>,
+    /// Seconds the window thread took to make the current generation's
+    /// scene and request.
+    request_seconds: f64,
     current_scene: Option<Arc<Scene>>,
     truth_generation: u64,
     truth_key: Option<([f64; 3], [f64; 2], f64)>,
@@ -68,11 +73,13 @@ impl App {
         let state = ViewState::new(&base);
         let script = options.script.iter().cloned().collect();
         App {
+            base_bounds: base.bounds(),
             base,
             state,
             generation: 0,
             key: None,
             pending_since: None,
+            request_seconds: 0.0,
             current_scene: None,
             truth_generation: 0,
             truth_key: None,
@@ -135,7 +142,8 @@ impl App {
                 t.invalidate(self.truth_generation);
             }
         }
-        match self.state.scene(&self.base) {
+        let made = Instant::now();
+        match self.state.scene(&self.base, self.base_bounds) {
             Ok(scene) => {
                 self.generation += 1;
                 let scene = Arc::new(scene);
@@ -153,6 +161,7 @@ impl App {
                         candidates: key.candidates,
                     });
                 }
+                self.request_seconds = made.elapsed().as_secs_f64();
             }
             Err(e) => self.messages = vec![format!("this view cannot be rendered: {e}")],
         }
@@ -177,6 +186,12 @@ impl App {
                     t.pause(false);
                 }
                 self.stats.frame_seconds.push(r.wall_seconds);
+                let host = r.host_cpu_seconds + self.request_seconds;
+                self.stats.shadow_host_millis.push(host * 1e3);
+                for made in r.frames.iter().filter_map(|f| f.made_pass) {
+                    self.stats.passes_made += usize::from(made);
+                    self.stats.resident_frames += usize::from(!made);
+                }
             }
             self.frames_since_shown = 0;
             self.shown = Some(Shown {

@@ -14,6 +14,7 @@
 pub mod app;
 pub mod images;
 mod present;
+pub mod resident;
 pub mod screenshot;
 pub mod script;
 pub mod state;
@@ -58,6 +59,15 @@ pub struct ViewStats {
     computing_millis: Vec<f64>,
     /// Worker wall seconds of each shadow frame shown.
     pub frame_seconds: Vec<f64>,
+    /// Host work of each shadow frame shown, in milliseconds: the CPU
+    /// time of the worker thread (recording, read-back, conversion; not
+    /// the time it waited for the device) plus the window thread's time to
+    /// make the view's scene and send the request.
+    pub shadow_host_millis: Vec<f64>,
+    /// IZB frames recorded into a resident pass made by an earlier frame
+    /// (parameters and commands only), and passes made.
+    pub resident_frames: usize,
+    pub passes_made: usize,
     pub screenshots: Vec<PathBuf>,
     pub errors: Vec<String>,
     pub validation_messages: Vec<String>,

@@ -155,8 +155,10 @@ impl ViewState {
         (self.orbit, self.light_turn, self.light_size)
     }
 
-    /// `base` with the orbit, the light turn and the light size applied.
-    pub fn scene(&self, base: &Scene) -> Result<Scene, String> {
+    /// `base` with the orbit, the light turn and the light size applied;
+    /// `bounds` are `base`'s, computed once: the clone shares the
+    /// triangles, so a new view costs no pass over them.
+    pub fn scene(&self, base: &Scene, bounds: (DVec3, DVec3)) -> Result<Scene, String> {
         let mut scene = base.clone();
         let c = base.camera;
         let up = c.up.normalize();
@@ -173,9 +175,9 @@ impl ViewState {
             },
         };
         scene = scene
-            .with_light_size(self.light_size)
+            .with_light_size_in(self.light_size, bounds)
             .map_err(|e| e.to_string())?;
-        scene.validate().map_err(|e| e.to_string())?;
+        scene.validate_view(bounds).map_err(|e| e.to_string())?;
         Ok(scene)
     }
 }
@@ -214,7 +216,13 @@ pub fn turn(v: DVec3, up: DVec3, yaw_deg: f64, pitch_deg: f64) -> DVec3 {
 /// A viewer method by name: an IZB mode or a shadow-map baseline (the
 /// names `izb bench` takes).
 pub fn method_kind(name: &str) -> Result<MethodKind, String> {
-    let methods = parse_methods(&[name.to_string()], &[], IzbSettings::default())?;
+    // Edge pixels take their per-sample surfaces as in `izb render`;
+    // `izb32-flat` keeps every sample on the centre's µQuad.
+    let izb = IzbSettings {
+        edge_surfaces: true,
+        ..IzbSettings::default()
+    };
+    let methods = parse_methods(&[name.to_string()], &[], izb)?;
     match methods.as_slice() {
         [m] if matches!(
             m.kind,
@@ -284,7 +292,7 @@ mod tests {
     #[test]
     fn the_untouched_state_renders_the_scene_as_loaded() {
         let base = crate::scene::load("default").unwrap();
-        let s = ViewState::new(&base).scene(&base).unwrap();
+        let s = ViewState::new(&base).scene(&base, base.bounds()).unwrap();
         assert!((s.camera.eye - base.camera.eye).length() < 1e-9);
         match (s.light, base.light) {
             (Light::Directional { direction: a }, Light::Directional { direction: b }) => {

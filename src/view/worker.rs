@@ -7,6 +7,7 @@
 //! for the next frame; a frame lavapipe's loop cap refuses is rendered by
 //! the CPU twin instead (as `izb render --backend auto` does), and says so.
 
+use super::resident::ResidentPasses;
 use super::state::method_kind;
 use crate::bench::MethodKind;
 use crate::bvh::SceneBvh;
@@ -41,7 +42,6 @@ pub struct MethodFrame {
     pub masks: Vec<u32>,
     pub masks_high: Vec<u32>,
     pub shaded: Vec<[u8; 3]>,
-    pub gbuffer: GBuffer,
     /// `vulkan` or `cpu`, with the reason when the CPU twin stood in.
     pub backend: String,
     /// Per pass: name and GPU milliseconds (CPU seconds × 1000 on the CPU).
@@ -51,6 +51,9 @@ pub struct MethodFrame {
     pub memory_bytes: u64,
     /// The method's report, as `render` writes it in `report.json`.
     pub report: serde_json::Value,
+    /// IZB methods on the GPU: the frame was recorded into the method's
+    /// resident pass (`Some(true)` when it made the pass first).
+    pub made_pass: Option<bool>,
 }
 
 /// What the worker sends back for a request.
@@ -64,6 +67,10 @@ pub struct FrameResult {
     /// The compute device's validation messages during this frame.
     pub validation: Vec<String>,
     pub wall_seconds: f64,
+    /// CPU seconds the worker thread ran for the frame's methods (its
+    /// host work: recording, read-back, conversion), not the seconds it
+    /// waited for the device.
+    pub host_cpu_seconds: f64,
 }
 
 /// The worker thread's handle.
@@ -129,63 +136,138 @@ fn run(
     device_name: Arc<std::sync::Mutex<String>>,
 ) {
     super::lower_thread_priority();
-    let mut renderer: Option<GpuRenderer> = None;
-    while let Ok(mut request) = inbox.recv() {
-        while let Ok(newer) = inbox.try_recv() {
-            request = newer;
-        }
-        let start = Instant::now();
-        let mut errors = Vec::new();
-        if renderer.is_none() {
-            match GpuRenderer::new(&options) {
-                Ok(r) => {
-                    *device_name.lock().unwrap_or_else(|e| e.into_inner()) =
-                        format!("{} ({})", r.context.info().name, r.context.info().kind);
-                    renderer = Some(r)
+    let mut next = inbox.recv().ok();
+    while let Some(request) = next.take() {
+        // One device for as long as it lives; a failure to open it, or
+        // its loss, is the frame's message, and the next request opens
+        // it anew.
+        match GpuRenderer::new(&options) {
+            Ok(r) => {
+                *device_name.lock().unwrap_or_else(|e| e.into_inner()) =
+                    format!("{} ({})", r.context.info().name, r.context.info().kind);
+                next = serve(&r, request, &inbox, &outbox, &wake);
+            }
+            Err(e) => {
+                let error = format!("compute device: {e}");
+                if !send(&outbox, &wake, frame(None, request, &inbox, vec![error])) {
+                    return;
                 }
-                Err(e) => errors.push(format!("compute device: {e}")),
+                next = inbox.recv().ok();
             }
         }
-        let mut frames = Vec::new();
-        let mut validation = Vec::new();
-        if let Some(r) = &renderer {
-            for name in &request.methods {
-                match render_method(r, &request.scene, name) {
-                    Ok(f) => frames.push(f),
-                    Err(e) => errors.push(format!("{name}: {e:#}")),
-                }
-            }
-            validation.extend(r.take_validation_messages());
-            if r.context.shared.is_poisoned() {
-                errors
-                    .push("the compute device was lost; it is reopened for the next frame".into());
-                renderer = None;
-            }
+    }
+}
+
+/// Renders requests on `r`, keeping its IZB passes resident, until the
+/// device is lost (then returns the next request, for a new device) or
+/// the window's side closed (`None`).
+fn serve(
+    r: &GpuRenderer,
+    first: FrameRequest,
+    inbox: &Receiver<FrameRequest>,
+    outbox: &Sender<FrameResult>,
+    wake: &impl Fn(),
+) -> Option<FrameRequest> {
+    let mut passes = ResidentPasses::new(r);
+    let mut request = first;
+    loop {
+        passes.retain(&request.methods);
+        let result = frame(Some((r, &mut passes)), request, inbox, Vec::new());
+        if !send(outbox, wake, result) {
+            return None;
         }
-        let candidates = request.candidates.then(|| {
-            let bvh = SceneBvh::build(&request.scene);
-            let settings = frames.first().and_then(|f| f.izb).unwrap_or_default();
-            candidate_counts(&request.scene, &bvh, settings)
-        });
-        let result = FrameResult {
-            generation: request.generation,
-            scene: request.scene,
-            frames,
-            candidates,
-            errors,
-            validation,
-            wall_seconds: start.elapsed().as_secs_f64(),
-        };
-        if outbox.send(result).is_err() {
-            break;
+        if r.context.shared.is_poisoned() {
+            return inbox.recv().ok();
         }
+        request = inbox.recv().ok()?;
+    }
+}
+
+/// Sends `result` and wakes the window; false once the window's side is
+/// gone.
+fn send(outbox: &Sender<FrameResult>, wake: &impl Fn(), result: FrameResult) -> bool {
+    let sent = outbox.send(result).is_ok();
+    if sent {
         wake();
     }
+    sent
+}
+
+/// The newest of `request` and those queued behind it, rendered on
+/// `device` (none: only `errors` and the candidates).
+fn frame(
+    device: Option<(&GpuRenderer, &mut ResidentPasses)>,
+    mut request: FrameRequest,
+    inbox: &Receiver<FrameRequest>,
+    mut errors: Vec<String>,
+) -> FrameResult {
+    while let Ok(newer) = inbox.try_recv() {
+        request = newer;
+    }
+    let start = Instant::now();
+    let cpu_start = thread_cpu_seconds();
+    let mut frames = Vec::new();
+    let mut validation = Vec::new();
+    if let Some((r, passes)) = device {
+        for name in &request.methods {
+            match render_method(r, passes, &request.scene, name) {
+                Ok(f) => frames.push(f),
+                Err(e) => errors.push(format!("{name}: {e:#}")),
+            }
+        }
+        validation.extend(r.take_validation_messages());
+        if r.context.shared.is_poisoned() {
+            errors.push("the compute device was lost; it is reopened for the next frame".into());
+        }
+    }
+    let host_cpu_seconds = thread_cpu_seconds() - cpu_start;
+    let candidates = request.candidates.then(|| {
+        let bvh = SceneBvh::build(&request.scene);
+        let settings = frames.first().and_then(|f| f.izb).unwrap_or_default();
+        candidate_counts(&request.scene, &bvh, settings)
+    });
+    FrameResult {
+        generation: request.generation,
+        scene: request.scene,
+        frames,
+        candidates,
+        errors,
+        validation,
+        wall_seconds: start.elapsed().as_secs_f64(),
+        host_cpu_seconds,
+    }
+}
+
+/// CPU seconds this thread has run: its host work, without the time it
+/// slept waiting for the device (lavapipe executes on threads of its own).
+#[cfg(target_os = "linux")]
+fn thread_cpu_seconds() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `t` is a valid timespec to write; the clock id is a constant.
+    let ok = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) } == 0;
+    if ok {
+        t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+    } else {
+        0.0
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn thread_cpu_seconds() -> f64 {
+    0.0
 }
 
 /// Renders one method on the GPU, or on the CPU twin when lavapipe's
 /// loop cap refuses the frame.
-fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<MethodFrame> {
+fn render_method(
+    r: &GpuRenderer,
+    passes: &mut ResidentPasses,
+    scene: &Scene,
+    name: &str,
+) -> anyhow::Result<MethodFrame> {
     let kind = method_kind(name).map_err(anyhow::Error::msg)?;
     let device = format!("vulkan: {}", r.context.info().name);
     let light = scene.light.relative_to(scene.camera.eye);
@@ -195,35 +277,46 @@ fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<M
             .collect()
     };
     match kind {
-        MethodKind::Izb(settings) => match r.render(scene, settings, GBufferSource::Gpu) {
+        MethodKind::Izb(settings) => match passes.render(scene, name, settings) {
             Ok(out) => {
-                let rep = &out.report;
-                let pass_millis = rep.gpu_milliseconds.as_ref().map_or(Vec::new(), |m| {
-                    vec![
-                        ("gbuffer", m.gbuffer),
-                        ("light setup", m.light_setup),
-                        ("bin", m.bin),
-                        ("evaluate", m.evaluate),
-                        ("resolve", m.resolve),
-                        ("total", m.total),
-                    ]
+                let f = out.frame;
+                let report = serde_json::json!({
+                    "method": name,
+                    "device": r.context.info().name,
+                    "settings": settings,
+                    "resident_pass": {
+                        "made_pass": out.made_pass,
+                        "grown": out.grown,
+                        "record_microseconds": out.record_seconds * 1e6,
+                        "device_milliseconds": out.device_seconds * 1e3,
+                        "cell_entries": out.status.cell_entries,
+                        "edge_slots_needed": out.status.edge_slots_needed,
+                    },
+                    "counters": {
+                        "shadow_tested": out.status.shadow_tested,
+                        "pixels_tested": out.status.pixels_tested,
+                        "tests_spawned": out.status.tests_spawned,
+                    },
                 });
-                let c = &rep.counters;
                 Ok(MethodFrame {
                     name: name.into(),
                     izb: Some(settings),
                     tests_per_pixel: Some(
-                        c.tests_spawned as f64 / f64::from(c.pixels_tested.max(1)),
+                        out.status.tests_spawned as f64
+                            / f64::from(out.status.pixels_tested.max(1)),
                     ),
-                    memory_bytes: rep.memory_total_bytes,
-                    report: serde_json::to_value(rep)?,
-                    pass_millis,
+                    memory_bytes: out.memory_bytes,
+                    report,
+                    pass_millis: vec![
+                        ("record (host)", out.record_seconds * 1e3),
+                        ("frame (device)", out.device_seconds * 1e3),
+                    ],
                     backend: device,
-                    visibility: out.visibility,
-                    masks: out.masks,
-                    masks_high: out.masks_high,
-                    shaded: out.shaded,
-                    gbuffer: out.gbuffer,
+                    visibility: f.visibility,
+                    masks: f.masks,
+                    masks_high: f.masks_high,
+                    shaded: f.shaded,
+                    made_pass: Some(out.made_pass),
                 })
             }
             Err(e @ GpuError::LoopCap { .. }) => {
@@ -243,7 +336,7 @@ fn render_method(r: &GpuRenderer, scene: &Scene, name: &str) -> anyhow::Result<M
                     visibility: out.visibility,
                     masks: out.masks,
                     masks_high: out.masks_high,
-                    gbuffer: out.gbuffer,
+                    made_pass: None,
                 })
             }
             Err(e) => Err(e.into()),
@@ -339,7 +432,7 @@ fn baseline_frame(
                 visibility: out.visibility,
                 masks: Vec::new(),
                 masks_high: Vec::new(),
-                gbuffer: out.gbuffer,
+                made_pass: None,
             })
         }
         Err(e @ GpuError::LoopCap { .. }) => {
@@ -358,7 +451,7 @@ fn baseline_frame(
                 visibility: out.visibility,
                 masks: Vec::new(),
                 masks_high: Vec::new(),
-                gbuffer: g,
+                made_pass: None,
             })
         }
         Err(e) => Err(e.into()),

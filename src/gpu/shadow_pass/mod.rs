@@ -61,7 +61,7 @@ mod status;
 
 pub use frame_view::FrameView;
 pub use host_geometry::HostGeometryConfig;
-pub use read_back::PassImages;
+pub use read_back::{PassFrame, PassImages};
 pub use status::PassStatus;
 
 use super::frame::{GBufferSource, GpuRenderer};
@@ -360,6 +360,12 @@ impl<'r> ShadowPass<'r> {
     /// Entries of the cell list now.
     pub fn cell_capacity(&self) -> u64 {
         self.sizes.cell_capacity
+    }
+
+    /// Bytes of the pass's buffers, its frame slots' status included.
+    pub fn memory_bytes(&self) -> u64 {
+        let buffers: u64 = self.buffers.iter().map(|b| b.size()).sum();
+        buffers + self.status.iter().map(|b| b.size()).sum::<u64>()
     }
 
     /// Records frame `slot`'s shadow pass for `view` into `cmd`.

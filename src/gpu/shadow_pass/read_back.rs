@@ -3,6 +3,7 @@
 
 use super::ShadowPass;
 use crate::gbuffer::{GBuffer, DEPTH_SURFACE, NO_HIT};
+use crate::gpu::edge_surfaces::{lit_fraction_over_counted, FrameEdges, TracedEdges};
 use crate::gpu::frame_report::gbuffer_from_gpu;
 use crate::gpu::pass_copies::read_back;
 use crate::gpu::shared::{self, binding, counter};
@@ -81,6 +82,12 @@ impl ShadowPass<'_> {
     /// No frame of this pass is executing.
     pub unsafe fn read_back_gbuffer(&self) -> Result<GBuffer, GpuError> {
         let pixels = self.scene.pixel_count();
+        // With traced edge surfaces the extra surfaces follow the pixels
+        // (receiver rows below the image).
+        let entries = match self.sizes.edge_surfaces {
+            Some(_) => self.sizes.receivers as usize,
+            None => pixels,
+        };
         let normals = self.sizes.normal_entries as usize;
         let wanted = [
             binding::G_ID_FLAGS,
@@ -93,10 +100,10 @@ impl ShadowPass<'_> {
         ];
         let triangles = self.frame_triangles as usize;
         let words = [
-            pixels,
-            3 * pixels,
-            3 * pixels,
-            3 * pixels,
+            entries,
+            3 * entries,
+            3 * entries,
+            3 * entries,
             4 * normals,
             3 * triangles,
             counter::WORDS,
@@ -143,8 +150,119 @@ impl ShadowPass<'_> {
                     .collect(),
             );
         }
+        if let Some(slots) = self.sizes.edge_surfaces {
+            self.attach_edge_surfaces(&mut g, slots.surfaces, &counters)?;
+        }
+        g.truncate(pixels);
         Ok(g)
     }
+
+    /// The `edge_surfaces` step's tables read back into `g` (whose
+    /// entries past the pixels are the extra surfaces' slots), as the
+    /// batch frame attaches them.
+    fn attach_edge_surfaces(
+        &self,
+        g: &mut GBuffer,
+        capacity: u64,
+        counters: &[u32],
+    ) -> Result<(), GpuError> {
+        if let Some((records, coverage)) = self.read_edge_tables(capacity, counters)? {
+            let pixels = self.scene.pixel_count();
+            let slots: Vec<usize> = (pixels..pixels + coverage.len()).collect();
+            let traced = TracedEdges {
+                pixels: records,
+                coverage,
+                surfaces: g.select(&slots),
+            };
+            g.edges = Some(Box::new(traced.into_edge_surfaces(counters)));
+        }
+        Ok(())
+    }
+
+    /// The `edge_surfaces` step's tables of the last frame: per pixel its
+    /// record, per filled slot its coverage.
+    #[allow(clippy::type_complexity)]
+    fn read_edge_tables(
+        &self,
+        capacity: u64,
+        counters: &[u32],
+    ) -> Result<Option<(Vec<[u32; 4]>, Vec<u32>)>, GpuError> {
+        let size = |b: u32| self.buffers[b as usize].size() as usize / 4;
+        let wanted = [binding::EDGE_PIXELS, binding::EDGE_COVERAGE];
+        let [pixel_words, coverage_words] =
+            read_back(self.renderer, &self.buffers, wanted, wanted.map(size))?;
+        let read = |b: u32| -> Result<&[u8], GpuError> {
+            Ok(bytemuck::cast_slice(match b {
+                binding::EDGE_PIXELS => &pixel_words,
+                _ => &coverage_words,
+            }))
+        };
+        let edges = FrameEdges::Traced { capacity };
+        Ok(edges.read_back(&read, counters, self.scene.resolution)?.1)
+    }
+
+    /// The last frame's images as the batch `render` returns them —
+    /// masks, lit fraction (NaN where not shadow-tested; at edge pixels
+    /// over the samples that count) and shaded pixels — copied back, for
+    /// tools (the viewer): it allocates, submits and waits. The G-buffer
+    /// is [`Self::read_back_gbuffer`]'s.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing.
+    pub unsafe fn read_back_frame(&self) -> Result<PassFrame, GpuError> {
+        let pixels = self.scene.pixel_count();
+        let halves = self.config.settings.mask_halves(&self.scene);
+        let wanted = [
+            binding::MASKS,
+            binding::MASKS_HIGH,
+            binding::SHADED,
+            binding::COUNTERS,
+        ];
+        let words = [pixels, pixels * (halves - 1), pixels, counter::WORDS];
+        let [masks, masks_high, shaded, counters] =
+            read_back(self.renderer, &self.buffers, wanted, words)?;
+        // The samples that count at edge pixels: the records' second word,
+        // on the first mask half only (as `GBuffer::counted_samples` of
+        // the batch frame's G-buffer).
+        let counted: Option<Vec<[u32; 4]>> = match self.sizes.edge_surfaces {
+            Some(slots) => self
+                .read_edge_tables(slots.surfaces, &counters)?
+                .map(|(records, _)| records),
+            None => None,
+        };
+        let alpha = |i: usize| (shaded[i] >> 24) as u8;
+        let visibility = (0..pixels)
+            .map(|i| match &counted {
+                Some(records) => {
+                    let samples = records[i][1].count_ones() + 32 * (halves as u32 - 1);
+                    lit_fraction_over_counted(alpha(i), samples)
+                }
+                None => shared::lit_fraction_of_alpha(alpha(i), 32 * halves as u32),
+            })
+            .collect();
+        let shaded = shaded
+            .iter()
+            .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
+            .collect();
+        Ok(PassFrame {
+            masks,
+            masks_high,
+            visibility,
+            shaded,
+        })
+    }
+}
+
+/// A frame as [`ShadowPass::read_back_frame`] copies it: the batch
+/// render's images ([`crate::gpu::frame_report::GpuRender`]'s, without
+/// the G-buffer).
+pub struct PassFrame {
+    pub masks: Vec<u32>,
+    pub masks_high: Vec<u32>,
+    /// Lit fraction, NaN where not shadow-tested.
+    pub visibility: Vec<f32>,
+    /// Shaded image, RGB8 per pixel.
+    pub shaded: Vec<[u8; 3]>,
 }
 
 /// A frame's images as [`ShadowPass::read_back`] copies them.

@@ -24,6 +24,11 @@ pub struct PassStatus {
     pub loop_cap_trips: u32,
     /// Pixels shadow-tested.
     pub shadow_tested: u32,
+    /// Receivers (pixels and edge pixels' extra surfaces) that ran
+    /// frustum-triangle tests, and the tests they ran: the frame's work,
+    /// steadier than its time.
+    pub pixels_tested: u32,
+    pub tests_spawned: u64,
     /// Pixels of the host's visibility buffer stored as misses because
     /// their id named no triangle of the pass, or a triangle whose plane
     /// their centre ray does not cross in front of the eye.
@@ -73,6 +78,9 @@ impl ShadowPass<'_> {
             cell_list_overrun: c[counter::CAPACITY_EXCEEDED] != 0,
             loop_cap_trips: c[counter::LOOP_BUDGET_EXCEEDED],
             shadow_tested: c[counter::SHADOW_TESTED],
+            pixels_tested: c[counter::PIXELS_TESTED],
+            tests_spawned: u64::from(c[counter::TESTS_SPAWNED])
+                | (u64::from(c[counter::TESTS_SPAWNED + 1]) << 32),
             visibility_rejected: c[counter::VISIBILITY_REJECTED],
             index_out_of_range: c[counter::INDEX_OUT_OF_RANGE],
             outside_bounds: c[counter::OUTSIDE_BOUNDS],
