@@ -9,22 +9,24 @@
 //! descriptor-set counters say so.
 
 use crate::after_loop::{read_back, record_alone};
+use crate::first_frame::{twin_on_pass_gbuffer, TwinComparison};
+use crate::gpu_timing::{GpuMillis, Mark, PassTimer};
 use crate::host_device::HostGpu;
-use crate::raster::{OwnedBuffer, OwnedImage};
-use crate::targets::{HostDepth, Targets};
+use crate::mesh::{host_buffer, indexed_mesh};
+use crate::targets::{declared, HostDepth, Targets};
 use ash::vk;
-use glam::{DMat3, DVec3, Vec3};
-use gpu_allocator::MemoryLocation;
+use glam::DMat3;
 use izb::cpu::{IzbSettings, SampleMode};
-use izb::gpu::gather_draws::{draw_table, FrameGeometry, HostBuffer, HostDraw, HostIndices};
-use izb::gpu::host_images::{FrameImages, HostImage};
+use izb::gpu::context::HostCounts;
+use izb::gpu::gather_draws::{FrameGeometry, HostBuffer, HostDraw, HostIndices};
+use izb::gpu::host_images::FrameImages;
 use izb::gpu::shadow_pass::{
-    FrameView, GBufferInput, HostGeometryConfig, PassStatus, ShadowPass, ShadowPassConfig,
+    FrameView, GBufferInput, HostGeometryConfig, PassFrame, PassStatus, ShadowPass,
+    ShadowPassConfig,
 };
 use izb::gpu::visibility_raster::raster_view;
 use izb::gpu::GpuRenderer;
 use izb::scene::{Light, Scene};
-use std::collections::HashMap;
 use std::time::Instant;
 
 /// What a run is asked to do.
@@ -42,6 +44,9 @@ pub struct HostOptions {
     /// The G-buffer the pass reads: the host's depth and normal in this
     /// format and convention, or (`None`) its visibility buffer.
     pub depth: Option<HostDepth>,
+    /// Wait for frame 0 before recording frame 1, read its G-buffer and
+    /// images back and run the CPU twin on them ([`HostRun::first_frame`]).
+    pub check_first_frame: bool,
 }
 
 /// What a run measured, and its last frame read back after the loop.
@@ -82,6 +87,21 @@ pub struct HostRun {
     /// frame read back and fed to the CPU twin (`render_cpu_on`) — of its
     /// pixels, how many masks equal the pass's, and how many there are.
     pub twin_masks_equal: Option<[usize; 2]>,
+    /// What izb did on the host inside `record` in the frames after the
+    /// first: buffers, descriptor sets and mappings made, submissions
+    /// waited for (every read-back is one).
+    pub in_frames_after_first: HostCounts,
+    /// The host's GPU time per pass, milliseconds, median over the frames
+    /// (timestamps; `None` where the queue has none).
+    pub gpu_ms: Option<GpuMillis>,
+    /// With `check_first_frame`: the CPU twin on frame 0's G-buffer.
+    pub first_frame: Option<TwinComparison>,
+    /// izb's own per-pass times of each frame whose status was read.
+    #[serde(skip)]
+    pub pass_millis: Vec<izb::settings::PassTimes>,
+    /// With `check_first_frame`: frame 0's images, and its view.
+    #[serde(skip)]
+    pub first_frame_images: Option<(PassFrame, FrameView)>,
     /// The last frame's view (not serialised).
     #[serde(skip)]
     pub last_view: Option<FrameView>,
@@ -116,26 +136,6 @@ pub fn view_at(scene: &Scene, k: usize) -> FrameView {
         light_radius: scene.light_radius,
         images: FrameImages::default(),
     }
-}
-
-/// The scene's triangles as the host's indexed mesh: distinct vertices
-/// relative to `origin`, rounded to f32, and three indices a triangle in
-/// the scene's order (so `gl_PrimitiveID` is the scene's triangle id).
-fn indexed_mesh(scene: &Scene, origin: DVec3) -> (Vec<Vec3>, Vec<u32>) {
-    let mut at: HashMap<[u64; 3], u32> = HashMap::new();
-    let mut vertices = Vec::new();
-    let mut indices = Vec::with_capacity(scene.triangles.len() * 3);
-    for t in scene.triangles.iter() {
-        for v in t {
-            let key = v.to_array().map(f64::to_bits);
-            let i = *at.entry(key).or_insert_with(|| {
-                vertices.push((*v - origin).as_vec3());
-                vertices.len() as u32 - 1
-            });
-            indices.push(i);
-        }
-    }
-    (vertices, indices)
 }
 
 /// Runs `options.frames` frames of `scene` on the host's device.
@@ -261,11 +261,17 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         loop_capped_frames: Vec::new(),
         validation_messages: Vec::new(),
         twin_masks_equal: None,
+        in_frames_after_first: HostCounts::default(),
+        gpu_ms: None,
+        first_frame: None,
+        first_frame_images: None,
+        pass_millis: Vec::new(),
         last_view: None,
         last_ids: Vec::new(),
         last_masks: Vec::new(),
     };
     let mut after_first = [0; 2];
+    let mut timer = PassTimer::new(gpu, options.frames_in_flight);
     // Per slot: the frame submitted on it whose status is not read yet,
     // and whether its output images are new (nothing to keep: UNDEFINED).
     let mut unread: Vec<Option<usize>> = vec![None; options.frames_in_flight];
@@ -282,6 +288,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 .map_err(|e| e.to_string())?;
             // SAFETY: the slot's frame is done (its fence) and none runs.
             unsafe { read_status(&mut pass, &mut run, &mut unread, slot, true) }?;
+            if let Some(t) = &mut timer {
+                // SAFETY: as above.
+                unsafe { t.collect(d, slot) };
+            }
             if let Some((_, size)) = options.resize.filter(|&(at, _)| at == k) {
                 // As a swapchain is recreated: every frame done, the
                 // targets made anew, the pass resized.
@@ -361,6 +371,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             // SAFETY: the slot's previous submission is done (its fence), so
             // its command buffer may be reset and recorded again.
             unsafe { d.begin_command_buffer(cmd, &begin) }.map_err(|e| e.to_string())?;
+            if let Some(t) = &mut timer {
+                // SAFETY: `cmd` is recording; the slot's marks were read.
+                unsafe { t.start(d, cmd, slot) };
+            }
             let reverse_z = izb::gbuffer::DepthConvention {
                 near: view.camera.near,
                 far: Some(view.camera.far),
@@ -377,7 +391,12 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             // live until after the loop's idle wait; the slot's last frame is
             // done.
             unsafe { targets.raster.record(gpu, cmd, slot, mesh, &push) };
+            if let Some(t) = &timer {
+                // SAFETY: `cmd` is recording, started above.
+                unsafe { t.mark(d, cmd, slot, Mark::RasterDone) };
+            }
             let before = renderer.context.shared.allocations();
+            let counts_before = renderer.context.shared.host_counts();
             let recorded = Instant::now();
             // SAFETY: `cmd` records on this thread and is submitted below to
             // the pass's queue after every earlier frame; the slot's previous
@@ -392,6 +411,18 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 for i in 0..2 {
                     after_first[i] += made[i] - before[i];
                 }
+                let (now, sum) = (
+                    renderer.context.shared.host_counts(),
+                    &mut run.in_frames_after_first,
+                );
+                sum.buffers += now.buffers - counts_before.buffers;
+                sum.descriptor_sets += now.descriptor_sets - counts_before.descriptor_sets;
+                sum.mappings += now.mappings - counts_before.mappings;
+                sum.waits += now.waits - counts_before.waits;
+            }
+            if let Some(t) = &timer {
+                // SAFETY: `cmd` is recording, started above.
+                unsafe { t.mark(d, cmd, slot, Mark::ShadowPassDone) };
             }
             // SAFETY: `cmd` is recording.
             unsafe { d.end_command_buffer(cmd) }.map_err(|e| e.to_string())?;
@@ -419,6 +450,22 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             run.frame_cpu_us.push(start.elapsed().as_secs_f64() * 1e6);
             unread[slot] = Some(k);
             run.last_view = Some(view);
+            if k == 0 && options.check_first_frame {
+                // A check outside the measured frames: frame 0 waited for
+                // before frame 1 overwrites the pass's G-buffer.
+                // SAFETY: the fence is live.
+                unsafe { d.wait_for_fences(&[fences[slot]], true, u64::MAX) }
+                    .map_err(|e| e.to_string())?;
+                let mesh = (&vertices[..], &indices[..]);
+                // SAFETY: frame 0 is done and no other frame was submitted.
+                let twin = unsafe {
+                    twin_on_pass_gbuffer(&pass, scene, &view, &geometry, mesh, settings)
+                }?;
+                // SAFETY: as above.
+                let images = unsafe { pass.read_back_frame() }.map_err(|e| e.to_string())?;
+                run.first_frame = Some(twin);
+                run.first_frame_images = Some((images, view));
+            }
         }
         Ok(())
     };
@@ -433,6 +480,15 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         if let Err(e) = unsafe { read_status(&mut pass, &mut run, &mut unread, s, false) } {
             failure = Some(e);
         }
+        if let Some(t) = &mut timer {
+            // SAFETY: as above.
+            unsafe { t.collect(d, s) };
+        }
+    }
+    if let Some(t) = &timer {
+        run.gpu_ms = Some(GpuMillis::of(t, &run.pass_millis));
+        // SAFETY: nothing executes (the wait above).
+        unsafe { t.destroy(d) };
     }
     run.allocations_after_first_frame = after_first;
     if let (None, Some(view)) = (&failure, run.last_view) {
@@ -460,7 +516,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         // SAFETY: every frame is done (the waits above).
         let mesh = (&vertices[..], &indices[..]);
         match unsafe { twin_on_pass_gbuffer(&pass, scene, &view, &geometry, mesh, settings) } {
-            Ok(counts) => run.twin_masks_equal = Some(counts),
+            Ok(c) => {
+                run.twin_masks_equal =
+                    Some([c.masks_compared - c.mask_mismatches, c.masks_compared])
+            }
             Err(e) => failure = Some(e),
         }
     }
@@ -482,44 +541,6 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         Some(e) => Err(e),
         None => Ok(run),
     }
-}
-
-/// The CPU twin's masks on the pass's last G-buffer, read back, against
-/// the pass's: [equal, pixels].
-///
-/// # Safety
-/// No frame of the pass is executing.
-unsafe fn twin_on_pass_gbuffer(
-    pass: &ShadowPass,
-    scene: &Scene,
-    view: &FrameView,
-    geometry: &FrameGeometry,
-    (vertices, indices): (&[Vec3], &[u32]),
-    settings: IzbSettings,
-) -> Result<[usize; 2], String> {
-    // SAFETY: the caller's promise.
-    let (g, images) = unsafe { (pass.read_back_gbuffer(), pass.read_back()) };
-    let (g, images) = (
-        g.map_err(|e| e.to_string())?,
-        images.map_err(|e| e.to_string())?,
-    );
-    let mut moved = scene.clone();
-    (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
-    moved.resolution = pass.resolution();
-    // The pass's triangles, gathered by the twin from the same words.
-    let mut table = Vec::new();
-    draw_table(geometry, view.camera.eye, u64::MAX, &mut table).map_err(|e| e.to_string())?;
-    let words: [&[u32]; 2] = [bytemuck::cast_slice(vertices), indices];
-    let bounds = izb::cpu::gather_draws::eye_relative_bounds(scene.bounds(), view.camera.eye);
-    let gathered = izb::cpu::gather_draws::gather_draws(&table, &words, bounds);
-    let twin = izb::cpu::render_cpu_with(&moved, g, &gathered.triangles, settings);
-    let equal = twin
-        .masks
-        .iter()
-        .zip(&images.masks)
-        .filter(|(a, b)| a == b)
-        .count();
-    Ok([equal, twin.masks.len()])
 }
 
 /// The pass's settings for `mode` (edge pixels' extra surfaces are not
@@ -549,6 +570,10 @@ unsafe fn read_status(
     };
     // SAFETY: the caller's promise.
     let status: PassStatus = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
+    // SAFETY: as above.
+    if let Some(m) = unsafe { pass.gpu_millis(slot) }.map_err(|e| e.to_string())? {
+        run.pass_millis.push(m);
+    }
     run.overruns += usize::from(status.cell_list_overrun);
     if status.loop_cap_trips != 0 {
         run.loop_capped_frames.push((frame, status.loop_cap_trips));
@@ -557,35 +582,4 @@ unsafe fn read_status(
         run.grown += usize::from(pass.grow(&status).map_err(|e| e.to_string())?);
     }
     Ok(())
-}
-
-/// `image` as the host declares it to the pass.
-fn declared(
-    image: &OwnedImage,
-    extent: [u32; 2],
-    layout: vk::ImageLayout,
-    written_by: (vk::PipelineStageFlags, vk::AccessFlags),
-) -> HostImage {
-    HostImage {
-        image: image.image,
-        view: image.view,
-        format: image.format,
-        extent,
-        usage: image.usage,
-        layout,
-        written_by,
-    }
-}
-
-/// A host-visible buffer holding `bytes`.
-fn host_buffer(
-    gpu: &HostGpu,
-    name: &str,
-    bytes: &[u8],
-    usage: vk::BufferUsageFlags,
-) -> OwnedBuffer {
-    let size = bytes.len().max(4) as u64;
-    let mut buffer = OwnedBuffer::new(gpu, name, size, usage, MemoryLocation::CpuToGpu);
-    buffer.bytes()[..bytes.len()].copy_from_slice(bytes);
-    buffer
 }

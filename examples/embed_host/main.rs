@@ -14,14 +14,27 @@
 //! ```text
 //! cargo run --release --example embed_host -- [SCENE ...] [--frames N] [--resolution WxH]
 //!     [--depth d32|d24s8|x8d24|d32s8] [--standard-z] [--infinite-far]
+//!     [--exact] [--out DIR] [--stats FILE]
 //! ```
 //!
 //! SCENE: a procedural name (`default`) or a `*.scene.json` spec;
-//! default `default`.
+//! default `default`. Frame 0 has the spec's camera and light. The mode is
+//! the 32-sample LUT (`--exact`: the exact test). `--out DIR` writes frame
+//! 0 as `izb render` writes a frame (`DIR/SCENE` with several scenes);
+//! `--stats FILE` writes the run's counters as one JSON object (an array
+//! of them with several scenes): `frames`, `allocations_after_first`,
+//! `descriptor_allocations_after_first`, `maps_after_first`,
+//! `waits_in_frame`, `readbacks_in_frame`, `record_us_median`, `gpu_ms`,
+//! `validation_messages`, `sync_validation`, `masks_compared` and
+//! `mask_mismatches` (frame 0's G-buffer, made from the host's raster,
+//! read back and fed to the CPU twin in the frame's mode).
 
 mod after_loop;
+mod first_frame;
 mod frames;
+mod gpu_timing;
 mod host_device;
+mod mesh;
 mod raster;
 mod targets;
 
@@ -37,6 +50,7 @@ fn main() -> Result<(), String> {
     let mut frames = 30;
     let mut resolution = [160, 90];
     let (mut depth_format, mut standard_z, mut infinite_far) = (None, false, false);
+    let (mut mode, mut out, mut stats_path) = (SampleMode::Lut32, None, None);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--frames" => {
@@ -63,6 +77,11 @@ fn main() -> Result<(), String> {
                 })
             }
             "--standard-z" => standard_z = true,
+            "--exact" => mode = SampleMode::Exact32,
+            "--out" => out = Some(std::path::PathBuf::from(args.next().ok_or("--out DIR")?)),
+            "--stats" => {
+                stats_path = Some(std::path::PathBuf::from(args.next().ok_or("--stats FILE")?))
+            }
             "--infinite-far" => infinite_far = true,
             _ => scenes.push(a),
         }
@@ -73,6 +92,7 @@ fn main() -> Result<(), String> {
     let validation = std::env::var("IZB_VALIDATION").is_ok_and(|v| v == "1");
     let gpu = host_device::HostGpu::new(validation)?;
     let mut report = Vec::new();
+    let mut stats = Vec::new();
     for name in &scenes {
         let scene = izb::scene::load(name)
             .and_then(|s| s.with_resolution(resolution))
@@ -80,7 +100,7 @@ fn main() -> Result<(), String> {
         let options = HostOptions {
             frames,
             frames_in_flight: 2,
-            mode: SampleMode::Exact32,
+            mode,
             cell_capacity: None,
             resize: None,
             depth: depth_format.map(|format| HostDepth {
@@ -94,8 +114,19 @@ fn main() -> Result<(), String> {
             heavy_entries: std::env::var("IZB_GPU_HEAVY_ENTRIES")
                 .ok()
                 .and_then(|v| v.parse().ok()),
+            check_first_frame: out.is_some() || stats_path.is_some(),
         };
         let result = run(&gpu, &scene, options)?;
+        if let (Some(dir), Some((frame, view))) = (&out, &result.first_frame_images) {
+            let dir = match scenes.len() {
+                1 => dir.clone(),
+                _ => dir.join(&scene.name),
+            };
+            let seen = first_frame::seen_as(&scene, view, result.resolution);
+            let extra = serde_json::json!({ "mode": mode, "first_frame": result.first_frame });
+            first_frame::write_frame(frame, &seen, &dir, extra)?;
+        }
+        stats.push(stats_of(&result, validation));
         let agreement = after_loop::agreement_with_render(&scene, &result, options.mode);
         let mut json = serde_json::to_value(&result).map_err(|e| e.to_string())?;
         json["last_frame_against_render"] =
@@ -106,5 +137,42 @@ fn main() -> Result<(), String> {
         "{}",
         serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
     );
+    if let Some(path) = &stats_path {
+        let value = match stats.len() {
+            1 => stats.remove(0),
+            _ => serde_json::Value::Array(stats),
+        };
+        izb::output::write_json(path, &value).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
     Ok(())
+}
+
+/// The counters `--stats` writes for one scene's run.
+fn stats_of(run: &frames::HostRun, validation: bool) -> serde_json::Value {
+    let after = &run.in_frames_after_first;
+    let twin = run.first_frame.unwrap_or_default();
+    serde_json::json!({
+        "scene": run.scene,
+        "device": run.device,
+        "resolution": run.resolution,
+        "frames": run.frames,
+        "frames_in_flight": run.frames_in_flight,
+        "allocations_after_first": after.buffers,
+        "descriptor_allocations_after_first": after.descriptor_sets,
+        "maps_after_first": after.mappings,
+        // izb waits only in its submissions (uploads and read-backs).
+        "waits_in_frame": after.waits,
+        "readbacks_in_frame": after.waits,
+        "record_us_median": gpu_timing::median(&run.record_us),
+        "record_alone_us_median": gpu_timing::median(&run.record_alone_us),
+        "gpu_ms": run.gpu_ms,
+        "validation_messages": run.validation_messages.len(),
+        "sync_validation": validation,
+        "masks_compared": twin.masks_compared,
+        "mask_mismatches": twin.mask_mismatches,
+        "sample_mismatches": twin.sample_mismatches,
+        "overruns": run.overruns,
+        "grown": run.grown,
+        "loop_capped_frames": run.loop_capped_frames.len(),
+    })
 }

@@ -8,6 +8,7 @@ use crate::host_device::HostGpu;
 use crate::raster::{OwnedImage, VisibilityRaster};
 use ash::vk;
 use izb::gbuffer::DepthConvention;
+use izb::gpu::host_images::HostImage;
 
 /// A depth + normal G-buffer the host draws for the pass: its depth
 /// format and convention.
@@ -100,5 +101,23 @@ impl Targets {
                 n.destroy(gpu);
             }
         }
+    }
+}
+
+/// `image` as the host declares it to the pass.
+pub fn declared(
+    image: &OwnedImage,
+    extent: [u32; 2],
+    layout: vk::ImageLayout,
+    written_by: (vk::PipelineStageFlags, vk::AccessFlags),
+) -> HostImage {
+    HostImage {
+        image: image.image,
+        view: image.view,
+        format: image.format,
+        extent,
+        usage: image.usage,
+        layout,
+        written_by,
     }
 }

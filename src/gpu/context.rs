@@ -84,9 +84,9 @@ pub struct DeviceShared {
     /// still be running, so nothing it might touch is destroyed any more
     /// (every `Drop` leaks instead; the process exit reclaims it).
     pub(super) poisoned: std::sync::atomic::AtomicBool,
-    /// Buffers created and descriptor sets allocated on the device so far
-    /// ([`Allocation`]).
-    pub(super) allocations: [std::sync::atomic::AtomicU64; 2],
+    /// Buffers created, descriptor sets allocated, host mappings made and
+    /// submissions waited for on the device so far ([`Allocation`]).
+    pub(super) allocations: [std::sync::atomic::AtomicU64; 4],
 }
 
 /// A queue and the lock every submission to it holds.
@@ -100,6 +100,22 @@ pub enum Allocation {
     Buffer,
     /// A `DescriptorSet` (with its own pool).
     DescriptorSet,
+    /// A buffer in host-visible memory: mapped once when made.
+    Mapping,
+    /// A submission izb made and waited for (`submit_and_wait`): an
+    /// upload, a read-back, or a batch frame.
+    Submission,
+}
+
+/// What izb did on the host so far, per device ([`DeviceShared::host_counts`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct HostCounts {
+    pub buffers: u64,
+    pub descriptor_sets: u64,
+    /// Host mappings (each a host-visible buffer made).
+    pub mappings: u64,
+    /// Submissions izb made and waited for; every read-back is one.
+    pub waits: u64,
 }
 
 impl DeviceShared {
@@ -116,9 +132,23 @@ impl DeviceShared {
     /// Buffers created and descriptor sets allocated on this device so
     /// far: what a pass inside a host's frame must not add to per frame.
     pub fn allocations(&self) -> [u64; 2] {
-        self.allocations
+        let c = self.host_counts();
+        [c.buffers, c.descriptor_sets]
+    }
+
+    /// Buffers, descriptor sets, mappings and waited submissions so far:
+    /// a host checks that its frames add none.
+    pub fn host_counts(&self) -> HostCounts {
+        let [buffers, descriptor_sets, mappings, waits] = self
+            .allocations
             .each_ref()
-            .map(|a| a.load(Ordering::Relaxed))
+            .map(|a| a.load(Ordering::Relaxed));
+        HostCounts {
+            buffers,
+            descriptor_sets,
+            mappings,
+            waits,
+        }
     }
 
     /// Marks the device as possibly busy forever (see `poisoned`).
@@ -412,6 +442,7 @@ impl GpuContext {
         pool: vk::CommandPool,
         record: impl FnOnce(vk::CommandBuffer) -> Result<(), GpuError>,
     ) -> Result<(), GpuError> {
+        self.shared.count_allocation(Allocation::Submission);
         let device = &self.shared.device;
         let timeout = frame_timeout();
         let alloc = vk::CommandBufferAllocateInfo::default()

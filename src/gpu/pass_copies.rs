@@ -42,7 +42,7 @@ pub(super) fn upload_into(
 }
 
 /// The first `words[k]` words of binding `bindings[k]`'s buffer, copied
-/// back (waits).
+/// back through one read-back buffer (waits).
 pub(super) fn read_back<const N: usize>(
     renderer: &GpuRenderer,
     buffers: &[Arc<GpuBuffer>; BINDINGS],
@@ -50,24 +50,29 @@ pub(super) fn read_back<const N: usize>(
     words: [usize; N],
 ) -> Result<[Vec<u32>; N], GpuError> {
     let shared = renderer.shared();
-    let readbacks: Vec<GpuBuffer> = (0..N)
-        .map(|k| {
-            let desc = BufferDesc {
-                name: "readback",
-                pass: "readback",
-                size: words[k] as u64 * 4,
-                domain: BufferDomain::Readback,
-            };
-            GpuBuffer::new(shared, desc)
-        })
-        .collect::<Result<_, _>>()?;
+    // Each copy's first word in the one buffer.
+    let mut starts = [0usize; N];
+    let mut total = 0;
+    for k in 0..N {
+        starts[k] = total;
+        total += words[k];
+    }
+    let desc = BufferDesc {
+        name: "readback",
+        pass: "readback",
+        size: total as u64 * 4,
+        domain: BufferDomain::Readback,
+    };
+    let readback = GpuBuffer::new(shared, desc)?;
     let record = |cmd| {
         let d = &shared.device;
-        for (k, rb) in readbacks.iter().enumerate().filter(|&(k, _)| words[k] > 0) {
-            let region = [vk::BufferCopy::default().size(words[k] as u64 * 4)];
+        for k in (0..N).filter(|&k| words[k] > 0) {
+            let region = [vk::BufferCopy::default()
+                .dst_offset(starts[k] as u64 * 4)
+                .size(words[k] as u64 * 4)];
             let from = buffers[bindings[k] as usize].buffer;
             // SAFETY: `cmd` is recording; the copy fits both buffers.
-            unsafe { d.cmd_copy_buffer(cmd, from, rb.buffer, &region) };
+            unsafe { d.cmd_copy_buffer(cmd, from, readback.buffer, &region) };
         }
         // SAFETY: `cmd` is recording.
         unsafe { super::transfers_visible_to_host(d, cmd) };
@@ -78,9 +83,8 @@ pub(super) fn read_back<const N: usize>(
     // SAFETY: the read-back and device buffers outlive the call, which
     // waits for the copies.
     unsafe { renderer.context.submit_and_wait(record) }?;
-    let mut out: [Vec<u32>; N] = std::array::from_fn(|_| Vec::new());
-    for (k, rb) in readbacks.iter().enumerate() {
-        out[k] = bytemuck::pod_collect_to_vec(&rb.mapped()?[..words[k] * 4]);
-    }
-    Ok(out)
+    let bytes = readback.mapped()?;
+    Ok(std::array::from_fn(|k| {
+        bytemuck::pod_collect_to_vec(&bytes[starts[k] * 4..(starts[k] + words[k]) * 4])
+    }))
 }

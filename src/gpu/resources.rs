@@ -73,6 +73,9 @@ impl GpuBuffer {
     /// error that names it.
     pub fn new(shared: &Arc<DeviceShared>, desc: BufferDesc) -> Result<Self, GpuError> {
         shared.count_allocation(super::context::Allocation::Buffer);
+        if desc.domain != BufferDomain::Device {
+            shared.count_allocation(super::context::Allocation::Mapping);
+        }
         let size = desc.size.max(4).next_multiple_of(4);
         if desc.domain == BufferDomain::Device
             && size > u64::from(shared.limits.max_storage_buffer_range)

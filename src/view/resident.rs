@@ -19,7 +19,7 @@ use crate::gpu::shadow_pass::{
 };
 use crate::gpu::{GpuError, GpuRenderer};
 use crate::scene::{Scene, Triangle};
-use crate::settings::IzbSettings;
+use crate::settings::{IzbSettings, PassTimes};
 use glam::DVec3;
 use std::sync::Arc;
 use std::time::Instant;
@@ -55,6 +55,8 @@ pub struct ResidentFrame {
     pub device_seconds: f64,
     /// Bytes of the pass's buffers.
     pub memory_bytes: u64,
+    /// GPU milliseconds per pass (its timestamps), where the queue has them.
+    pub gpu_millis: Option<PassTimes>,
 }
 
 impl<'r> ResidentPasses<'r> {
@@ -133,7 +135,7 @@ impl<'r> ResidentPasses<'r> {
                 }
             }
             // SAFETY: the frame was waited for.
-            let frame = unsafe { pass.read_back_frame() }?;
+            let (frame, gpu_millis) = unsafe { (pass.read_back_frame()?, pass.gpu_millis(0)?) };
             return Ok(ResidentFrame {
                 frame,
                 status,
@@ -142,6 +144,7 @@ impl<'r> ResidentPasses<'r> {
                 record_seconds,
                 device_seconds,
                 memory_bytes: pass.memory_bytes(),
+                gpu_millis,
             });
         }
     }

@@ -289,6 +289,7 @@ fn render_method(
                         "grown": out.grown,
                         "record_microseconds": out.record_seconds * 1e6,
                         "device_milliseconds": out.device_seconds * 1e3,
+                        "gpu_milliseconds": out.gpu_millis,
                         "cell_entries": out.status.cell_entries,
                         "edge_slots_needed": out.status.edge_slots_needed,
                     },
@@ -307,10 +308,21 @@ fn render_method(
                     ),
                     memory_bytes: out.memory_bytes,
                     report,
-                    pass_millis: vec![
-                        ("record (host)", out.record_seconds * 1e3),
-                        ("frame (device)", out.device_seconds * 1e3),
-                    ],
+                    pass_millis: match &out.gpu_millis {
+                        Some(m) => vec![
+                            ("gbuffer", m.gbuffer),
+                            ("light setup", m.light_setup),
+                            ("bin", m.bin),
+                            ("evaluate", m.evaluate),
+                            ("resolve", m.resolve),
+                            ("total", m.total),
+                            ("record (host)", out.record_seconds * 1e3),
+                        ],
+                        None => vec![
+                            ("record (host)", out.record_seconds * 1e3),
+                            ("frame (device)", out.device_seconds * 1e3),
+                        ],
+                    },
                     backend: device,
                     visibility: f.visibility,
                     masks: f.masks,

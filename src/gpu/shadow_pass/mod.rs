@@ -166,6 +166,9 @@ pub struct ShadowPass<'r> {
     host_sets: HostImageSets,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
+    /// Per frame slot, its last frame's timestamps at the passes'
+    /// boundaries ([`Self::gpu_millis`]; none where the queue has none).
+    timestamps: Vec<super::timestamps::TimestampPool>,
     /// Per frame slot, the edge surfaces' slots of its last frame (its
     /// status's overrun is against them, whatever grew since).
     slot_edge_slots: Vec<u64>,
@@ -182,6 +185,10 @@ pub struct ShadowPass<'r> {
 
 /// Most frame slots (a bit each in `Retired::slots_pending`).
 const MAX_FRAMES_IN_FLIGHT: usize = 63;
+
+/// Timestamps a frame writes: its start, then after the G-buffer, light
+/// setup, bin, evaluate and resolve (with the output images).
+const PASS_TIMESTAMPS: u32 = 6;
 
 impl<'r> ShadowPass<'r> {
     /// Makes the pass for `scene` on `renderer`'s device: every buffer,
@@ -291,6 +298,9 @@ impl<'r> ShadowPass<'r> {
                 GpuBuffer::new(shared, desc)
             })
             .collect::<Result<_, _>>()?;
+        let timestamps = (0..config.frames_in_flight)
+            .map(|_| super::timestamps::TimestampPool::new(shared, PASS_TIMESTAMPS))
+            .collect::<Result<_, _>>()?;
         let as_bytes = |v: &[[f32; 3]]| bytemuck::cast_slice::<_, u8>(v).to_vec();
         let uploads: Vec<(u32, Vec<u8>)> = vec![
             (
@@ -341,6 +351,7 @@ impl<'r> ShadowPass<'r> {
             host_sets,
             slot_edge_slots: vec![0; config.frames_in_flight],
             status,
+            timestamps,
             retired: Vec::new(),
             world,
             sizes,
@@ -462,6 +473,9 @@ impl<'r> ShadowPass<'r> {
         // and kernels live in the pass and its renderer.
         let rec = unsafe { Recorder::new(shared, cmd, &renderer.layout, &self.set) };
         rec.begin_label("izb_shadow_pass");
+        let timestamps = &self.timestamps[slot];
+        // The slot's previous frame, which wrote them, is done (the caller).
+        timestamps.reset(cmd);
         // The previous frame's reads and writes of every buffer are done
         // before this frame's.
         rec.barrier();
@@ -477,6 +491,7 @@ impl<'r> ShadowPass<'r> {
         }
         reset_pass_state(device, cmd, buffer, traced_edges);
         rec.barrier();
+        timestamps.write(cmd, 0);
         if let Some(w) = &self.world {
             let vertices = w.pairs.len() as u32;
             super::translate_vertices::translate_vertices(&rec, &renderer.kernels, vertices);
@@ -529,7 +544,9 @@ impl<'r> ShadowPass<'r> {
                 super::gbuffer::gbuffer_from_depth(&rec, &renderer.kernels, [w, h]);
             }
         }
+        timestamps.write(cmd, 1);
         super::light_setup::light_setup(&rec, &renderer.kernels, rows);
+        timestamps.write(cmd, 2);
         let gather = settings.skips.behind_receivers.then_some(rows[0] * rows[1]);
         let kernels = &renderer.kernels;
         super::bin::bin(
@@ -539,11 +556,14 @@ impl<'r> ShadowPass<'r> {
             self.sizes.max_cells,
             gather,
         );
+        timestamps.write(cmd, 3);
         let heavy = super::evaluate::heavy_step(&params, &shared.info);
         let halves = settings.mask_halves(scene);
         super::evaluate::evaluate(&rec, kernels, rows, heavy, halves);
+        timestamps.write(cmd, 4);
         super::resolve::resolve(&rec, kernels, [w, h]);
         super::export_images::export_images(&rec, kernels, [w, h], &images, halves);
+        timestamps.write(cmd, 5);
         let status = &self.status[slot];
         let region = [vk::BufferCopy::default().size(status.size())];
         // SAFETY: `cmd` is recording; the status buffer is the counters'

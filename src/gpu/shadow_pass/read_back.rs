@@ -256,6 +256,7 @@ impl ShadowPass<'_> {
 /// A frame as [`ShadowPass::read_back_frame`] copies it: the batch
 /// render's images ([`crate::gpu::frame_report::GpuRender`]'s, without
 /// the G-buffer).
+#[derive(Clone, Debug)]
 pub struct PassFrame {
     pub masks: Vec<u32>,
     pub masks_high: Vec<u32>,

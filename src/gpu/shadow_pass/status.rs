@@ -8,6 +8,7 @@ use super::ShadowPass;
 use crate::gpu::frame_inputs::LLVMPIPE_LOOP_CAP;
 use crate::gpu::shared::counter;
 use crate::gpu::GpuError;
+use crate::settings::PassTimes;
 
 /// What a frame's status buffer says, read once the host knows the
 /// frame is done.
@@ -87,6 +88,18 @@ impl ShadowPass<'_> {
             edge_slots_needed: needed,
             edge_slots_overrun: needed > self.slot_edge_slots[slot],
         })
+    }
+
+    /// GPU milliseconds of slot `slot`'s last frame per pass (the
+    /// G-buffer with `gather_draws`, `translate_vertices` and the edge
+    /// surfaces; light setup; bin; evaluate; resolve with the output
+    /// images), from its timestamps; `None` where the queue has none.
+    ///
+    /// # Safety
+    /// That frame has finished executing (the host waited for its fence)
+    /// and no frame of the slot is executing now.
+    pub unsafe fn gpu_millis(&self, slot: usize) -> Result<Option<PassTimes>, GpuError> {
+        self.timestamps[slot].millis(1)
     }
 
     /// `LLVMPIPE_LOOP_CAP` as a status's refusal.

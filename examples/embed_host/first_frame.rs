@@ -1,0 +1,104 @@
+//! Checks of a frame the host waited for, outside the frames it measures:
+//! the pass's G-buffer (made from the host's raster) read back and fed to
+//! the CPU twin in the frame's mode, and a frame written as `izb render`
+//! writes one (`--out DIR`: `visibility.exr` with the masks,
+//! `visibility.png`, `shaded.png`, `report.json`).
+
+use glam::Vec3;
+use izb::cpu::IzbSettings;
+use izb::gpu::gather_draws::{draw_table, FrameGeometry};
+use izb::gpu::shadow_pass::{FrameView, PassFrame, ShadowPass};
+use izb::scene::Scene;
+use std::path::Path;
+
+/// The CPU twin on the pass's G-buffer against the pass's masks.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct TwinComparison {
+    /// Pixels whose masks were compared (every pixel).
+    pub masks_compared: usize,
+    /// Of them, pixels whose masks differ.
+    pub mask_mismatches: usize,
+    /// Samples (mask bits) that differ, over every pixel's 32.
+    pub sample_mismatches: u64,
+}
+
+/// The CPU twin's masks on the pass's last G-buffer and triangles, read
+/// back, against the pass's own masks.
+///
+/// # Safety
+/// No frame of the pass is executing.
+pub unsafe fn twin_on_pass_gbuffer(
+    pass: &ShadowPass,
+    scene: &Scene,
+    view: &FrameView,
+    geometry: &FrameGeometry,
+    (vertices, indices): (&[Vec3], &[u32]),
+    settings: IzbSettings,
+) -> Result<TwinComparison, String> {
+    // SAFETY: the caller's promise.
+    let (g, images) = unsafe { (pass.read_back_gbuffer(), pass.read_back()) };
+    let (g, images) = (
+        g.map_err(|e| e.to_string())?,
+        images.map_err(|e| e.to_string())?,
+    );
+    let moved = seen_as(scene, view, pass.resolution());
+    // The pass's triangles, gathered by the twin from the same words.
+    let mut table = Vec::new();
+    draw_table(geometry, view.camera.eye, u64::MAX, &mut table).map_err(|e| e.to_string())?;
+    let words: [&[u32]; 2] = [bytemuck::cast_slice(vertices), indices];
+    let bounds = izb::cpu::gather_draws::eye_relative_bounds(scene.bounds(), view.camera.eye);
+    let gathered = izb::cpu::gather_draws::gather_draws(&table, &words, bounds);
+    let twin = izb::cpu::render_cpu_with(&moved, g, &gathered.triangles, settings);
+    let mut c = TwinComparison {
+        masks_compared: twin.masks.len(),
+        ..Default::default()
+    };
+    for (a, b) in twin.masks.iter().zip(&images.masks) {
+        c.mask_mismatches += usize::from(a != b);
+        c.sample_mismatches += u64::from((a ^ b).count_ones());
+    }
+    Ok(c)
+}
+
+/// `scene` seen from `view` at `resolution`.
+pub fn seen_as(scene: &Scene, view: &FrameView, resolution: [u32; 2]) -> Scene {
+    let mut moved = scene.clone();
+    (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
+    moved.resolution = resolution;
+    moved
+}
+
+/// Writes `frame` (of `seen`: the scene as that frame saw it) into `dir`
+/// as `izb render` writes one: the lit fraction and masks
+/// (`visibility.exr`, `visibility.png`), izb's shaded image
+/// (`shaded.png`) and `report.json` (`extra`'s fields added).
+pub fn write_frame(
+    frame: &PassFrame,
+    seen: &Scene,
+    dir: &Path,
+    extra: serde_json::Value,
+) -> Result<(), String> {
+    let error = |e: &dyn std::fmt::Display| format!("{}: {e}", dir.display());
+    std::fs::create_dir_all(dir).map_err(|e| error(&e))?;
+    izb::output::write_mask_outputs(
+        dir,
+        seen,
+        &frame.visibility,
+        &frame.masks,
+        &frame.masks_high,
+        &[],
+    )
+    .map_err(|e| error(&e))?;
+    let [w, h] = seen.resolution;
+    let shaded = image::RgbImage::from_raw(w, h, frame.shaded.concat())
+        .ok_or_else(|| error(&"the shaded image's size"))?;
+    izb::output::write_png(&dir.join("shaded.png"), &shaded).map_err(|e| error(&e))?;
+    let mut report = serde_json::json!({
+        "command": "embed_host",
+        "scene": seen.summary(),
+    });
+    if let (Some(r), serde_json::Value::Object(more)) = (report.as_object_mut(), extra) {
+        r.extend(more);
+    }
+    izb::output::write_json(&dir.join("report.json"), &report).map_err(|e| error(&e))
+}
