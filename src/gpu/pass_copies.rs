@@ -41,11 +41,18 @@ pub(super) fn upload_into(
     unsafe { renderer.context.submit_and_wait(record) }
 }
 
+/// A read-back buffer kept between calls: made (or made larger) when a
+/// read-back needs more than it holds, so a tool reading every frame back
+/// (the viewer) makes and maps no buffer per frame.
+#[derive(Default)]
+pub(super) struct ReadbackBuffer(std::sync::Mutex<Option<GpuBuffer>>);
+
 /// The first `words[k]` words of binding `bindings[k]`'s buffer, copied
-/// back through one read-back buffer (waits).
+/// back through `kept`'s one read-back buffer (waits).
 pub(super) fn read_back<const N: usize>(
     renderer: &GpuRenderer,
     buffers: &[Arc<GpuBuffer>; BINDINGS],
+    kept: &ReadbackBuffer,
     bindings: [u32; N],
     words: [usize; N],
 ) -> Result<[Vec<u32>; N], GpuError> {
@@ -57,13 +64,17 @@ pub(super) fn read_back<const N: usize>(
         starts[k] = total;
         total += words[k];
     }
-    let desc = BufferDesc {
-        name: "readback",
-        pass: "readback",
-        size: total as u64 * 4,
-        domain: BufferDomain::Readback,
-    };
-    let readback = GpuBuffer::new(shared, desc)?;
+    let mut kept = kept.0.lock().unwrap_or_else(|e| e.into_inner());
+    if kept.as_ref().is_none_or(|b| b.size() < total as u64 * 4) {
+        let desc = BufferDesc {
+            name: "readback",
+            pass: "readback",
+            size: total as u64 * 4,
+            domain: BufferDomain::Readback,
+        };
+        *kept = Some(GpuBuffer::new(shared, desc)?);
+    }
+    let readback = kept.as_ref().expect("made above");
     let record = |cmd| {
         let d = &shared.device;
         for k in (0..N).filter(|&k| words[k] > 0) {
@@ -81,7 +92,8 @@ pub(super) fn read_back<const N: usize>(
     // The copies read what earlier frames wrote: the barrier at the end of
     // every frame (`resolve`) made it visible to transfers.
     // SAFETY: the read-back and device buffers outlive the call, which
-    // waits for the copies.
+    // waits for the copies; the lock keeps other read-backs out of the
+    // buffer meanwhile.
     unsafe { renderer.context.submit_and_wait(record) }?;
     let bytes = readback.mapped()?;
     Ok(std::array::from_fn(|k| {

@@ -166,6 +166,8 @@ pub struct ShadowPass<'r> {
     host_sets: HostImageSets,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
+    /// The read-backs' buffer, kept between them (tests and tools).
+    readback: super::pass_copies::ReadbackBuffer,
     /// Per frame slot, its last frame's timestamps at the passes'
     /// boundaries ([`Self::gpu_millis`]; none where the queue has none).
     timestamps: Vec<super::timestamps::TimestampPool>,
@@ -352,6 +354,7 @@ impl<'r> ShadowPass<'r> {
             slot_edge_slots: vec![0; config.frames_in_flight],
             status,
             timestamps,
+            readback: Default::default(),
             retired: Vec::new(),
             world,
             sizes,

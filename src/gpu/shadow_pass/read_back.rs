@@ -1,5 +1,7 @@
 //! What a frame of the shadow pass left in its buffers, copied back — for
-//! tests and tools only: each call allocates, submits and waits.
+//! tests and tools only: each call submits and waits, through one
+//! read-back buffer the pass keeps (made, or made larger, when a call
+//! needs more than it holds).
 
 use super::ShadowPass;
 use crate::gbuffer::{GBuffer, DEPTH_SURFACE, NO_HIT};
@@ -13,7 +15,7 @@ use glam::Vec3;
 impl ShadowPass<'_> {
     /// The masks, the second mask halves (empty with one) and the shaded
     /// pixels of the last frame, copied back — for tests and tools: it
-    /// allocates, submits and waits.
+    /// submits and waits.
     ///
     /// # Safety
     /// No frame of this pass is executing.
@@ -28,7 +30,7 @@ impl ShadowPass<'_> {
         ];
         let words = [pixels, pixels * (halves - 1), pixels, pixels];
         let [masks, masks_high, shaded, gbuffer_words] =
-            read_back(self.renderer, &self.buffers, wanted, words)?;
+            read_back(self.renderer, &self.buffers, &self.readback, wanted, words)?;
         Ok(PassImages {
             masks,
             masks_high,
@@ -38,7 +40,7 @@ impl ShadowPass<'_> {
     }
 
     /// The eye-relative vertices the last frame read (`B_VERTICES`), copied
-    /// back — for tests: it allocates, submits and waits.
+    /// back — for tests: it submits and waits.
     ///
     /// # Safety
     /// No frame of this pass is executing.
@@ -50,7 +52,7 @@ impl ShadowPass<'_> {
 
     /// The last frame's triangle normals (`B_TRIANGLE_NORMALS`: the
     /// scene's, or those `gather_draws` made), copied back — for tests:
-    /// it allocates, submits and waits.
+    /// it submits and waits.
     ///
     /// # Safety
     /// No frame of this pass is executing.
@@ -64,7 +66,13 @@ impl ShadowPass<'_> {
     /// # Safety
     /// No frame of this pass is executing.
     unsafe fn read_back_vec3s(&self, b: u32, count: usize) -> Result<Vec<Vec3>, GpuError> {
-        let [words] = read_back(self.renderer, &self.buffers, [b], [count * 3])?;
+        let [words] = read_back(
+            self.renderer,
+            &self.buffers,
+            &self.readback,
+            [b],
+            [count * 3],
+        )?;
         Ok(bytemuck::cast_slice::<u32, [f32; 3]>(&words)
             .iter()
             .map(|&v| Vec3::from(v))
@@ -109,7 +117,7 @@ impl ShadowPass<'_> {
             counter::WORDS,
         ];
         let [words, position, axis_x, axis_y, g_normal, triangle_normals, counters] =
-            read_back(self.renderer, &self.buffers, wanted, words)?;
+            read_back(self.renderer, &self.buffers, &self.readback, wanted, words)?;
         let vectors = |w: &[u32]| -> Vec<Vec3> {
             bytemuck::cast_slice::<u32, [f32; 3]>(w)
                 .iter()
@@ -189,8 +197,13 @@ impl ShadowPass<'_> {
     ) -> Result<Option<(Vec<[u32; 4]>, Vec<u32>)>, GpuError> {
         let size = |b: u32| self.buffers[b as usize].size() as usize / 4;
         let wanted = [binding::EDGE_PIXELS, binding::EDGE_COVERAGE];
-        let [pixel_words, coverage_words] =
-            read_back(self.renderer, &self.buffers, wanted, wanted.map(size))?;
+        let [pixel_words, coverage_words] = read_back(
+            self.renderer,
+            &self.buffers,
+            &self.readback,
+            wanted,
+            wanted.map(size),
+        )?;
         let read = |b: u32| -> Result<&[u8], GpuError> {
             Ok(bytemuck::cast_slice(match b {
                 binding::EDGE_PIXELS => &pixel_words,
@@ -204,7 +217,7 @@ impl ShadowPass<'_> {
     /// The last frame's images as the batch `render` returns them —
     /// masks, lit fraction (NaN where not shadow-tested; at edge pixels
     /// over the samples that count) and shaded pixels — copied back, for
-    /// tools (the viewer): it allocates, submits and waits. The G-buffer
+    /// tools (the viewer): it submits and waits. The G-buffer
     /// is [`Self::read_back_gbuffer`]'s.
     ///
     /// # Safety
@@ -220,7 +233,7 @@ impl ShadowPass<'_> {
         ];
         let words = [pixels, pixels * (halves - 1), pixels, counter::WORDS];
         let [masks, masks_high, shaded, counters] =
-            read_back(self.renderer, &self.buffers, wanted, words)?;
+            read_back(self.renderer, &self.buffers, &self.readback, wanted, words)?;
         // The samples that count at edge pixels: the records' second word,
         // on the first mask half only (as `GBuffer::counted_samples` of
         // the batch frame's G-buffer).
