@@ -443,3 +443,70 @@ fn the_pass_writes_the_host_s_mask_and_lit_fraction_images() {
     assert_eq!(refused, refusals.len());
     assert_no_validation_messages(&r, "refused outputs");
 }
+
+/// izb's host counters see what the pass does: recording adds no buffer,
+/// set, mapping or wait; a read-back is one waited submission through the
+/// buffer the pass keeps — made and mapped by the first read-back (or a
+/// larger one), reused by the next; the pass's timestamps time the frame.
+#[test]
+fn recording_adds_nothing_and_read_backs_keep_their_buffer() {
+    use izb::gpu::context::HostCounts;
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([64, 36])
+        .unwrap();
+    let config = ShadowPassConfig {
+        settings: settings(SampleMode::Lut32),
+        frames_in_flight: 1,
+        cell_capacity: None,
+        edge_slots: None,
+        gbuffer: GBufferInput::RayCast,
+    };
+    let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
+    let counts = || r.context.shared.host_counts();
+    let since = |before: HostCounts| {
+        let now = counts();
+        [
+            now.buffers - before.buffers,
+            now.descriptor_sets - before.descriptor_sets,
+            now.mappings - before.mappings,
+            now.waits - before.waits,
+        ]
+    };
+    let view = view_at(&scene, 1);
+    let mut in_record = None;
+    let record = |cmd| {
+        let before = counts();
+        // SAFETY: `cmd` is recording on this thread and submitted to the
+        // pass's device; no earlier frame of the pass exists.
+        let recorded = unsafe { pass.record(cmd, 0, &view) };
+        in_record = Some(since(before));
+        recorded
+    };
+    let before = counts();
+    // SAFETY: the pass and its buffers outlive the call, which waits.
+    unsafe { r.context.submit_and_wait(record) }.unwrap();
+    assert_eq!(in_record, Some([0, 0, 0, 0]), "recording made or waited");
+    assert_eq!(since(before), [0, 0, 0, 1], "the frame's own submission");
+    // SAFETY: the frame was waited for (above), for every call below.
+    let millis = unsafe { pass.gpu_millis(0) }.unwrap();
+    if r.context.shared.timestamp_period_ns.is_some() {
+        let m = millis.expect("the queue has timestamps");
+        assert!(m.total > 0.0 && m.evaluate <= m.total, "{m:?}");
+    }
+    let mut checked = 0;
+    // The G-buffer's read-back is the largest: it makes the buffer.
+    for (read, made) in [(0, [1, 0, 1, 1]), (1, [0, 0, 0, 1]), (0, [0, 0, 0, 1])] {
+        let before = counts();
+        match read {
+            // SAFETY: as above.
+            0 => drop(unsafe { pass.read_back_gbuffer() }.unwrap()),
+            // SAFETY: as above.
+            _ => drop(unsafe { pass.read_back_frame() }.unwrap()),
+        }
+        assert_eq!(since(before), made, "read-back {checked}");
+        checked += 1;
+    }
+    assert_eq!(checked, 3);
+}
