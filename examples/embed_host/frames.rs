@@ -411,14 +411,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 for i in 0..2 {
                     after_first[i] += made[i] - before[i];
                 }
-                let (now, sum) = (
-                    renderer.context.shared.host_counts(),
-                    &mut run.in_frames_after_first,
-                );
-                sum.buffers += now.buffers - counts_before.buffers;
-                sum.descriptor_sets += now.descriptor_sets - counts_before.descriptor_sets;
-                sum.mappings += now.mappings - counts_before.mappings;
-                sum.waits += now.waits - counts_before.waits;
+                let added = renderer.context.shared.host_counts().since(counts_before);
+                run.in_frames_after_first.add(added);
             }
             if let Some(t) = &timer {
                 // SAFETY: `cmd` is recording, started above.

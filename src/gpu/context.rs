@@ -118,6 +118,26 @@ pub struct HostCounts {
     pub waits: u64,
 }
 
+impl HostCounts {
+    /// What was added since `before`.
+    pub fn since(&self, before: HostCounts) -> HostCounts {
+        HostCounts {
+            buffers: self.buffers - before.buffers,
+            descriptor_sets: self.descriptor_sets - before.descriptor_sets,
+            mappings: self.mappings - before.mappings,
+            waits: self.waits - before.waits,
+        }
+    }
+
+    /// Adds `other` to these counts.
+    pub fn add(&mut self, other: HostCounts) {
+        self.buffers += other.buffers;
+        self.descriptor_sets += other.descriptor_sets;
+        self.mappings += other.mappings;
+        self.waits += other.waits;
+    }
+}
+
 impl DeviceShared {
     /// Whether the device may still be executing abandoned work.
     pub fn is_poisoned(&self) -> bool {

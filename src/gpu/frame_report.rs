@@ -322,26 +322,14 @@ impl GpuRenderer {
             memory_bytes_per_pixel_plus_triangle: memory_total_bytes as f64
                 / (scene.pixel_count() as f64 + f64::from(triangles)).max(1.0),
         };
-        let shaded = out
-            .shaded
-            .iter()
-            .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
-            .collect();
-        let samples = if out.masks_high.is_empty() { 32 } else { 64 };
-        let alpha = |i: usize| (out.shaded[i] >> 24) as u8;
+        let halves = if out.masks_high.is_empty() { 1 } else { 2 };
         // With edge surfaces (uploaded, so the G-buffer has them) alpha
         // counts the lit samples of those that count.
-        let visibility = match &gbuffer.edges {
-            Some(_) => (0..out.shaded.len())
-                .map(|i| {
-                    let samples = gbuffer.counted_samples(i, samples as usize / 32);
-                    super::edge_surfaces::lit_fraction_over_counted(alpha(i), samples)
-                })
-                .collect(),
-            None => (0..out.shaded.len())
-                .map(|i| shared::lit_fraction_of_alpha(alpha(i), samples))
-                .collect(),
-        };
+        let counted = gbuffer
+            .edges
+            .is_some()
+            .then_some(|i| gbuffer.counted_samples(i, halves));
+        let (visibility, shaded) = resolved_images(&out.shaded, halves, counted);
         GpuRender {
             masks: out.masks,
             masks_high: out.masks_high,
@@ -351,6 +339,29 @@ impl GpuRenderer {
             report,
         }
     }
+}
+
+/// `resolve`'s packed pixels (RGB, and the lit samples in alpha) as the
+/// lit fraction (NaN where not shadow-tested) and RGB8: over every sample
+/// of `halves` mask halves, or over `counted(i)` at pixel `i` where a
+/// frame has edge surfaces (the samples its surfaces keep).
+pub(super) fn resolved_images(
+    shaded: &[u32],
+    halves: usize,
+    counted: Option<impl Fn(usize) -> u32>,
+) -> (Vec<f32>, Vec<[u8; 3]>) {
+    let alpha = |i: usize| (shaded[i] >> 24) as u8;
+    let visibility = (0..shaded.len())
+        .map(|i| match &counted {
+            Some(samples) => super::edge_surfaces::lit_fraction_over_counted(alpha(i), samples(i)),
+            None => shared::lit_fraction_of_alpha(alpha(i), 32 * halves as u32),
+        })
+        .collect();
+    let rgb = shaded
+        .iter()
+        .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
+        .collect();
+    (visibility, rgb)
 }
 
 /// The G-buffer of a frame as the GPU saw it: read back (normals from the

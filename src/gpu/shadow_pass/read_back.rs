@@ -5,8 +5,8 @@
 
 use super::ShadowPass;
 use crate::gbuffer::{GBuffer, DEPTH_SURFACE, NO_HIT};
-use crate::gpu::edge_surfaces::{lit_fraction_over_counted, FrameEdges, TracedEdges};
-use crate::gpu::frame_report::gbuffer_from_gpu;
+use crate::gpu::edge_surfaces::{FrameEdges, TracedEdges};
+use crate::gpu::frame_report::{gbuffer_from_gpu, resolved_images};
 use crate::gpu::pass_copies::read_back;
 use crate::gpu::shared::{self, binding, counter};
 use crate::gpu::GpuError;
@@ -243,20 +243,9 @@ impl ShadowPass<'_> {
                 .map(|(records, _)| records),
             None => None,
         };
-        let alpha = |i: usize| (shaded[i] >> 24) as u8;
-        let visibility = (0..pixels)
-            .map(|i| match &counted {
-                Some(records) => {
-                    let samples = records[i][1].count_ones() + 32 * (halves as u32 - 1);
-                    lit_fraction_over_counted(alpha(i), samples)
-                }
-                None => shared::lit_fraction_of_alpha(alpha(i), 32 * halves as u32),
-            })
-            .collect();
-        let shaded = shaded
-            .iter()
-            .map(|&p| [p as u8, (p >> 8) as u8, (p >> 16) as u8])
-            .collect();
+        let counted = counted
+            .map(|records| move |i: usize| records[i][1].count_ones() + 32 * (halves as u32 - 1));
+        let (visibility, shaded) = resolved_images(&shaded, halves, counted);
         Ok(PassFrame {
             masks,
             masks_high,
