@@ -16,7 +16,8 @@
 //!   struct the shaders share with Rust, included by `shaders/common.glsl`.
 //!
 //! It also compiles every GLSL shader in `shaders/` (compute, and the
-//! raster passes' vertex and fragment shaders) to SPIR-V with
+//! raster passes' vertex and fragment shaders, and the worked host's
+//! lighting pass in `examples/embed_host`) to SPIR-V with
 //! the `glslang` crate (built from source, so a fresh machine needs nothing
 //! but cargo; README, Precision), one `<name>.spv` per [`SHADERS`] entry. A compile
 //! error fails the build with the shader's file and glslang's line numbers.
@@ -185,6 +186,9 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     ),
     ("visibility_raster_frag", "visibility_raster.frag", &[]),
     ("depth_normal_raster_frag", "depth_normal_raster.frag", &[]),
+    // The worked host's own lighting pass (`examples/embed_host`), built
+    // here so the example needs no shader compiler of its own.
+    ("host_lighting", "../examples/embed_host/lighting.comp", &[]),
 ];
 
 /// Resolves `#include "x"` against `OUT_DIR` (the generated
@@ -220,6 +224,7 @@ fn compile_shaders(out_dir: &std::path::Path) {
     let dir = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets it"))
         .join("shaders");
     println!("cargo:rerun-if-changed=shaders");
+    println!("cargo:rerun-if-changed=examples/embed_host/lighting.comp");
     let compiler = glslang::Compiler::acquire().expect("glslang initialises");
     let options = glslang::CompilerOptions {
         source_language: glslang::SourceLanguage::GLSL,

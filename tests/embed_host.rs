@@ -3,7 +3,8 @@
 //! synchronization validation under `IZB_VALIDATION=1`), draws a
 //! visibility buffer on the rasteriser and records the shadow pass into
 //! its own command buffers, two frames in flight, the camera orbiting and
-//! the light turning. After the first frame izb allocates nothing, the
+//! the light turning, then its own lighting pass sampling the lit
+//! fraction the pass left. After the first frame izb allocates nothing, the
 //! validation layer says nothing, no frame stops at lavapipe's loop cap,
 //! and the last frame's masks equal `izb render`'s of the same view on
 //! ≥ 99.9 % of its shadow-tested pixels. No Vulkan device: the test
@@ -22,6 +23,10 @@ mod frames;
 mod gpu_timing;
 #[path = "../examples/embed_host/host_device.rs"]
 mod host_device;
+#[path = "../examples/embed_host/host_run.rs"]
+mod host_run;
+#[path = "../examples/embed_host/lighting.rs"]
+mod lighting;
 #[path = "../examples/embed_host/mesh.rs"]
 mod mesh;
 #[path = "../examples/embed_host/raster.rs"]
@@ -102,6 +107,8 @@ fn the_host_records_the_pass_into_its_own_frames() {
         let gpu_ms = result.gpu_ms.unwrap();
         assert_eq!(gpu_ms.frames, *frames, "{name}");
         assert!(gpu_ms.shadow_pass > 0.0, "{name}: {gpu_ms:?}");
+        assert!(gpu_ms.lighting > 0.0, "{name}: {gpu_ms:?}");
+        assert_lit_as_izb_shades(&result, name);
         // `--out`: frame 0 written as `izb render` writes a frame.
         if name == "default" {
             let tmp = common::TempDir::new("embed_host_out");
@@ -110,10 +117,13 @@ fn the_host_records_the_pass_into_its_own_frames() {
             first_frame::write_frame(frame, &seen, &tmp.join("out"), serde_json::json!({}))
                 .unwrap();
             let out = tmp.join("out");
+            let host_shaded = &result.first_frame_host_shaded;
+            first_frame::write_host_shaded(host_shaded, result.resolution, &out).unwrap();
             for file in [
                 "visibility.exr",
                 "visibility.png",
                 "shaded.png",
+                "host_shaded.png",
                 "report.json",
             ] {
                 assert!(out.join(file).is_file(), "{file} missing");
@@ -149,6 +159,23 @@ fn the_host_records_the_pass_into_its_own_frames() {
         1
     };
     assert_eq!(checked, expected);
+}
+
+/// The host's own lighting of frame 0, which samples the lit fraction
+/// the pass left, against izb's own shaded image of it (the same
+/// formula and constants): the host's normal comes from its `f32`
+/// vertices and its surface point from its own ray, izb's from the
+/// scene's `f64` normal and its G-buffer, so a channel may round to the
+/// next 8-bit code; a lit fraction read from the wrong pixel, frame or
+/// layout would differ by far more.
+fn assert_lit_as_izb_shades(result: &frames::HostRun, what: &str) {
+    let lighting = result.first_frame_lighting.unwrap();
+    let [w, h] = result.resolution;
+    assert_eq!(lighting.pixels, (w * h) as usize, "{what}");
+    assert!(
+        lighting.max_difference <= 1 && lighting.differing * 100 <= lighting.pixels,
+        "{what}: the host's lighting against izb's shading: {lighting:?}"
+    );
 }
 
 /// The host's device (the validation layer with synchronization
@@ -212,7 +239,7 @@ fn the_host_s_depth_and_normal_feed_the_pass() {
             heavy_entries: None,
             resize: None,
             depth: Some(depth),
-            check_first_frame: false,
+            check_first_frame: true,
         };
         let what = format!("{:?} {:?}", depth.format, depth.convention);
         let result = run(&gpu, &scene, options).unwrap();
@@ -233,6 +260,7 @@ fn the_host_s_depth_and_normal_feed_the_pass() {
         );
         let [equal, pixels] = result.twin_masks_equal.unwrap();
         assert_eq!(equal, pixels, "{what}: the CPU twin on the pass's G-buffer");
+        assert_lit_as_izb_shades(&result, &what);
         let exact = depth.format != vk::Format::D24_UNORM_S8_UINT && depth.convention.reversed;
         let per_mille = if exact { 1 } else { 10 };
         assert!(

@@ -54,9 +54,19 @@ pub fn agreement_with_render(scene: &Scene, run: &HostRun, mode: SampleMode) -> 
 /// Recordings of [`HostRun::record_alone_us`].
 pub const RECORD_ALONE: usize = 100;
 
+/// Recordings of [`HostRun::record_cold_us`].
+pub const RECORD_COLD: usize = 20;
+
+/// Bytes swept before each cold recording: far more than this machine's
+/// per-core caches (2 × 4 MiB of L2), as a frame of lavapipe's shader
+/// work sweeps them.
+const CACHE_SWEEP: usize = 64 << 20;
+
 /// `record`'s host time with the device idle: `view` recorded into slot
-/// `slot` `RECORD_ALONE` times, each into a fresh recording of one
-/// command buffer that is reset, never submitted.
+/// `slot` `RECORD_ALONE` times back to back (warm caches), then
+/// `RECORD_COLD` times each after sweeping `CACHE_SWEEP` bytes (cold),
+/// each into a fresh recording of one command buffer that is reset, never
+/// submitted. Returns (warm, cold) microseconds.
 pub fn record_alone(
     gpu: &HostGpu,
     pool: vk::CommandPool,
@@ -64,7 +74,7 @@ pub fn record_alone(
     slot: usize,
     view: &FrameView,
     geometry: &FrameGeometry,
-) -> Result<Vec<f64>, String> {
+) -> Result<(Vec<f64>, Vec<f64>), String> {
     let d = &gpu.device;
     let alloc = vk::CommandBufferAllocateInfo::default()
         .command_pool(pool)
@@ -72,8 +82,15 @@ pub fn record_alone(
         .command_buffer_count(1);
     // SAFETY: the pool is live and only this thread uses it.
     let cmd = unsafe { d.allocate_command_buffers(&alloc) }.map_err(|e| e.to_string())?[0];
-    let mut micros = Vec::with_capacity(RECORD_ALONE);
-    for _ in 0..RECORD_ALONE {
+    let mut micros = Vec::with_capacity(RECORD_ALONE + RECORD_COLD);
+    let mut sweep = vec![0u8; CACHE_SWEEP];
+    for k in 0..RECORD_ALONE + RECORD_COLD {
+        if k >= RECORD_ALONE {
+            for i in (0..sweep.len()).step_by(64) {
+                sweep[i] = sweep[i].wrapping_add(1);
+            }
+            std::hint::black_box(&mut sweep);
+        }
         let begin = vk::CommandBufferBeginInfo::default();
         // SAFETY: `cmd` is not pending (never submitted); nothing executes
         // (the caller waited), so the slot's previous frame is done.
@@ -92,23 +109,23 @@ pub fn record_alone(
     }
     // SAFETY: `cmd` is not pending.
     unsafe { d.free_command_buffers(pool, &[cmd]) };
-    Ok(micros)
+    let cold = micros.split_off(RECORD_ALONE);
+    Ok((micros, cold))
 }
 
-/// The visibility image (in `visibility_layout`: `SHADER_READ_ONLY_OPTIMAL`
-/// when the pass read it, `COLOR_ATTACHMENT_OPTIMAL` when only the raster
-/// wrote it) and the masks (`GENERAL`; one `R32_UINT` word a pixel, the
-/// example's format) copied back, one submission, waited on.
+/// Colour images of four bytes a texel (the visibility buffer, the
+/// masks, the host's shaded image), each in the layout given, last
+/// written by a compute shader or the raster, copied back in one
+/// submission, waited on: one word a texel each.
 pub fn read_back(
     gpu: &HostGpu,
     pool: vk::CommandPool,
-    (visibility, visibility_layout): (&OwnedImage, vk::ImageLayout),
-    masks: &OwnedImage,
+    images: &[(&OwnedImage, vk::ImageLayout)],
     extent: [u32; 2],
-) -> (Vec<u32>, Vec<u32>) {
+) -> Vec<Vec<u32>> {
     let d = &gpu.device;
     let bytes = extent[0] as u64 * extent[1] as u64 * 4;
-    let mut out: Vec<OwnedBuffer> = (0..2)
+    let mut out: Vec<OwnedBuffer> = (0..images.len())
         .map(|_| {
             let usage = vk::BufferUsageFlags::TRANSFER_DST;
             OwnedBuffer::new(gpu, "read_back", bytes, usage, MemoryLocation::GpuToCpu)
@@ -125,25 +142,23 @@ pub fn read_back(
             .expect("a command buffer")[0];
         d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
             .unwrap();
-        let barriers = [
-            (visibility.image, visibility_layout),
-            (masks.image, vk::ImageLayout::GENERAL),
-        ]
-        .map(|(image, old)| {
-            vk::ImageMemoryBarrier::default()
-                // The masks' compute writes, the visibility image's raster
-                // writes (a read by the pass needs no access scope).
-                .src_access_mask(
-                    vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
-                )
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
-                .old_layout(old)
-                .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image)
-                .subresource_range(whole(vk::ImageAspectFlags::COLOR))
-        });
+        let barriers: Vec<_> = images
+            .iter()
+            .map(|(image, old)| {
+                vk::ImageMemoryBarrier::default()
+                    // Compute writes, or the raster's.
+                    .src_access_mask(
+                        vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                    )
+                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+                    .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .old_layout(*old)
+                    .image(image.image)
+                    .subresource_range(whole(vk::ImageAspectFlags::COLOR))
+            })
+            .collect();
         d.cmd_pipeline_barrier(
             cmd,
             vk::PipelineStageFlags::COMPUTE_SHADER
@@ -165,10 +180,10 @@ pub fn read_back(
                 height: extent[1],
                 depth: 1,
             })];
-        for (image, buffer) in [visibility.image, masks.image].iter().zip(&out) {
+        for ((image, _), buffer) in images.iter().zip(&out) {
             d.cmd_copy_image_to_buffer(
                 cmd,
-                *image,
+                image.image,
                 vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
                 buffer.buffer,
                 &region,
@@ -205,6 +220,5 @@ pub fn read_back(
     for b in &mut out {
         b.destroy(gpu);
     }
-    let [ids, masks] = <[Vec<u32>; 2]>::try_from(words).unwrap();
-    (ids, masks)
+    words
 }

@@ -2,7 +2,8 @@
 //! the pass's G-buffer (made from the host's raster) read back and fed to
 //! the CPU twin in the frame's mode, and a frame written as `izb render`
 //! writes one (`--out DIR`: `visibility.exr` with the masks,
-//! `visibility.png`, `shaded.png`, `report.json`).
+//! `visibility.png`, `shaded.png`, `report.json`), with the host's own
+//! lighting of it (`host_shaded.png`).
 
 use glam::Vec3;
 use izb::cpu::IzbSettings;
@@ -58,6 +59,22 @@ pub unsafe fn twin_on_pass_gbuffer(
         c.sample_mismatches += u64::from((a ^ b).count_ones());
     }
     Ok(c)
+}
+
+/// Writes the host's lighting of a frame (RGBA8 words, `resolution`) as
+/// `dir/host_shaded.png`.
+pub fn write_host_shaded(words: &[u32], [w, h]: [u32; 2], dir: &Path) -> Result<(), String> {
+    let rgb: Vec<u8> = words
+        .iter()
+        .flat_map(|word| {
+            let [r, g, b, _] = word.to_le_bytes();
+            [r, g, b]
+        })
+        .collect();
+    let path = dir.join("host_shaded.png");
+    let error = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let image = image::RgbImage::from_raw(w, h, rgb).ok_or_else(|| error(&"its size"))?;
+    izb::output::write_png(&path, &image).map_err(|e| error(&e))
 }
 
 /// `scene` seen from `view` at `resolution`.

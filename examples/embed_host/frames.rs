@@ -9,11 +9,13 @@
 //! descriptor-set counters say so.
 
 use crate::after_loop::{read_back, record_alone};
-use crate::first_frame::{twin_on_pass_gbuffer, TwinComparison};
-use crate::gpu_timing::{GpuMillis, Mark, PassTimer};
+use crate::first_frame::twin_on_pass_gbuffer;
+use crate::gpu_timing::{thread_cpu_us, GpuMillis, Mark, PassTimer};
 use crate::host_device::HostGpu;
+pub use crate::host_run::{HostOptions, HostRun};
+use crate::lighting::{compare_lighting, lighting_view};
 use crate::mesh::{host_buffer, indexed_mesh};
-use crate::targets::{declared, HostDepth, Targets};
+use crate::targets::{declared, Targets};
 use ash::vk;
 use glam::DMat3;
 use izb::cpu::{IzbSettings, SampleMode};
@@ -21,97 +23,12 @@ use izb::gpu::context::HostCounts;
 use izb::gpu::gather_draws::{FrameGeometry, HostBuffer, HostDraw, HostIndices};
 use izb::gpu::host_images::FrameImages;
 use izb::gpu::shadow_pass::{
-    FrameView, GBufferInput, HostGeometryConfig, PassFrame, PassStatus, ShadowPass,
-    ShadowPassConfig,
+    FrameView, GBufferInput, HostGeometryConfig, PassStatus, ShadowPass, ShadowPassConfig,
 };
 use izb::gpu::visibility_raster::raster_view;
 use izb::gpu::GpuRenderer;
 use izb::scene::{Light, Scene};
 use std::time::Instant;
-
-/// What a run is asked to do.
-#[derive(Clone, Copy, Debug)]
-pub struct HostOptions {
-    pub frames: usize,
-    pub frames_in_flight: usize,
-    pub mode: SampleMode,
-    /// Entries of the pass's cell list (`None`: its default).
-    pub cell_capacity: Option<u64>,
-    /// Evaluate's heavy-step threshold (`None`: the device's default).
-    pub heavy_entries: Option<u32>,
-    /// Before frame `.0`, the image becomes `.1` (a resized window).
-    pub resize: Option<(usize, [u32; 2])>,
-    /// The G-buffer the pass reads: the host's depth and normal in this
-    /// format and convention, or (`None`) its visibility buffer.
-    pub depth: Option<HostDepth>,
-    /// Wait for frame 0 before recording frame 1, read its G-buffer and
-    /// images back and run the CPU twin on them ([`HostRun::first_frame`]).
-    pub check_first_frame: bool,
-}
-
-/// What a run measured, and its last frame read back after the loop.
-#[derive(Debug, serde::Serialize)]
-pub struct HostRun {
-    pub scene: String,
-    pub device: String,
-    pub resolution: [u32; 2],
-    pub triangles: usize,
-    pub frames: usize,
-    pub frames_in_flight: usize,
-    /// izb's buffers and descriptor sets made inside `record` after the
-    /// first frame (growth and resizes happen between frames).
-    pub allocations_after_first_frame: [u64; 2],
-    /// Times `ShadowPass::grow` made a larger cell list.
-    pub grown: usize,
-    /// izb's buffers and descriptor sets `ShadowPass::resize` made.
-    pub resize_allocations: [u64; 2],
-    /// `ShadowPass::record`'s host time per frame, µs.
-    pub record_us: Vec<f64>,
-    /// The host's time from the command buffer's begin to its submit,
-    /// per frame, µs.
-    pub frame_cpu_us: Vec<f64>,
-    /// `record`'s host time with the device idle, µs: the last frame
-    /// recorded again `RECORD_ALONE` times into a command buffer that is
-    /// never submitted. On lavapipe the loop's own `record_us` also pays
-    /// for the device's worker threads running the previous frame on the
-    /// same cores.
-    pub record_alone_us: Vec<f64>,
-    /// Frames whose status said the cell list overran (the pass grew
-    /// before the slot's next frame).
-    pub overruns: usize,
-    /// Frames a shader stopped at lavapipe's loop cap in (their masks
-    /// are cut short), with the trips.
-    pub loop_capped_frames: Vec<(usize, u32)>,
-    pub validation_messages: Vec<String>,
-    /// With a depth + normal G-buffer: the pass's G-buffer of the last
-    /// frame read back and fed to the CPU twin (`render_cpu_on`) — of its
-    /// pixels, how many masks equal the pass's, and how many there are.
-    pub twin_masks_equal: Option<[usize; 2]>,
-    /// What izb did on the host inside `record` in the frames after the
-    /// first: buffers, descriptor sets and mappings made, submissions
-    /// waited for (every read-back is one).
-    pub in_frames_after_first: HostCounts,
-    /// The host's GPU time per pass, milliseconds, median over the frames
-    /// (timestamps; `None` where the queue has none).
-    pub gpu_ms: Option<GpuMillis>,
-    /// With `check_first_frame`: the CPU twin on frame 0's G-buffer.
-    pub first_frame: Option<TwinComparison>,
-    /// izb's own per-pass times of each frame whose status was read.
-    #[serde(skip)]
-    pub pass_millis: Vec<izb::settings::PassTimes>,
-    /// With `check_first_frame`: frame 0's images, and its view.
-    #[serde(skip)]
-    pub first_frame_images: Option<(PassFrame, FrameView)>,
-    /// The last frame's view (not serialised).
-    #[serde(skip)]
-    pub last_view: Option<FrameView>,
-    /// The last frame's visibility buffer and masks, read back after the
-    /// loop.
-    #[serde(skip)]
-    pub last_ids: Vec<u32>,
-    #[serde(skip)]
-    pub last_masks: Vec<u32>,
-}
 
 /// Frame `k`'s view: the eye orbits the target by 0.5° a frame and the
 /// light turns by 2° a frame (a point light about the target), both about
@@ -221,11 +138,13 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         buffers: &geometry_buffers,
         draws: &draws,
     };
+    let mesh_buffers = (vertex_buffer.buffer, index_buffer.buffer);
     let mut targets = Targets::new(
         gpu,
         scene.resolution,
         options.frames_in_flight,
         options.depth,
+        mesh_buffers,
     );
     let pool_info = vk::CommandPoolCreateInfo::default()
         .queue_family_index(gpu.family)
@@ -255,8 +174,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         resize_allocations: [0; 2],
         grown: 0,
         record_us: Vec::new(),
+        record_cpu_us: Vec::new(),
         frame_cpu_us: Vec::new(),
         record_alone_us: Vec::new(),
+        record_cold_us: Vec::new(),
         overruns: 0,
         loop_capped_frames: Vec::new(),
         validation_messages: Vec::new(),
@@ -264,7 +185,9 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         in_frames_after_first: HostCounts::default(),
         gpu_ms: None,
         first_frame: None,
+        first_frame_lighting: None,
         first_frame_images: None,
+        first_frame_host_shaded: Vec::new(),
         pass_millis: Vec::new(),
         last_view: None,
         last_ids: Vec::new(),
@@ -303,7 +226,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 }
                 fresh.fill(true);
                 targets.destroy(gpu);
-                targets = Targets::new(gpu, size, options.frames_in_flight, options.depth);
+                let slots = options.frames_in_flight;
+                targets = Targets::new(gpu, size, slots, options.depth, mesh_buffers);
                 let before = renderer.context.shared.allocations();
                 pass.resize(size).map_err(|e| e.to_string())?;
                 let after = renderer.context.shared.allocations();
@@ -398,6 +322,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             let before = renderer.context.shared.allocations();
             let counts_before = renderer.context.shared.host_counts();
             let recorded = Instant::now();
+            let cpu_before = thread_cpu_us();
             // SAFETY: `cmd` records on this thread and is submitted below to
             // the pass's queue after every earlier frame; the slot's previous
             // frame is done (its fence); the pass, the images and the vertex
@@ -406,6 +331,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             // below comes before any is dropped).
             let result = unsafe { pass.record_host_geometry(cmd, slot, &view, &geometry) };
             run.record_us.push(recorded.elapsed().as_secs_f64() * 1e6);
+            run.record_cpu_us.push(thread_cpu_us() - cpu_before);
             let made = renderer.context.shared.allocations();
             if k > 0 {
                 for i in 0..2 {
@@ -417,6 +343,22 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             if let Some(t) = &timer {
                 // SAFETY: `cmd` is recording, started above.
                 unsafe { t.mark(d, cmd, slot, Mark::ShadowPassDone) };
+            }
+            // The host's lighting samples the lit fraction the pass left
+            // (a refused frame's images are never read: not submitted).
+            let lighting = lighting_view(&view, extent, origin);
+            let pass_read_visibility = options.depth.is_none();
+            // SAFETY: `cmd` is recording after the raster and the pass into
+            // the slot's images; the slot's last frame is done; the images
+            // and buffers outlive the frame (the idle wait below).
+            unsafe {
+                let images = images.lighting();
+                let lights = &targets.lighting;
+                lights.record(d, cmd, slot, &images, pass_read_visibility, &lighting);
+            }
+            if let Some(t) = &timer {
+                // SAFETY: `cmd` is recording, started above.
+                unsafe { t.mark(d, cmd, slot, Mark::LightingDone) };
             }
             // SAFETY: `cmd` is recording.
             unsafe { d.end_command_buffer(cmd) }.map_err(|e| e.to_string())?;
@@ -457,6 +399,10 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 }?;
                 // SAFETY: as above.
                 let images = unsafe { pass.read_back_frame() }.map_err(|e| e.to_string())?;
+                let shaded = (&targets.slots[slot].shaded, vk::ImageLayout::GENERAL);
+                let host_shaded = read_back(gpu, pool, &[shaded], extent).remove(0);
+                run.first_frame_lighting = Some(compare_lighting(&host_shaded, &images.shaded));
+                run.first_frame_host_shaded = host_shaded;
                 run.first_frame = Some(twin);
                 run.first_frame_images = Some((images, view));
             }
@@ -488,23 +434,20 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     if let (None, Some(view)) = (&failure, run.last_view) {
         let slot = (options.frames - 1) % options.frames_in_flight;
         match record_alone(gpu, pool, &mut pass, slot, &view, &geometry) {
-            Ok(us) => run.record_alone_us = us,
+            Ok((warm, cold)) => (run.record_alone_us, run.record_cold_us) = (warm, cold),
             Err(e) => failure = Some(e),
         }
     }
     if failure.is_none() && options.frames > 0 {
         let last = &targets.slots[(options.frames - 1) % options.frames_in_flight];
-        let visibility_layout = match options.depth {
-            Some(_) => vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-            None => vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
-        };
-        (run.last_ids, run.last_masks) = read_back(
-            gpu,
-            pool,
-            (&last.visibility, visibility_layout),
-            &last.masks,
-            targets.extent,
-        );
+        // The pass or the host's lighting left the visibility buffer read-only.
+        let images = [
+            (&last.visibility, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL),
+            (&last.masks, vk::ImageLayout::GENERAL),
+        ];
+        let [ids, masks] = <[Vec<u32>; 2]>::try_from(read_back(gpu, pool, &images, targets.extent))
+            .expect("two images");
+        (run.last_ids, run.last_masks) = (ids, masks);
     }
     if let (None, Some(_), Some(view)) = (&failure, options.depth, run.last_view) {
         // SAFETY: every frame is done (the waits above).

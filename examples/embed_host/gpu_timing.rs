@@ -1,5 +1,5 @@
-//! The host's GPU time per pass: timestamps around its raster and izb's
-//! shadow pass in each frame's command buffer, read once the slot's fence
+//! The host's GPU time per pass: timestamps around its raster, izb's
+//! shadow pass and its lighting in each frame's command buffer, read once the slot's fence
 //! says the frame is done (no wait of their own, no read-back of a
 //! buffer: a query pool the host owns).
 
@@ -8,18 +8,20 @@ use ash::vk;
 use izb::settings::PassTimes;
 
 /// Timestamps a frame writes: before the raster, between the raster and
-/// izb's pass, after izb's pass.
-const MARKS: u32 = 3;
+/// izb's pass, between izb's pass and the lighting, after the lighting.
+const MARKS: u32 = 4;
 
-/// Per frame slot three timestamps, and the frames' times read so far.
+/// Per frame slot four timestamps, and the frames' times read so far.
 pub struct PassTimer {
     pool: vk::QueryPool,
     period_ns: f64,
     /// Per slot: a frame's marks written and not read yet.
     pending: Vec<bool>,
-    /// Per frame read: the raster's and izb's pass's milliseconds.
+    /// Per frame read: the raster's, izb's pass's and the lighting's
+    /// milliseconds.
     pub raster_ms: Vec<f64>,
     pub izb_ms: Vec<f64>,
+    pub lighting_ms: Vec<f64>,
 }
 
 /// Where in the frame a timestamp is written.
@@ -28,6 +30,7 @@ pub enum Mark {
     FrameStart = 0,
     RasterDone = 1,
     ShadowPassDone = 2,
+    LightingDone = 3,
 }
 
 impl PassTimer {
@@ -56,6 +59,7 @@ impl PassTimer {
             pending: vec![false; slots],
             raster_ms: Vec::new(),
             izb_ms: Vec::new(),
+            lighting_ms: Vec::new(),
         })
     }
 
@@ -110,6 +114,7 @@ impl PassTimer {
             let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * self.period_ns * 1e-6;
             self.raster_ms.push(ms(ticks[0], ticks[1]));
             self.izb_ms.push(ms(ticks[1], ticks[2]));
+            self.lighting_ms.push(ms(ticks[2], ticks[3]));
         }
     }
 
@@ -129,6 +134,8 @@ pub struct GpuMillis {
     pub raster: f64,
     /// izb's shadow pass, everything `record` recorded.
     pub shadow_pass: f64,
+    /// The host's lighting, sampling the pass's lit fraction.
+    pub lighting: f64,
     /// Frames timed.
     pub frames: usize,
     /// Within izb's pass (`ShadowPass::gpu_millis`): the G-buffer (with
@@ -147,6 +154,7 @@ impl GpuMillis {
         GpuMillis {
             raster: median(&timer.raster_ms),
             shadow_pass: median(&timer.izb_ms),
+            lighting: median(&timer.lighting_ms),
             frames: timer.izb_ms.len(),
             gbuffer: step(|m| m.gbuffer),
             light_setup: step(|m| m.light_setup),
@@ -154,6 +162,21 @@ impl GpuMillis {
             evaluate: step(|m| m.evaluate),
             resolve: step(|m| m.resolve),
         }
+    }
+}
+
+/// CPU microseconds this thread has run (`CLOCK_THREAD_CPUTIME_ID`): its
+/// own work, without the time it was off the CPU.
+pub fn thread_cpu_us() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `t` is a valid timespec to write; the clock id is a constant.
+    let ok = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) } == 0;
+    match ok {
+        true => t.tv_sec as f64 * 1e6 + t.tv_nsec as f64 * 1e-3,
+        false => f64::NAN,
     }
 }
 

@@ -3,7 +3,8 @@
 //! visibility buffer (or, with `--depth`, a depth and normal G-buffer) on
 //! the rasteriser, and records izb's shadow pass into the same command
 //! buffer each frame — the pass reading the raster's own vertex and index
-//! buffers (`ShadowPass::with_host_geometry`) — with the camera and light
+//! buffers (`ShadowPass::with_host_geometry`) — then its own lighting pass
+//! sampling the lit fraction the pass left, with the camera and light
 //! moving and two frames in flight. Prints the run's counters as JSON: izb's
 //! allocations after the first frame (0), `record`'s host time, the
 //! validation layer's messages (with `IZB_VALIDATION=1`, synchronization
@@ -20,20 +21,26 @@
 //! SCENE: a procedural name (`default`) or a `*.scene.json` spec;
 //! default `default`. Frame 0 has the spec's camera and light. The mode is
 //! the 32-sample LUT (`--exact`: the exact test). `--out DIR` writes frame
-//! 0 as `izb render` writes a frame (`DIR/SCENE` with several scenes);
+//! 0 as `izb render` writes a frame (`DIR/SCENE` with several scenes),
+//! and the host's own lighting of it as `host_shaded.png`;
 //! `--stats FILE` writes the run's counters as one JSON object (an array
 //! of them with several scenes): `frames`, `allocations_after_first`,
 //! `descriptor_allocations_after_first`, `maps_after_first`,
-//! `waits_in_frame`, `readbacks_in_frame`, `record_us_median`, `gpu_ms`,
+//! `waits_in_frame`, `readbacks_in_frame`, `record_us_median` (wall
+//! time; `record_cpu_us_median`: the thread's CPU time), `gpu_ms`,
 //! `validation_messages`, `sync_validation`, `masks_compared` and
 //! `mask_mismatches` (frame 0's G-buffer, made from the host's raster,
-//! read back and fed to the CPU twin in the frame's mode).
+//! read back and fed to the CPU twin in the frame's mode), and
+//! `lighting_pixels_differing` / `lighting_max_difference` (the host's
+//! lighting of frame 0 against izb's own shaded image, 8-bit codes).
 
 mod after_loop;
 mod first_frame;
 mod frames;
 mod gpu_timing;
 mod host_device;
+mod host_run;
+mod lighting;
 mod mesh;
 mod raster;
 mod targets;
@@ -125,6 +132,8 @@ fn main() -> Result<(), String> {
             let seen = first_frame::seen_as(&scene, view, result.resolution);
             let extra = serde_json::json!({ "mode": mode, "first_frame": result.first_frame });
             first_frame::write_frame(frame, &seen, &dir, extra)?;
+            let host_shaded = &result.first_frame_host_shaded;
+            first_frame::write_host_shaded(host_shaded, result.resolution, &dir)?;
         }
         stats.push(stats_of(&result, validation));
         let agreement = after_loop::agreement_with_render(&scene, &result, options.mode);
@@ -164,13 +173,17 @@ fn stats_of(run: &frames::HostRun, validation: bool) -> serde_json::Value {
         "waits_in_frame": after.waits,
         "readbacks_in_frame": after.waits,
         "record_us_median": gpu_timing::median(&run.record_us),
+        "record_cpu_us_median": gpu_timing::median(&run.record_cpu_us),
         "record_alone_us_median": gpu_timing::median(&run.record_alone_us),
+        "record_cold_us_median": gpu_timing::median(&run.record_cold_us),
         "gpu_ms": run.gpu_ms,
         "validation_messages": run.validation_messages.len(),
         "sync_validation": validation,
         "masks_compared": twin.masks_compared,
         "mask_mismatches": twin.mask_mismatches,
         "sample_mismatches": twin.sample_mismatches,
+        "lighting_pixels_differing": run.first_frame_lighting.map(|l| l.differing),
+        "lighting_max_difference": run.first_frame_lighting.map(|l| l.max_difference),
         "overruns": run.overruns,
         "grown": run.grown,
         "loop_capped_frames": run.loop_capped_frames.len(),

@@ -1,10 +1,11 @@
 //! The host's per-frame-slot render targets at one size: the raster's
 //! visibility, depth and (for a depth + normal G-buffer) normal images,
-//! the pass's mask and lit-fraction outputs, and the raster pass drawing
-//! into them. A resize makes them anew
-//! (as a swapchain's recreation does).
+//! the pass's mask and lit-fraction outputs, the host's shaded image, and
+//! the raster and lighting passes drawing into them. A resize makes them
+//! anew (as a swapchain's recreation does).
 
 use crate::host_device::HostGpu;
+use crate::lighting::{HostLighting, LightingImages};
 use crate::raster::{OwnedImage, VisibilityRaster};
 use ash::vk;
 use izb::gbuffer::DepthConvention;
@@ -19,7 +20,8 @@ pub struct HostDepth {
 }
 
 /// One frame slot's images: the raster's visibility and depth targets,
-/// the pass's mask and lit-fraction outputs.
+/// the pass's mask and lit-fraction outputs, the host's lighting's
+/// output.
 pub struct SlotImages {
     pub visibility: OwnedImage,
     pub depth: OwnedImage,
@@ -28,24 +30,40 @@ pub struct SlotImages {
     pub normal: Option<OwnedImage>,
     pub masks: OwnedImage,
     pub lit: OwnedImage,
+    /// The host's lighting (`R8G8B8A8_UNORM`, sRGB-encoded).
+    pub shaded: OwnedImage,
 }
 
-/// Every slot's images and the pass that draws into them.
+impl SlotImages {
+    /// What the host's lighting reads and writes.
+    pub fn lighting(&self) -> LightingImages<'_> {
+        LightingImages {
+            visibility: &self.visibility,
+            lit: &self.lit,
+            shaded: &self.shaded,
+        }
+    }
+}
+
+/// Every slot's images and the passes that draw into them.
 pub struct Targets {
     pub slots: Vec<SlotImages>,
     pub raster: VisibilityRaster,
+    pub lighting: HostLighting,
     pub extent: [u32; 2],
 }
 
 impl Targets {
     /// `depth`: a depth + normal G-buffer for the pass (its depth sampled,
     /// a normal image drawn), else a visibility buffer and a `D32` depth
-    /// the raster alone uses.
+    /// the raster alone uses. `mesh`: the vertex and index buffers the
+    /// lighting reads.
     pub fn new(
         gpu: &HostGpu,
         extent: [u32; 2],
         frames_in_flight: usize,
         depth: Option<HostDepth>,
+        mesh: (vk::Buffer, vk::Buffer),
     ) -> Self {
         let sampled_colour = vk::ImageUsageFlags::COLOR_ATTACHMENT
             | vk::ImageUsageFlags::SAMPLED
@@ -75,7 +93,15 @@ impl Targets {
                     OwnedImage::new(gpu, "normal", extent, format, sampled_colour)
                 }),
                 masks: OwnedImage::new(gpu, "masks", extent, vk::Format::R32_UINT, storage),
-                lit: OwnedImage::new(gpu, "lit", extent, vk::Format::R16_UNORM, storage),
+                // Written by izb's pass, sampled by the host's lighting.
+                lit: OwnedImage::new(
+                    gpu,
+                    "lit",
+                    extent,
+                    vk::Format::R16_UNORM,
+                    storage | vk::ImageUsageFlags::SAMPLED,
+                ),
+                shaded: OwnedImage::new(gpu, "shaded", extent, vk::Format::R8G8B8A8_UNORM, storage),
             })
             .collect();
         let targets: Vec<_> = slots
@@ -83,9 +109,12 @@ impl Targets {
             .map(|s| (&s.visibility, s.normal.as_ref(), &s.depth))
             .collect();
         let raster = VisibilityRaster::new(gpu, extent, &targets, depth);
+        let images: Vec<_> = slots.iter().map(SlotImages::lighting).collect();
+        let lighting = HostLighting::new(gpu, extent, &images, mesh);
         Targets {
             slots,
             raster,
+            lighting,
             extent,
         }
     }
@@ -93,8 +122,16 @@ impl Targets {
     /// Frees every image and the pass; no work that uses them executes.
     pub fn destroy(&mut self, gpu: &HostGpu) {
         self.raster.destroy(gpu);
+        self.lighting.destroy(gpu);
         for s in &mut self.slots {
-            for image in [&mut s.visibility, &mut s.depth, &mut s.masks, &mut s.lit] {
+            let images = [
+                &mut s.visibility,
+                &mut s.depth,
+                &mut s.masks,
+                &mut s.lit,
+                &mut s.shaded,
+            ];
+            for image in images {
                 image.destroy(gpu);
             }
             if let Some(n) = &mut s.normal {
