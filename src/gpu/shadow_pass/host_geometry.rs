@@ -82,27 +82,6 @@ impl HostGeometryState {
             buffer_handles: Vec::with_capacity(izb_contract::host_image::GEOMETRY_SLOTS as usize),
         }
     }
-
-    /// Writes the table into `draws` (`B_DRAWS`), `vkCmdUpdateBuffer`'s
-    /// 65 536 bytes at a time.
-    ///
-    /// # Safety
-    /// `cmd` is recording, outside a render pass; `draws` holds
-    /// `max_draws` entries (checked when the table was made).
-    pub(super) unsafe fn record_table(
-        &self,
-        device: &ash::Device,
-        cmd: vk::CommandBuffer,
-        draws: vk::Buffer,
-    ) {
-        let per_update = 65536 / size_of::<GpuDraw>();
-        for (k, chunk) in self.table.chunks(per_update).enumerate() {
-            let offset = (k * per_update * size_of::<GpuDraw>()) as u64;
-            // SAFETY: the caller's promise; a whole number of draws,
-            // within the buffer.
-            unsafe { device.cmd_update_buffer(cmd, draws, offset, bytemuck::cast_slice(chunk)) };
-        }
-    }
 }
 
 const _: () = assert!(size_of::<GpuDraw>().is_multiple_of(4));

@@ -40,8 +40,9 @@
 //!   recorded again (`capacity.rs`).
 //!
 //! Per frame the recording is: a barrier after the previous frame's work
-//! on the pass's buffers, the parameters and the light state's start
-//! written into the command buffer (`vkCmdUpdateBuffer`), the counters
+//! on the pass's buffers, the parameters, the light state's start and
+//! the draw table written into the slot's upload ring and copied into
+//! the pass's buffers (`slot_uploads.rs`), the counters
 //! cleared, the host's images acquired (one barrier each, from the state
 //! the host declares: [`super::host_images`]), then `gbuffer` (or
 //! `gbuffer_from_visibility`, `gbuffer_from_depth`), `light_setup`, `bin`, `evaluate`,
@@ -57,6 +58,7 @@ mod edge_slots;
 mod frame_view;
 mod host_geometry;
 mod read_back;
+mod slot_uploads;
 mod status;
 
 pub use frame_view::FrameView;
@@ -74,7 +76,7 @@ use super::host_images::{HostImageSets, ImageUse, InputImages};
 use super::pass_copies::upload_into;
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
-use super::shared::{binding, counter, FrameParams, LightState, BINDING_COUNT};
+use super::shared::{binding, counter, LightState, BINDING_COUNT};
 use super::translate_vertices::WorldVertices;
 use super::{GpuError, Recorder};
 use crate::cpu::gather_draws::eye_relative_bounds;
@@ -86,12 +88,6 @@ use glam::{DVec3, Vec3};
 use std::sync::Arc;
 
 const BINDINGS: usize = BINDING_COUNT as usize;
-
-// `vkCmdUpdateBuffer` writes at most 65 536 bytes, in whole words.
-const _: () =
-    assert!(size_of::<FrameParams>() <= 65536 && size_of::<FrameParams>().is_multiple_of(4));
-const _: () =
-    assert!(size_of::<LightState>() <= 65536 && size_of::<LightState>().is_multiple_of(4));
 
 /// What a pass is made for.
 #[derive(Clone, Copy, Debug)]
@@ -166,6 +162,8 @@ pub struct ShadowPass<'r> {
     host_sets: HostImageSets,
     /// Per frame slot, the counters of its last frame (host-visible).
     status: Vec<GpuBuffer>,
+    /// Per frame slot, its parameters' upload buffer, mapped once.
+    uploads: slot_uploads::SlotUploads,
     /// The read-backs' buffer, kept between them (tests and tools).
     readback: super::pass_copies::ReadbackBuffer,
     /// Per frame slot, its last frame's timestamps at the passes'
@@ -339,6 +337,8 @@ impl<'r> ShadowPass<'r> {
             (binding::EDGE_LUT, bytemuck::cast_slice(&lut.masks).to_vec()),
         ];
         upload_into(renderer, &buffers, &uploads)?;
+        let max_draws = host.map_or(0, |h| h.max_draws);
+        let uploads = slot_uploads::SlotUploads::new(shared, config.frames_in_flight, max_draws)?;
         Ok(ShadowPass {
             renderer,
             config,
@@ -353,6 +353,7 @@ impl<'r> ShadowPass<'r> {
             host_sets,
             slot_edge_slots: vec![0; config.frames_in_flight],
             status,
+            uploads,
             timestamps,
             readback: Default::default(),
             retired: Vec::new(),
@@ -379,7 +380,8 @@ impl<'r> ShadowPass<'r> {
     /// Bytes of the pass's buffers, its frame slots' status included.
     pub fn memory_bytes(&self) -> u64 {
         let buffers: u64 = self.buffers.iter().map(|b| b.size()).sum();
-        buffers + self.status.iter().map(|b| b.size()).sum::<u64>()
+        let status: u64 = self.status.iter().map(|b| b.size()).sum();
+        buffers + status + self.uploads.memory_bytes()
     }
 
     /// Records frame `slot`'s shadow pass for `view` into `cmd`.
@@ -471,6 +473,16 @@ impl<'r> ShadowPass<'r> {
             (params.bounds_lo, params.bounds_hi) = (lo.to_array(), hi.to_array());
         }
         let device = &shared.device;
+        let draws = self
+            .host_geometry
+            .as_ref()
+            .map_or(&[][..], |h| &h.table[..]);
+        let targets = slot_uploads::UploadTargets {
+            frame: self.buffers[binding::FRAME as usize].buffer,
+            light: self.buffers[binding::LIGHT as usize].buffer,
+            draws: self.buffers[binding::DRAWS as usize].buffer,
+        };
+        let light_start = LightState::reset();
         let buffer = |b: u32| self.buffers[b as usize].buffer;
         // SAFETY: the caller's promise covers `cmd`, and the set, layout
         // and kernels live in the pass and its renderer.
@@ -482,16 +494,13 @@ impl<'r> ShadowPass<'r> {
         // The previous frame's reads and writes of every buffer are done
         // before this frame's.
         rec.barrier();
-        // SAFETY: `cmd` is recording; both writes lie within their
-        // buffers (sizes asserted above).
+        // SAFETY: the caller's promise: `cmd` is recording outside a render
+        // pass and runs after the slot's previous frame; the targets are
+        // the pass's, sized for a frame's parameters and its draws.
         unsafe {
-            device.cmd_update_buffer(cmd, buffer(binding::FRAME), 0, bytemuck::bytes_of(&params));
-            let start = LightState::reset();
-            device.cmd_update_buffer(cmd, buffer(binding::LIGHT), 0, bytemuck::bytes_of(&start));
-            if let Some(h) = &self.host_geometry {
-                h.record_table(device, cmd, buffer(binding::DRAWS));
-            }
-        }
+            let parts = (&params, &light_start, draws);
+            self.uploads.record(device, cmd, slot, parts, targets)
+        }?;
         reset_pass_state(device, cmd, buffer, traced_edges);
         rec.barrier();
         timestamps.write(cmd, 0);
