@@ -18,10 +18,12 @@ use crate::gpu::GpuError;
 use std::sync::Arc;
 
 /// A descriptor set replaced by [`ShadowPass::grow`] or
-/// [`ShadowPass::resize`] (it holds its buffers), kept until every frame
-/// slot has recorded again ([`ShadowPass::record`]'s promise).
+/// [`ShadowPass::resize`] (it holds its buffers), or upload buffers
+/// replaced by [`ShadowPass::reserve_host_geometry`], kept until every
+/// frame slot has recorded again ([`ShadowPass::record`]'s promise).
 pub(super) struct Retired {
-    _set: DescriptorSet,
+    _set: Option<DescriptorSet>,
+    _uploads: Option<super::slot_uploads::SlotUploads>,
     /// Bit s: slot s has not recorded since.
     pub(super) slots_pending: u64,
 }
@@ -114,6 +116,7 @@ impl ShadowPass<'_> {
         if (limits.max_triangles, limits.max_draws) == (max_triangles, max_draws) {
             return Ok(false);
         }
+        let more_draws = max_draws != limits.max_draws;
         (limits.max_triangles, limits.max_draws) = (max_triangles, max_draws);
         limits.check(&self.config)?;
         let mut sizes = self.sizes;
@@ -123,6 +126,18 @@ impl ShadowPass<'_> {
         let pixels = sizes.pixels as usize;
         sizes.max_cells = max_cells(pixels, max_triangles as usize, self.config.settings)?;
         self.replace_sized(sizes)?;
+        if more_draws {
+            // Frames in flight may still copy from the old ring.
+            let slots = self.status.len();
+            let ring =
+                super::slot_uploads::SlotUploads::new(self.renderer.shared(), slots, max_draws)?;
+            let old = std::mem::replace(&mut self.uploads, ring);
+            self.retired.push(Retired {
+                _set: None,
+                _uploads: Some(old),
+                slots_pending: (1u64 << slots) - 1,
+            });
+        }
         self.triangles = max_triangles;
         if let Some(h) = &mut self.host_geometry {
             h.config = limits;
@@ -166,7 +181,8 @@ impl ShadowPass<'_> {
         let set = DescriptorSet::new(shared, &self.renderer.layout, buffers.clone())?;
         let old = std::mem::replace(&mut self.set, set);
         self.retired.push(Retired {
-            _set: old,
+            _set: Some(old),
+            _uploads: None,
             slots_pending: (1u64 << self.status.len()) - 1,
         });
         self.buffers = buffers;
