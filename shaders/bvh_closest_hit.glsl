@@ -40,7 +40,10 @@ uint closest_hit(vec3 d, inout float best_t) {
             for (uint k = 0u; k < n.prim_count && BVH_TRIP(); ++k) {
                 uint id = prims[n.first + k];
                 float t = hit_triangle(scene_triangle(id), vec3(0.0), ray);
-                if (t > frame.near && t < best_t) {
+                // Ties go to the lower id, whatever the traversal's order:
+                // a resident pass's translated BVH and a BVH built for
+                // the same eye see the same hit.
+                if (t > frame.near && (t < best_t || (t == best_t && best != NO_HIT && id < best))) {
                     best_t = t;
                     best = id;
                 }

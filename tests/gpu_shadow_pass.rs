@@ -164,16 +164,13 @@ fn bad_views_and_configurations_are_refused_by_name() {
     };
     let mut pass = ShadowPass::new(&r, scene.clone(), config).unwrap();
     let good = view_at(&scene, 1);
-    let mut moved_eye = good;
-    moved_eye.camera.eye += DVec3::new(0.5, 0.0, 0.0);
     let mut far_light = good;
     far_light.light = Light::Point {
         position: DVec3::splat(1e12),
     };
     let mut area = good;
     area.light_radius = 0.05;
-    let cases: [(&FrameView, usize, &str); 4] = [
-        (&moved_eye, 0, "the eye moved"),
+    let cases: [(&FrameView, usize, &str); 3] = [
         (&far_light, 0, "point light"),
         (&area, 0, "area"),
         (&good, 2, "frame slot 2"),

@@ -25,6 +25,8 @@ shared_constants! {
         /// Per triangle its three corners' indices into `B_VERTICES`
         /// (`uvec3`, `scene_triangles.glsl`).
         TRIANGLES = 1;
+        /// The G-buffer's BVH2 (`BvhNode`); with `world_node_count`, the
+        /// anchor-space nodes follow the eye-relative ones.
         BVH_NODES = 2;
         BVH_PRIMS = 3;
         G_POSITION = 4;
@@ -373,6 +375,11 @@ shared_constants! {
         EDGE_PLANE_TOLERANCE = 1.0e-3;
         /// Rounding bound of the triangle–cell overlap test (2⁻¹⁸).
         TOUCH_ROUNDING = 1.0 / 262_144.0;
+        /// A BVH node made eye-relative by `translate_vertices` widens by
+        /// this share of its reach, plus the floor: its vertices' rounding
+        /// (≤ 3 ulps together, `izb::cpu::translate_vertices`) twice over.
+        NODE_WIDENING = 1.0 / 1_048_576.0;
+        NODE_WIDENING_FLOOR = 1.0e-30;
         /// A projection thinner than this share of its edge products keeps
         /// its whole rectangle (2⁻¹⁶).
         SLIVER_RATIO = 1.0 / 65_536.0;

@@ -125,6 +125,10 @@ shared_struct! {
         /// Vertices `translate_vertices` writes (`B_WORLD_VERTICES`' pairs).
         pub world_vertex_count: u32 => "uint world_vertex_count",
         pub eye_lo: [f32; 3] => "vec3 eye_lo",
+        /// A ray-cast shadow pass with a moving eye: BVH nodes
+        /// `translate_vertices` makes eye-relative, from the anchor-space
+        /// ones held after them in `B_BVH_NODES`; 0 elsewhere.
+        pub world_node_count: u32 => "uint world_node_count",
         /// `gbuffer_from_depth`: the host's depth value D maps to the view
         /// depth `depth_near / (depth_near_over_far + u · depth_span)`,
         /// u = D with reverse Z (`depth_reversed` 1), 1 − D with standard

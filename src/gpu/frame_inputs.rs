@@ -246,6 +246,7 @@ pub(super) fn frame_params(
         eye_hi: [0.0; 3],
         world_vertex_count: 0,
         eye_lo: [0.0; 3],
+        world_node_count: 0,
         depth_near: 0.0,
         depth_near_over_far: 0.0,
         depth_span: 0.0,

@@ -1,10 +1,11 @@
 //! The shadow pass's step for a moving eye, `translate_vertices`
 //! (`shaders/translate_vertices.comp`): the scene's eye-relative `f32`
 //! vertices made on the GPU each frame from anchor-relative
-//! double-singles — the twin of [`crate::cpu::translate_vertices`], whose
+//! double-singles, and with a ray-cast G-buffer its BVH nodes from
+//! anchor-space ones — the twin of [`crate::cpu::translate_vertices`], whose
 //! module says why the arithmetic keeps the envelope's exactness.
 
-use super::shared::GpuTriangleCorners;
+use super::shared::{GpuTriangle, GpuTriangleCorners};
 use super::{Kernels, Recorder};
 use crate::cpu::translate_vertices::split;
 use crate::scene::Scene;
@@ -17,6 +18,10 @@ pub struct WorldVertices {
     pub anchor: DVec3,
     pub corners: Vec<GpuTriangleCorners>,
     pub pairs: Vec<[Vec3; 2]>,
+    /// With a ray-cast G-buffer: the BVH's nodes, built in anchor space
+    /// over the pairs' high parts ([`Self::anchor_triangles`]) and made
+    /// eye-relative each frame; 0 without one.
+    pub bvh_nodes: u32,
 }
 
 impl WorldVertices {
@@ -45,7 +50,22 @@ impl WorldVertices {
             anchor,
             corners,
             pairs,
+            bvh_nodes: 0,
         }
+    }
+
+    /// The triangles with the high parts of their anchor-relative
+    /// vertices: what the anchor-space BVH is built over.
+    pub fn anchor_triangles(&self) -> Vec<GpuTriangle> {
+        let at = |i: u32| self.pairs[i as usize][0].to_array();
+        let corners = self.corners.iter();
+        corners
+            .map(|c| GpuTriangle {
+                a: at(c.a),
+                b: at(c.b),
+                c: at(c.c),
+            })
+            .collect()
     }
 
     /// `eye` relative to the anchor, as `FrameParams::eye_hi`/`eye_lo`.
@@ -54,11 +74,12 @@ impl WorldVertices {
     }
 }
 
-/// Records the step: one thread per vertex, then a barrier before the
-/// passes that read `B_VERTICES`.
-pub fn translate_vertices(rec: &Recorder, kernels: &Kernels, vertices: u32) {
+/// Records the step: one thread per vertex and per BVH node (`threads`,
+/// the larger count), then a barrier before the passes that read
+/// `B_VERTICES` and `B_BVH_NODES`.
+pub fn translate_vertices(rec: &Recorder, kernels: &Kernels, threads: u32) {
     rec.begin_label("translate_vertices");
-    rec.dispatch_linear(&kernels.translate_vertices, vertices);
+    rec.dispatch_linear(&kernels.translate_vertices, threads);
     rec.barrier();
     rec.end_label();
 }

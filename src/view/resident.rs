@@ -1,11 +1,10 @@
 //! The viewer's IZB frames on resident shadow passes
 //! ([`crate::gpu::shadow_pass::ShadowPass`]): a pass is made once per
-//! method, eye and kind of light (its BVH and scene uploaded then), and
-//! each later frame whose light or light size moved, or whose camera only
-//! turned, is recorded into it with new parameters — no scene clone, BVH
-//! build or upload, as an engine would run it. A moved eye (an orbit or a
-//! zoom) makes the pass anew: the ray-cast G-buffer's BVH is built around
-//! one eye (`paper-notes/embedding.md`).
+//! method and kind of light (its BVH and scene uploaded then, in anchor
+//! space), and each later frame whose light, light size or camera moved —
+//! an orbit or a zoom too: the pass makes its vertices and BVH nodes
+//! eye-relative on the GPU — is recorded into it with new parameters: no
+//! scene clone, BVH build or upload, as an engine would run it.
 //!
 //! The viewer then waits and reads the frame back (it shows the masks on
 //! the CPU); a frame whose lists overran is exact the slow way or keeps
@@ -20,7 +19,6 @@ use crate::gpu::shadow_pass::{
 use crate::gpu::{GpuError, GpuRenderer};
 use crate::scene::{Scene, Triangle};
 use crate::settings::{IzbSettings, PassTimes};
-use glam::DVec3;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -29,7 +27,6 @@ struct Resident<'r> {
     method: String,
     /// The scene's triangles (shared with every view of it).
     triangles: Arc<[Triangle]>,
-    eye: DVec3,
     area_light: bool,
     pass: ShadowPass<'r>,
 }
@@ -44,8 +41,9 @@ pub struct ResidentPasses<'r> {
 pub struct ResidentFrame {
     pub frame: PassFrame,
     pub status: PassStatus,
-    /// This frame made its pass (the first, or the eye or kind of light
-    /// changed); otherwise it only recorded parameters and commands.
+    /// This frame made its pass (the first, or the scene, method or kind
+    /// of light changed); otherwise it only recorded parameters and
+    /// commands.
     pub made_pass: bool,
     /// The lists overran and the frame was recorded again after growing.
     pub grown: bool,
@@ -73,8 +71,7 @@ impl<'r> ResidentPasses<'r> {
     }
 
     /// Renders `method` (of `settings`) for `scene` on its resident pass,
-    /// made first when there is none for this scene, eye and kind of
-    /// light.
+    /// made first when there is none for this scene and kind of light.
     pub fn render(
         &mut self,
         scene: &Scene,
@@ -84,7 +81,6 @@ impl<'r> ResidentPasses<'r> {
         let fits = |r: &Resident| {
             r.method == method
                 && Arc::ptr_eq(&r.triangles, &scene.triangles)
-                && r.eye == scene.camera.eye
                 && r.area_light == scene.has_area_light()
         };
         let made_pass = !self.passes.iter().any(fits);
@@ -101,7 +97,6 @@ impl<'r> ResidentPasses<'r> {
             self.passes.push(Resident {
                 method: method.into(),
                 triangles: scene.triangles.clone(),
-                eye: scene.camera.eye,
                 area_light: scene.has_area_light(),
                 pass,
             });

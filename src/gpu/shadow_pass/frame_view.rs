@@ -1,7 +1,7 @@
 //! What may change between a pass's frames ([`FrameView`]), and how a
 //! frame takes it: checked against the scene and the precision envelope.
 
-use super::{GBufferInput, ShadowPass};
+use super::ShadowPass;
 use crate::gpu::host_images::FrameImages;
 use crate::gpu::GpuError;
 use crate::scene::{Camera, Light};
@@ -10,16 +10,16 @@ use ash::vk;
 /// What may change between frames.
 #[derive(Clone, Copy, Debug)]
 pub struct FrameView {
-    /// The camera; with the ray-cast G-buffer its eye must stay the
-    /// scene's (the BVH is built around it), with a visibility buffer it
-    /// may move.
+    /// The camera; the eye may move (the vertices, and a ray cast's BVH
+    /// nodes, are made eye-relative on the GPU from anchor-space ones;
+    /// with the host's vertex buffers the draws' transforms place them).
     pub camera: Camera,
     pub light: Light,
     /// The light's size (`Scene::light_radius`); whether it is 0 must stay
     /// as the scene had it (it decides the masks' layout).
     pub light_radius: f64,
     /// The host's images: the visibility buffer in (with
-    /// [`GBufferInput::Visibility`], and only then), the masks and lit
+    /// [`super::GBufferInput::Visibility`], and only then), the masks and lit
     /// fraction out (optional); their declared state, barriers and the
     /// layouts they are left in: [`crate::gpu::host_images`].
     pub images: FrameImages,
@@ -36,18 +36,9 @@ pub(super) fn unorm_depth_step(format: vk::Format) -> f32 {
 }
 
 impl ShadowPass<'_> {
-    /// Checks `view` against the scene (the eye, the light's kind of size,
-    /// the precision envelope) and takes it as the scene's.
+    /// Checks `view` against the scene (the light's kind of size, the
+    /// precision envelope) and takes it as the scene's.
     pub(super) fn take_view(&mut self, view: &FrameView) -> Result<(), GpuError> {
-        let ray_cast = self.config.gbuffer == GBufferInput::RayCast;
-        if ray_cast && view.camera.eye != self.scene.camera.eye {
-            return Err(GpuError::Unsupported(format!(
-                "the eye moved from {} to {}: a ray-cast pass holds the scene's vertices and \
-                 BVH relative to its eye; make the pass again for the new eye, or with \
-                 the host's visibility buffer or depth, whose vertices follow the eye",
-                self.scene.camera.eye, view.camera.eye
-            )));
-        }
         if (view.light_radius > 0.0) != self.scene.has_area_light() {
             return Err(GpuError::Unsupported(
                 "the light turned from point-like to area or back: the masks' layout follows \

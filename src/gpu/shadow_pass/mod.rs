@@ -7,14 +7,13 @@
 //!
 //! What this part does and does not do yet:
 //! - The scene is resident: its vertices, normals, BVH (ray cast only)
-//!   and LUT are uploaded once. The camera may turn and the light may
-//!   move or change size per frame. With the host's visibility buffer the
-//!   eye may move too (with the depth + normal input as well): the
-//!   vertices are held relative to an anchor as
-//!   double-singles and `translate_vertices` makes them eye-relative on
-//!   the GPU each frame (the twin: [`crate::cpu::translate_vertices`]); a
-//!   ray-cast pass's BVH is built around one eye, so there a moved eye is
-//!   refused by name.
+//!   and LUT are uploaded once. The camera may move and turn and the
+//!   light may move or change size per frame: the vertices are held
+//!   relative to an anchor as double-singles, and `translate_vertices`
+//!   makes them eye-relative on the GPU each frame (the twin:
+//!   [`crate::cpu::translate_vertices`]), with a ray-cast G-buffer the
+//!   BVH's nodes too, built in anchor space and widened as they are
+//!   translated so that every translated vertex stays inside.
 //! - Or the geometry is the host's own: a pass made with
 //!   [`ShadowPass::with_host_geometry`] reads each frame's draws from the
 //!   host's vertex and index buffers (`u16`/`u32`/none, any 4-byte offset
@@ -233,18 +232,28 @@ impl<'r> ShadowPass<'r> {
                 super::frame_inputs::SceneUpload::default()
             }
         };
-        // With a visibility buffer nothing holds the eye's frame but the
-        // vertices, which `translate_vertices` makes for each frame's eye.
+        // Nothing holds the eye's frame but the vertices (and a ray cast's
+        // BVH nodes), which `translate_vertices` makes for each frame's
+        // eye from anchor-space ones: the eye moves freely.
         let bounds = host.map_or_else(|| scene.bounds(), |h| h.bounds);
-        let world = (config.gbuffer != GBufferInput::RayCast && host.is_none())
+        let mut world = host
+            .is_none()
             .then(|| WorldVertices::new(&scene, (bounds.0 + bounds.1) * 0.5));
         let triangles = host.map_or(upload.triangles.len(), |h| h.max_triangles as usize);
-        let bvh = match config.gbuffer {
-            GBufferInput::RayCast => super::gbuffer::build_bvh(&upload.triangles)?,
-            GBufferInput::Visibility | GBufferInput::DepthNormal(_) => {
+        let bvh = match (config.gbuffer, &mut world) {
+            (GBufferInput::RayCast, Some(w)) => {
+                let bvh = super::gbuffer::build_bvh(&w.anchor_triangles())?;
+                w.bvh_nodes = bvh.nodes.len() as u32;
+                bvh
+            }
+            (GBufferInput::RayCast, None) => super::gbuffer::build_bvh(&upload.triangles)?,
+            (GBufferInput::Visibility | GBufferInput::DepthNormal(_), _) => {
                 super::gbuffer::GpuBvh::EMPTY
             }
         };
+        // The eye-relative nodes, then the anchor-space ones they are
+        // made from (the first half is written before every reader).
+        let node_copies = 1 + usize::from(world.as_ref().is_some_and(|w| w.bvh_nodes > 0));
         let max_cells = super::izb_frame::max_cells(scene.pixel_count(), triangles, settings)?;
         let cell_capacity = config
             .cell_capacity
@@ -263,7 +272,7 @@ impl<'r> ShadowPass<'r> {
                 (None, None) => upload.vertices.len() as u64,
             },
             world_vertices: world.as_ref().map_or(0, |w| w.pairs.len()) as u64,
-            bvh_nodes: bvh.nodes.len() as u64,
+            bvh_nodes: (bvh.nodes.len() * node_copies) as u64,
             bvh_prims: bvh.prims.len() as u64,
             max_cells,
             cell_capacity,
@@ -328,7 +337,7 @@ impl<'r> ShadowPass<'r> {
             (binding::TRIANGLE_NORMALS, as_bytes(&upload.normals)),
             (
                 binding::BVH_NODES,
-                bytemuck::cast_slice(&bvh.nodes).to_vec(),
+                bytemuck::cast_slice(&bvh.nodes).repeat(node_copies),
             ),
             (
                 binding::BVH_PRIMS,
@@ -455,6 +464,7 @@ impl<'r> ShadowPass<'r> {
         if let Some(w) = &self.world {
             [params.eye_hi, params.eye_lo] = w.eye(scene.camera.eye).map(|v| v.to_array());
             params.world_vertex_count = w.pairs.len() as u32;
+            params.world_node_count = w.bvh_nodes;
         }
         if let GBufferInput::DepthNormal(c) = self.config.gbuffer {
             params.depth_near = c.near as f32;
@@ -505,8 +515,8 @@ impl<'r> ShadowPass<'r> {
         rec.barrier();
         timestamps.write(cmd, 0);
         if let Some(w) = &self.world {
-            let vertices = w.pairs.len() as u32;
-            super::translate_vertices::translate_vertices(&rec, &renderer.kernels, vertices);
+            let threads = (w.pairs.len() as u32).max(w.bvh_nodes);
+            super::translate_vertices::translate_vertices(&rec, &renderer.kernels, threads);
         }
         let host = [
             (images.visibility, ImageUse::Read),

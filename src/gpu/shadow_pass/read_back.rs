@@ -50,6 +50,27 @@ impl ShadowPass<'_> {
         unsafe { self.read_back_vec3s(binding::VERTICES, count) }
     }
 
+    /// The BVH nodes the last frame traversed (`B_BVH_NODES`' first
+    /// `world_node_count`, made eye-relative by `translate_vertices`) and
+    /// the anchor-space nodes they came from, copied back — for tests: it
+    /// submits and waits. Empty without a ray-cast G-buffer.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing.
+    pub unsafe fn read_back_bvh_nodes(&self) -> Result<[Vec<shared::BvhNode>; 2], GpuError> {
+        let nodes = self.world.as_ref().map_or(0, |w| w.bvh_nodes as usize);
+        let words = nodes * size_of::<shared::BvhNode>() / 4;
+        let [all] = read_back(
+            self.renderer,
+            &self.buffers,
+            &self.readback,
+            [binding::BVH_NODES],
+            [2 * words],
+        )?;
+        let all: Vec<shared::BvhNode> = bytemuck::pod_collect_to_vec(&all);
+        Ok([all[..nodes].to_vec(), all[nodes..].to_vec()])
+    }
+
     /// The last frame's triangle normals (`B_TRIANGLE_NORMALS`: the
     /// scene's, or those `gather_draws` made), copied back — for tests:
     /// it submits and waits.
