@@ -541,7 +541,7 @@ mod tests {
             }
             assert_eq!(end, size, "{name}: trailing padding");
         }
-        assert_eq!(checked, 115, "members of the six shared structs");
+        assert_eq!(checked, 116, "members of the six shared structs");
     }
 
     #[test]
