@@ -77,19 +77,23 @@ pub fn translate_nodes(nodes: &[BvhNode], eye: [Vec3; 2]) -> Vec<BvhNode> {
 mod tests {
     use super::*;
 
+    /// Uniform numbers in [−1, 1) from a xorshift generator seeded by `seed`.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+    }
+
     /// The two-sum difference is `f32(v − eye)` but within 2⁻⁴⁸ of the
     /// radius of a midpoint, and within one ulp of it always, over
     /// vertices and eyes spread across a scene 10⁴ from its anchor's
     /// origin at scales from 10⁻³ to 10⁶.
     #[test]
     fn differences_round_as_f64_does_but_at_near_ties() {
-        let mut rng = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = uniform(0x2545_f491_4f6c_dd1d);
         let (mut checked, mut off_by_one) = (0, 0);
         for scale in [1e-3, 1.0, 1e3, 1e6] {
             for _ in 0..20_000 {
@@ -116,13 +120,7 @@ mod tests {
     /// boxes touching the eye.
     #[test]
     fn translated_boxes_hold_their_translated_vertices() {
-        let mut rng = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = uniform(0x9e37_79b9_7f4a_7c15);
         let mut checked = 0;
         for scale in [1e-3, 1.0, 1e3, 1e6] {
             for case in 0..5_000 {
