@@ -381,6 +381,7 @@ fn bad_depth_inputs_are_refused_or_counted() {
         format,
         extent: scene.resolution,
         usage: HostTestImage::USAGE,
+        samples: vk::SampleCountFlags::TYPE_1,
         layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         written_by: (vk::PipelineStageFlags::empty(), vk::AccessFlags::empty()),
     };

@@ -272,6 +272,7 @@ fn bad_host_geometry_is_refused_or_counted() {
         format: vk::Format::R32_UINT,
         extent: scene.resolution,
         usage: HostTestImage::USAGE,
+        samples: vk::SampleCountFlags::TYPE_1,
         layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         written_by: (vk::PipelineStageFlags::empty(), vk::AccessFlags::empty()),
     };

@@ -136,6 +136,7 @@ fn bad_visibility_inputs_are_refused_or_counted() {
         format: vk::Format::R32_UINT,
         extent: scene.resolution,
         usage: HostTestImage::USAGE,
+        samples: vk::SampleCountFlags::TYPE_1,
         layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         written_by: (vk::PipelineStageFlags::empty(), vk::AccessFlags::empty()),
     };
@@ -150,8 +151,12 @@ fn bad_visibility_inputs_are_refused_or_counted() {
             ..view
         }
     };
-    let cases: [(FrameView, &str); 5] = [
+    let cases: [(FrameView, &str); 6] = [
         (with(&|v| v.format = vk::Format::R32_SFLOAT), "R32_UINT"),
+        (
+            with(&|v| v.samples = vk::SampleCountFlags::TYPE_4),
+            "TYPE_4 samples a pixel",
+        ),
         (with(&|v| v.extent = [32, 36]), "32x36"),
         (
             with(&|v| v.usage = vk::ImageUsageFlags::STORAGE),

@@ -154,6 +154,7 @@ pub fn declared(
         format: image.format,
         extent,
         usage: image.usage,
+        samples: vk::SampleCountFlags::TYPE_1,
         layout,
         written_by,
     }

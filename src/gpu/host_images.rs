@@ -51,6 +51,10 @@ pub struct HostImage {
     /// The usage the image was created with (the pass samples it:
     /// `SAMPLED`).
     pub usage: vk::ImageUsageFlags,
+    /// The sample count it was created with: `TYPE_1` (a multisampled
+    /// G-buffer is not read yet, and one bound where the pass reads a
+    /// single-sampled image would be undefined: refused by name).
+    pub samples: vk::SampleCountFlags,
     /// Its layout when the frame's commands start executing.
     pub layout: vk::ImageLayout,
     /// The stage and access of the host's last write before the frame:
@@ -186,6 +190,12 @@ impl HostImage {
             Some(format!(
                 "it is {}x{}; the pass renders {}x{}",
                 self.extent[0], self.extent[1], resolution[0], resolution[1]
+            ))
+        } else if self.samples != vk::SampleCountFlags::TYPE_1 {
+            Some(format!(
+                "it has {:?} samples a pixel; the pass reads single-sampled images (a \
+                 multisampled G-buffer is not read yet: draw or resolve a single-sampled one)",
+                self.samples
             ))
         } else if !self.usage.contains(flag) {
             Some(format!(

@@ -258,6 +258,7 @@ impl HostTestImage {
             format: self.format,
             extent: self.extent,
             usage: self.usage,
+            samples: vk::SampleCountFlags::TYPE_1,
             layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
             written_by: (
                 vk::PipelineStageFlags::TRANSFER,
@@ -287,6 +288,7 @@ impl HostTestImage {
             format: self.format,
             extent: self.extent,
             usage: self.usage,
+            samples: vk::SampleCountFlags::TYPE_1,
             layout: self.layout,
             written_by,
         }
