@@ -26,6 +26,21 @@ pub(super) struct SceneUpload {
     pub(super) normals: Vec<[f32; 3]>,
 }
 
+/// Each triangle's unit normal as the CPU twin computes it, from its
+/// `f64` eye-relative vertices, rounded to `f32`.
+pub(super) fn triangle_normals(eye_relative: &[[glam::DVec3; 3]]) -> Vec<[f32; 3]> {
+    eye_relative
+        .iter()
+        .map(|t| {
+            (t[1] - t[0])
+                .cross(t[2] - t[0])
+                .normalize()
+                .as_vec3()
+                .to_array()
+        })
+        .collect()
+}
+
 impl SceneUpload {
     pub(super) fn new(scene: &Scene) -> Self {
         let eye_relative = scene.eye_relative_triangles();
@@ -41,16 +56,7 @@ impl SceneUpload {
             triangles,
             corners,
             vertices,
-            normals: eye_relative
-                .iter()
-                .map(|t| {
-                    (t[1] - t[0])
-                        .cross(t[2] - t[0])
-                        .normalize()
-                        .as_vec3()
-                        .to_array()
-                })
-                .collect(),
+            normals: triangle_normals(&eye_relative),
         }
     }
 

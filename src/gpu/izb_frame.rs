@@ -7,7 +7,7 @@
 //! `render_with_cell_capacity` keeps the one slow frame.
 
 use super::frame::{GBufferSource, GpuRenderer, LLVMPIPE_LOOP_CAP};
-use super::frame_inputs::{check_workgroups, grid_budget_side, SceneUpload};
+use super::frame_inputs::{check_workgroups, grid_budget_side, triangle_normals, SceneUpload};
 use super::frame_memory::{initial_cell_capacity, initial_edge_capacity};
 use super::frame_report::{FrameOutput, FramePasses, GpuRender};
 use super::shared::{self, counter};
@@ -36,15 +36,17 @@ impl GpuRenderer {
                 )));
             }
         }
-        let upload = SceneUpload::new(scene);
-        if upload.triangles.len() >= izb_contract::word::DEPTH_SURFACE as usize {
-            return Err(GpuError::Unsupported(format!(
-                "{} triangles: the GPU G-buffer holds ids below 2^{} - 2",
-                upload.triangles.len(),
-                shared::ID_BITS
-            )));
-        }
-        Ok(upload)
+        check_triangle_ids(scene.triangles.len())?;
+        Ok(SceneUpload::new(scene))
+    }
+
+    /// What a resident pass needs of its scene on top of the vertices it
+    /// holds in anchor space (`translate_vertices`): the checks
+    /// [`Self::prepare_frame`] makes, and the triangles' normals.
+    pub(super) fn prepare_resident(&self, scene: &Scene) -> Result<Vec<[f32; 3]>, GpuError> {
+        check_workgroups(&self.shared().limits, scene.resolution)?;
+        check_triangle_ids(scene.triangles.len())?;
+        Ok(triangle_normals(&scene.eye_relative_triangles()))
     }
 
     /// Renders `scene`'s shadow mask. A frame whose cell list overran is
@@ -162,4 +164,15 @@ pub(super) fn max_cells(
         )));
     }
     Ok(crate::cascades::max_total_cells(side))
+}
+
+/// The GPU G-buffer's word holds triangle ids below `DEPTH_SURFACE`.
+fn check_triangle_ids(triangles: usize) -> Result<(), GpuError> {
+    if triangles >= izb_contract::word::DEPTH_SURFACE as usize {
+        return Err(GpuError::Unsupported(format!(
+            "{triangles} triangles: the GPU G-buffer holds ids below 2^{} - 2",
+            shared::ID_BITS
+        )));
+    }
+    Ok(())
 }

@@ -65,7 +65,7 @@ pub use host_geometry::HostGeometryConfig;
 pub use read_back::{PassFrame, PassImages};
 pub use status::PassStatus;
 
-use super::frame::{GBufferSource, GpuRenderer};
+use super::frame::GpuRenderer;
 use super::frame_inputs::{frame_params, loop_budget};
 use super::frame_memory::{
     frame_buffer_descs, initial_cell_capacity, reset_pass_state, FrameSizes,
@@ -225,11 +225,13 @@ impl<'r> ShadowPass<'r> {
         if let Some(h) = &host {
             h.check(&config)?;
         }
-        let upload = match host {
-            None => renderer.prepare_frame(&scene, GBufferSource::Gpu)?,
+        // The scene's triangle normals, or none where `gather_draws` makes
+        // them from the host's geometry each frame.
+        let normals = match host {
+            None => renderer.prepare_resident(&scene)?,
             Some(_) => {
                 super::frame_inputs::check_workgroups(&shared.limits, scene.resolution)?;
-                super::frame_inputs::SceneUpload::default()
+                Vec::new()
             }
         };
         // Nothing holds the eye's frame but the vertices (and a ray cast's
@@ -239,17 +241,16 @@ impl<'r> ShadowPass<'r> {
         let mut world = host
             .is_none()
             .then(|| WorldVertices::new(&scene, (bounds.0 + bounds.1) * 0.5));
-        let triangles = host.map_or(upload.triangles.len(), |h| h.max_triangles as usize);
+        let triangles = host.map_or(scene.triangles.len(), |h| h.max_triangles as usize);
+        // A ray cast reads the scene's triangles (the host's geometry is
+        // refused with it: `HostGeometryConfig::check`).
         let bvh = match (config.gbuffer, &mut world) {
             (GBufferInput::RayCast, Some(w)) => {
                 let bvh = super::gbuffer::build_bvh(&w.anchor_triangles())?;
                 w.bvh_nodes = bvh.nodes.len() as u32;
                 bvh
             }
-            (GBufferInput::RayCast, None) => super::gbuffer::build_bvh(&upload.triangles)?,
-            (GBufferInput::Visibility | GBufferInput::DepthNormal(_), _) => {
-                super::gbuffer::GpuBvh::EMPTY
-            }
+            _ => super::gbuffer::GpuBvh::EMPTY,
         };
         // The eye-relative nodes, then the anchor-space ones they are
         // made from (the first half is written before every reader).
@@ -266,10 +267,9 @@ impl<'r> ShadowPass<'r> {
             receivers: edge_slots::checked_receivers(&shared.limits, scene.resolution, edge_slots)?,
             edge_surfaces: edge_slots,
             triangles: triangles as u64,
-            vertices: match (&world, host) {
-                (Some(w), _) => w.pairs.len() as u64,
-                (None, Some(_)) => 3 * triangles as u64,
-                (None, None) => upload.vertices.len() as u64,
+            vertices: match &world {
+                Some(w) => w.pairs.len() as u64,
+                None => 3 * triangles as u64,
             },
             world_vertices: world.as_ref().map_or(0, |w| w.pairs.len()) as u64,
             bvh_nodes: (bvh.nodes.len() * node_copies) as u64,
@@ -312,29 +312,23 @@ impl<'r> ShadowPass<'r> {
             .collect::<Result<_, _>>()?;
         let as_bytes = |v: &[[f32; 3]]| bytemuck::cast_slice::<_, u8>(v).to_vec();
         let uploads: Vec<(u32, Vec<u8>)> = vec![
+            // With the host's geometry `gather_draws` writes the triangles,
+            // vertices and normals each frame; otherwise `translate_vertices`
+            // writes the vertices before every frame's first reader.
             (
                 binding::TRIANGLES,
-                match &world {
-                    Some(w) => bytemuck::cast_slice(&w.corners).to_vec(),
-                    None => bytemuck::cast_slice(&upload.corners).to_vec(),
-                },
+                world
+                    .as_ref()
+                    .map_or(Vec::new(), |w| bytemuck::cast_slice(&w.corners).to_vec()),
             ),
-            // With a moving eye `translate_vertices` writes them before
-            // every frame's first reader: nothing to upload.
-            (
-                binding::VERTICES,
-                match &world {
-                    Some(_) => Vec::new(),
-                    None => as_bytes(&upload.vertices),
-                },
-            ),
+            (binding::VERTICES, Vec::new()),
             (
                 binding::WORLD_VERTICES,
                 world.as_ref().map_or(Vec::new(), |w| {
                     bytemuck::cast_slice::<[Vec3; 2], u8>(&w.pairs).to_vec()
                 }),
             ),
-            (binding::TRIANGLE_NORMALS, as_bytes(&upload.normals)),
+            (binding::TRIANGLE_NORMALS, as_bytes(&normals)),
             (
                 binding::BVH_NODES,
                 bytemuck::cast_slice(&bvh.nodes).repeat(node_copies),
