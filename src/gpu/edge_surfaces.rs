@@ -24,13 +24,12 @@
 //!
 //! The surfaces come from the `edge_surfaces` pass (`shaders/edge_surfaces.comp`,
 //! after the `gbuffer` pass: the 32 sample rays of each edge candidate,
-//! into slots taken by an atomic counter, [`FrameEdges::Traced`]) or from
+//! into slots taken by an atomic counter, [`read_traced_tables`]) or from
 //! the CPU twin's G-buffer ([`super::GBufferSource::Upload`], the twin
-//! tests' exact input, [`FrameEdges::Uploaded`]).
+//! tests' exact input, [`EdgeUpload`]), both in the shadow pass.
 
 use super::frame_inputs::SceneUpload;
 use super::frame_memory::EdgeSlots;
-use super::frame_report::FramePasses;
 use super::shared::{self, ID_MASK};
 use super::GpuError;
 use crate::gbuffer::edge_surfaces::{EdgeSurfaces, MAX_SURFACES};
@@ -297,87 +296,26 @@ pub(super) fn lit_fraction_over_counted(alpha: u8, samples: u32) -> f32 {
     1.0 - hidden as f32 / samples as f32
 }
 
-/// A frame's edge surfaces.
-pub(super) enum FrameEdges {
-    /// A frame without them.
-    None,
-    /// The CPU twin's, uploaded.
-    Uploaded(EdgeUpload),
-    /// Cast by the `edge_surfaces` pass into `capacity` slots.
-    Traced { capacity: u64 },
-}
-
-impl FrameEdges {
-    /// The edge surfaces of an IZB frame (`edge_capacity`: the traced
-    /// ones' slots) from `source`, whose agreement with the settings
-    /// `render` checked.
-    pub(super) fn new(
-        source: super::GBufferSource,
-        passes: FramePasses,
-        use_them: bool,
-        upload: &SceneUpload,
-    ) -> Result<Self, GpuError> {
-        Ok(match (passes, source) {
-            (FramePasses::Izb { .. }, super::GBufferSource::Upload(g)) => {
-                match g.edges.as_deref() {
-                    Some(_) => FrameEdges::Uploaded(EdgeUpload::new(g, upload)?),
-                    None => FrameEdges::None,
-                }
-            }
-            (FramePasses::Izb { edge_capacity, .. }, super::GBufferSource::Gpu) if use_them => {
-                FrameEdges::Traced {
-                    capacity: edge_capacity,
-                }
-            }
-            _ => FrameEdges::None,
-        })
-    }
-
-    /// Slots of extra surfaces and edge pixels, if the frame has them.
-    pub(super) fn slots(&self) -> Option<EdgeSlots> {
-        match self {
-            FrameEdges::None => None,
-            FrameEdges::Uploaded(e) => Some(e.slots()),
-            FrameEdges::Traced { capacity } => Some(EdgeSlots {
-                surfaces: *capacity,
-                pixels: *capacity,
-            }),
-        }
-    }
-
-    /// Rows of extra surfaces below a `width`-wide image.
-    pub(super) fn rows(&self, width: u32) -> u32 {
-        self.slots()
-            .map_or(0, |n| n.surfaces.div_ceil(u64::from(width.max(1))) as u32)
-    }
-
-    pub(super) fn traced(&self) -> bool {
-        matches!(self, FrameEdges::Traced { .. })
-    }
-
-    /// The slots a traced frame filled, and its tables (per-pixel records,
-    /// per-slot coverage) read back through `read` (binding → bytes).
-    #[allow(clippy::type_complexity)]
-    pub(super) fn read_back<'a>(
-        &self,
-        read: &impl Fn(u32) -> Result<&'a [u8], GpuError>,
-        counters: &[u32],
-        resolution: [u32; 2],
-    ) -> Result<(usize, Option<(Vec<[u32; 4]>, Vec<u32>)>), GpuError> {
-        let FrameEdges::Traced { capacity } = self else {
-            return Ok((0, None));
-        };
-        let found = u64::from(counters[shared::counter::EDGE_SURFACES]).min(*capacity) as usize;
-        let records = u64::from(counters[shared::counter::EDGE_PIXELS]).min(*capacity) as usize;
-        let table = TILE_WORDS * edge_tiles(resolution) as usize;
-        let words: Vec<u32> = bytemuck::pod_collect_to_vec(
-            &read(shared::binding::EDGE_PIXELS)?[..(table + 4 * records) * 4],
-        );
-        let records = dense_records(&words, resolution, records);
-        let coverage =
-            bytemuck::pod_collect_to_vec(&read(shared::binding::EDGE_COVERAGE)?[..found * 4]);
-        Ok((found, Some((records, coverage))))
-    }
+/// The tables a frame's `edge_surfaces` step traced into `capacity` slots,
+/// read back through `read` (binding → bytes): how many slots it filled,
+/// per pixel its record and per filled slot its coverage.
+#[allow(clippy::type_complexity)]
+pub(super) fn read_traced_tables<'a>(
+    read: &impl Fn(u32) -> Result<&'a [u8], GpuError>,
+    counters: &[u32],
+    resolution: [u32; 2],
+    capacity: u64,
+) -> Result<(usize, (Vec<[u32; 4]>, Vec<u32>)), GpuError> {
+    let found = u64::from(counters[shared::counter::EDGE_SURFACES]).min(capacity) as usize;
+    let records = u64::from(counters[shared::counter::EDGE_PIXELS]).min(capacity) as usize;
+    let table = TILE_WORDS * edge_tiles(resolution) as usize;
+    let words: Vec<u32> = bytemuck::pod_collect_to_vec(
+        &read(shared::binding::EDGE_PIXELS)?[..(table + 4 * records) * 4],
+    );
+    let records = dense_records(&words, resolution, records);
+    let coverage =
+        bytemuck::pod_collect_to_vec(&read(shared::binding::EDGE_COVERAGE)?[..found * 4]);
+    Ok((found, (records, coverage)))
 }
 
 /// What the `edge_surfaces` pass wrote, read back: per pixel its record,

@@ -1,12 +1,15 @@
-//! One frame on the GPU: one command buffer (uploads → five passes with
-//! timestamps → read-backs); the IZB's render around it is `izb_frame`. Its
-//! parts live beside it: the uploads and parameters (`frame_inputs`), the
-//! buffers by intent (`frame_memory`), the timestamps (`timestamps`) and
-//! the report (`frame_report`); the shadow-map and shadow-ray frames are
-//! in `shadow_map` and `shadow_rays`.
+//! The renderer ([`GpuRenderer`]: the device, the layout, every pipeline)
+//! and the baselines' batch frame ([`GpuRenderer::run_frame`]): one
+//! command buffer (uploads → the IZB's G-buffer and light setup, then the
+//! baseline's own passes, with timestamps → read-backs). The IZB's own
+//! frames run on the shadow pass (`shadow_pass`, the batch `render`
+//! around it in `izb_frame`). Its parts live beside it: the uploads and
+//! parameters (`frame_inputs`), the buffers by intent (`frame_memory`),
+//! the timestamps (`timestamps`) and the report (`frame_report`); the
+//! shadow-map, volume and shadow-ray frames are in `shadow_map`,
+//! `shadow_volumes` and `shadow_rays`.
 
 use super::context::{DeviceShared, GpuContext, GpuOptions};
-use super::edge_surfaces::FrameEdges;
 pub use super::frame_inputs::LLVMPIPE_LOOP_CAP;
 use super::frame_inputs::{
     check_workgroups, frame_params, heavy_entries, loop_budget, SceneUpload,
@@ -15,7 +18,7 @@ use super::frame_memory::{
     frame_allocation, memory_by_pass, reset_pass_state, restaged_each_repetition,
 };
 pub use super::frame_memory::{frame_buffer_descs, planned_memory, EdgeSlots, FrameSizes};
-use super::frame_report::{FrameOutput, FramePasses};
+use super::frame_report::{BaselinePasses, FrameOutput};
 pub use super::frame_report::{
     GpuCascadeSummary, GpuCounters, GpuLightSummary, GpuPassMillis, GpuRender, GpuRenderReport,
     GpuShadowMapRender, PassMemory,
@@ -23,7 +26,7 @@ pub use super::frame_report::{
 use super::pipeline::{BindingLayout, DescriptorSet};
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
 use super::shared::{binding, counter, LightState};
-use super::timestamps::{StepMarks, TimestampPool};
+use super::timestamps::TimestampPool;
 use super::{GpuError, Kernels, Recorder};
 use crate::gbuffer::GBuffer;
 use crate::scene::Scene;
@@ -141,6 +144,11 @@ impl GpuRenderer {
         self
     }
 
+    /// Repetitions of the passes per frame ([`Self::timed`]).
+    pub(super) fn timed_repeats(&self) -> u32 {
+        self.timed_repeats.max(1)
+    }
+
     /// For the twin tests: shadow-map frames read their depth maps back.
     pub fn read_back_shadow_maps(&mut self, on: bool) {
         self.read_back_maps = on;
@@ -170,28 +178,20 @@ impl GpuRenderer {
         bvh: &super::gbuffer::GpuBvh,
         max_cells: u64,
         cell_capacity: u64,
-        passes: FramePasses,
+        passes: BaselinePasses,
     ) -> Result<FrameOutput, GpuError> {
         let triangles = &upload.triangles[..];
         let shared = self.shared();
         let [w, h] = scene.resolution;
         let pixels = scene.pixel_count() as u64;
         let t = triangles.len() as u64;
-        // An IZB frame's edge surfaces: receivers in rows below the image.
-        let edges = FrameEdges::new(source, passes, settings.uses_edge_surfaces(scene), upload)?;
-        let receiver_rows = h + edges.rows(w);
-        check_workgroups(&self.shared().limits, [w, receiver_rows])?;
-        let receivers = u64::from(w) * u64::from(receiver_rows);
+        check_workgroups(&self.shared().limits, [w, h])?;
         let (lut, _) = crate::lut::tables_for(settings.light_samples(scene));
-        let halves = match passes {
-            FramePasses::Izb { .. } => settings.mask_halves(scene),
-            _ => 1,
-        };
         let descs = frame_buffer_descs(&FrameSizes {
             pixels,
             tiles: super::edge_surfaces::edge_tiles(scene.resolution),
-            receivers,
-            edge_surfaces: edges.slots(),
+            receivers: pixels,
+            edge_surfaces: None,
             triangles: t,
             vertices: upload.vertices.len() as u64,
             world_vertices: 0,
@@ -203,7 +203,7 @@ impl GpuRenderer {
             cell_capacity,
             lut_entries: lut.masks.len() as u64,
             shadow_map_words: passes.shadow_map_words(pixels),
-            mask_halves: halves as u64,
+            mask_halves: 1,
         });
         let (buffer_descs, at) = frame_allocation(descs);
         let frame_buffers = FrameBuffers {
@@ -217,11 +217,11 @@ impl GpuRenderer {
         let bound = std::array::from_fn(|b| fb.buffers[fb.at[b]].clone());
         let set = DescriptorSet::new(shared, &self.layout, bound)?;
         let depth_target = match passes {
-            FramePasses::ShadowMap(map) => Some(self.depth_target(map)?),
+            BaselinePasses::Map(map) => Some(self.depth_target(map)?),
             _ => None,
         };
         let volume_target = match passes {
-            FramePasses::ShadowVolumes => Some(self.volume_target(scene)?),
+            BaselinePasses::Volumes => Some(self.volume_target(scene)?),
             _ => None,
         };
 
@@ -235,23 +235,12 @@ impl GpuRenderer {
             loop_budget(&shared.info.name),
             self.heavy_entries,
         );
-        params.mask_halves = halves as u32;
-        if let FramePasses::Izb { overrun_exact, .. } = passes {
-            params.overrun_exact = u32::from(overrun_exact);
-        }
-        if let Some(slots) = edges.slots() {
-            params.receiver_rows = receiver_rows;
-            params.edge_surfaces = 1;
-            params.edge_capacity = slots.surfaces.max(slots.pixels) as u32;
-            // LightSetup::receiver_boxes' `covered_only`.
-            params.covered_boxes = u32::from(!settings.light_samples(scene));
-            params.heavy_capacity = super::frame_memory::heavy_capacity(receivers) as u32;
-        }
+        params.mask_halves = 1;
         match passes {
-            FramePasses::ShadowMap(map) => {
+            BaselinePasses::Map(map) => {
                 super::shadow_map::map_params(&mut params, scene, triangles, map)
             }
-            FramePasses::ShadowVolumes => {
+            BaselinePasses::Volumes => {
                 params.volume_extrusion =
                     crate::baseline::screen_frame::ScreenFrame::new(scene).extrusion
             }
@@ -273,14 +262,7 @@ impl GpuRenderer {
         stage(binding::BVH_PRIMS, as_bytes(&bvh.prims))?;
         stage(binding::LIGHT, bytemuck::bytes_of(&LightState::reset()))?;
         stage(binding::EDGE_LUT, as_bytes(&lut.masks))?;
-        if let FrameEdges::Uploaded(e) = &edges {
-            stage(binding::G_POSITION, as_bytes(&e.position))?;
-            stage(binding::G_AXIS_X, as_bytes(&e.axis_x))?;
-            stage(binding::G_AXIS_Y, as_bytes(&e.axis_y))?;
-            stage(binding::G_ID_FLAGS, as_bytes(&e.id_flags))?;
-            stage(binding::EDGE_PIXELS, as_bytes(&e.pixel_words))?;
-            stage(binding::EDGE_COVERAGE, as_bytes(&e.coverage))?;
-        } else if let GBufferSource::Upload(g) = source {
+        if let GBufferSource::Upload(g) = source {
             let words = upload.gbuffer_words(g)?;
             stage(binding::G_POSITION, as_bytes(&g.position))?;
             stage(binding::G_AXIS_X, as_bytes(&g.axis_x))?;
@@ -288,20 +270,17 @@ impl GpuRenderer {
             stage(binding::G_ID_FLAGS, as_bytes(&words))?;
         }
 
-        let maps_back = self.read_back_maps && matches!(passes, FramePasses::ShadowMap(_));
+        let maps_back = self.read_back_maps && matches!(passes, BaselinePasses::Map(_));
         let readback_of = [
             maps_back.then_some(binding::SHADOW_MAP),
             Some(binding::COUNTERS),
             Some(binding::LIGHT),
             Some(binding::MASKS),
-            Some(binding::MASKS_HIGH),
             Some(binding::SHADED),
             Some(binding::G_POSITION),
             Some(binding::G_AXIS_X),
             Some(binding::G_AXIS_Y),
             Some(binding::G_ID_FLAGS),
-            edges.traced().then_some(binding::EDGE_PIXELS),
-            edges.traced().then_some(binding::EDGE_COVERAGE),
         ];
         let readbacks: Vec<(GpuBuffer, u32)> = readback_of
             .iter()
@@ -331,12 +310,11 @@ impl GpuRenderer {
             .collect();
         let device = &shared.device;
         let start = Instant::now();
-        let steps = StepMarks::new(shared)?;
         let record = |cmd| {
             // SAFETY: `cmd` is recording on this thread (`submit_and_wait`);
             // the kernels, the layout and the set live in `self` and this
             // function, past the wait below.
-            let mut rec = unsafe { Recorder::new(shared, cmd, &self.layout, &set) };
+            let rec = unsafe { Recorder::new(shared, cmd, &self.layout, &set) };
             // SAFETY: `cmd` is recording; every buffer belongs to this frame and
             // lives until after its fence wait; copies stay within each buffer.
             unsafe {
@@ -346,7 +324,6 @@ impl GpuRenderer {
                 }
             }
             timestamps.reset(cmd);
-            steps.reset(cmd);
             for rep in 0..repeats {
                 if rep > 0 {
                     // The previous repetition's passes are done with the
@@ -360,33 +337,18 @@ impl GpuRenderer {
                         };
                     }
                 }
-                reset_pass_state(device, cmd, |b| fb.get(b).buffer, edges.traced());
+                reset_pass_state(device, cmd, |b| fb.get(b).buffer, false);
                 rec.barrier();
                 let mark = |j: u32| timestamps.write(cmd, rep * TIMESTAMPS_PER_FRAME + j);
                 mark(0);
-                if rep + 1 == repeats {
-                    steps.mark(cmd, "start");
-                    rec.time_steps(&steps);
-                }
                 if let GBufferSource::Gpu = source {
-                    super::gbuffer::gbuffer(&rec, &self.kernels, [w, h], edges.traced());
+                    super::gbuffer::gbuffer(&rec, &self.kernels, [w, h], false);
                 }
                 mark(1);
-                super::light_setup::light_setup(&rec, &self.kernels, [w, receiver_rows]);
+                super::light_setup::light_setup(&rec, &self.kernels, [w, h]);
                 mark(2);
                 match passes {
-                    FramePasses::Izb { .. } => {
-                        let gather = settings.skips.behind_receivers.then_some(receivers as u32);
-                        let n = triangles.len() as u32;
-                        super::bin::bin(&rec, &self.kernels, n, max_cells, gather);
-                        mark(3);
-                        let heavy = super::evaluate::heavy_step(&params, &shared.info);
-                        let rows = [w, receiver_rows];
-                        super::evaluate::evaluate(&rec, &self.kernels, rows, heavy, halves);
-                        mark(4);
-                        super::resolve::resolve(&rec, &self.kernels, [w, h]);
-                    }
-                    FramePasses::ShadowMap(map) => {
+                    BaselinePasses::Map(map) => {
                         let (raster, target) = depth_target.as_ref().expect("made above");
                         let map_buffer = fb.get(binding::SHADOW_MAP).buffer;
                         let drawn = (triangles.len() as u32, params.light_is_point != 0);
@@ -396,7 +358,7 @@ impl GpuRenderer {
                         super::shadow_map::shadow_lookup(&rec, &self.kernels, [w, h]);
                         mark(4);
                     }
-                    FramePasses::ShadowVolumes => {
+                    BaselinePasses::Volumes => {
                         let (raster, target) = volume_target.as_ref().expect("made above");
                         let buffer = fb.get(binding::SHADOW_MAP).buffer;
                         let n = triangles.len() as u32;
@@ -412,7 +374,7 @@ impl GpuRenderer {
                         super::shadow_volumes::volume_lookup(&rec, &self.kernels, [w, h]);
                         mark(4);
                     }
-                    FramePasses::ShadowRays => {
+                    BaselinePasses::Rays => {
                         mark(3);
                         super::shadow_rays::shadow_rays(&rec, &self.kernels, [w, h]);
                         mark(4);
@@ -437,7 +399,6 @@ impl GpuRenderer {
         unsafe { self.context.submit_and_wait(record) }?;
         let wall_seconds = start.elapsed().as_secs_f64();
         let millis = timestamps.millis(repeats)?;
-        let step_millis = steps.millis()?;
 
         let read = |b: u32| -> Result<&[u8], GpuError> {
             let (rb, _) = readbacks
@@ -448,10 +409,7 @@ impl GpuRenderer {
         };
         let counters: Vec<u32> =
             bytemuck::pod_collect_to_vec(&read(binding::COUNTERS)?[..counter::WORDS * 4]);
-        // The G-buffer entries: the pixels, and the traced edge surfaces'
-        // slots after them.
-        let (found, edge_tables) = edges.read_back(&read, &counters, scene.resolution)?;
-        let entries = pixels as usize + found;
+        let entries = pixels as usize;
         let words_of = |b: u32, n: usize| -> Result<Vec<u32>, GpuError> {
             Ok(bytemuck::pod_collect_to_vec(&read(b)?[..n * 4]))
         };
@@ -479,23 +437,16 @@ impl GpuRenderer {
             counters,
             light,
             masks: words(binding::MASKS)?,
-            masks_high: if halves == 2 {
-                words(binding::MASKS_HIGH)?
-            } else {
-                Vec::new()
-            },
             shaded: words(binding::SHADED)?,
             position: vec3s(binding::G_POSITION)?,
             axis_x: vec3s(binding::G_AXIS_X)?,
             axis_y: vec3s(binding::G_AXIS_Y)?,
             id_flags: words_of(binding::G_ID_FLAGS, entries)?,
-            edge_tables,
             shadow_maps: match maps_back {
                 true => bytemuck::pod_collect_to_vec(read(binding::SHADOW_MAP)?),
                 false => Vec::new(),
             },
             millis,
-            step_millis,
             wall_seconds,
             memory,
         })

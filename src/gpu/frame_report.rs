@@ -2,7 +2,6 @@
 //! setup as the GPU fitted it, memory per pass; and the step that turns a
 //! frame's read-backs into that report.
 
-use super::edge_surfaces::TracedEdges;
 use super::frame::{GBufferSource, GpuRenderer};
 use super::frame_inputs::SceneUpload;
 use super::shared::LightState;
@@ -221,19 +220,32 @@ impl GpuShadowMapRender {
     }
 }
 
+/// What the batch `render` reads back from its pass after the frame
+/// (`izb_frame`).
+pub(super) struct IzbReadBack {
+    pub(super) frame: super::shadow_pass::PassFrame,
+    /// The G-buffer as the pass saw it (read back, or the uploaded one).
+    pub(super) gbuffer: GBuffer,
+    pub(super) counters: Vec<u32>,
+    pub(super) light: LightState,
+    pub(super) millis: Option<GpuPassMillis>,
+    pub(super) step_millis: Vec<(String, f64)>,
+    pub(super) wall_seconds: f64,
+    pub(super) memory: Vec<PassMemory>,
+}
+
 impl GpuRenderer {
-    #[allow(clippy::too_many_arguments)]
+    /// The batch `render`'s result from its pass's read-backs.
     pub(super) fn finish(
         &self,
         scene: &Scene,
         settings: IzbSettings,
         source: GBufferSource,
-        mut out: FrameOutput,
+        out: IzbReadBack,
         frames_run: u32,
         bvh_build_seconds: f64,
-        upload: &SceneUpload,
     ) -> GpuRender {
-        let triangles = upload.triangles.len() as u32;
+        let triangles = scene.triangles.len() as u32;
         let c = &out.counters;
         let wide = |i: usize| u64::from(c[i]) | (u64::from(c[i + 1]) << 32);
         let counters = GpuCounters {
@@ -265,7 +277,7 @@ impl GpuRenderer {
                 .map(|k| c[counter::LEVELS + k])
                 .collect(),
         };
-        let gbuffer = read_back_gbuffer(scene, source, upload, &mut out);
+        let gbuffer = out.gbuffer;
         let memory_total_bytes: u64 = out.memory.iter().map(|m| m.bytes).sum();
         let l = &out.light;
         let report = GpuRenderReport {
@@ -322,19 +334,11 @@ impl GpuRenderer {
             memory_bytes_per_pixel_plus_triangle: memory_total_bytes as f64
                 / (scene.pixel_count() as f64 + f64::from(triangles)).max(1.0),
         };
-        let halves = if out.masks_high.is_empty() { 1 } else { 2 };
-        // With edge surfaces (uploaded, so the G-buffer has them) alpha
-        // counts the lit samples of those that count.
-        let counted = gbuffer
-            .edges
-            .is_some()
-            .then_some(|i| gbuffer.counted_samples(i, halves));
-        let (visibility, shaded) = resolved_images(&out.shaded, halves, counted);
         GpuRender {
-            masks: out.masks,
-            masks_high: out.masks_high,
-            visibility,
-            shaded,
+            masks: out.frame.masks,
+            masks_high: out.frame.masks_high,
+            visibility: out.frame.visibility,
+            shaded: out.frame.shaded,
             gbuffer,
             report,
         }
@@ -385,53 +389,35 @@ pub(super) fn read_back_gbuffer(
                 &out.counters,
                 |_, id, gpu_flags| upload.receiver_normal(id, gpu_flags),
             );
-            // The `edge_surfaces` pass's slots follow the pixels.
-            if let Some((records, coverage)) = out.edge_tables.take() {
-                let pixels = scene.pixel_count();
-                let slots: Vec<usize> = (pixels..pixels + coverage.len()).collect();
-                let traced = TracedEdges {
-                    pixels: records,
-                    coverage,
-                    surfaces: g.select(&slots),
-                };
-                g.edges = Some(Box::new(traced.into_edge_surfaces(&out.counters)));
-            }
             g.truncate(scene.pixel_count());
             g
         }
     }
 }
 
-/// Which passes follow the G-buffer and light setup in a frame.
+/// Which baseline's passes follow the G-buffer and light setup in a batch
+/// frame.
 #[derive(Clone, Copy, Debug)]
-pub(super) enum FramePasses {
-    /// bin, evaluate, resolve; `edge_capacity`: the slots of edge surfaces
-    /// the `edge_surfaces` pass may cast (a frame with them);
-    /// `overrun_exact`: `FrameParams::overrun_exact` (a frame that is not
-    /// rerun after a cell-list overrun).
-    Izb {
-        edge_capacity: u64,
-        overrun_exact: bool,
-    },
+pub(super) enum BaselinePasses {
     /// The shadow-map baseline: raster (and for `vsm`/`msm` the blur),
     /// lookup (and the contact march).
-    ShadowMap(ShadowMapSettings),
+    Map(ShadowMapSettings),
     /// The `rt32-rays` peer: shadow rays in the evaluate slot, resolve.
-    ShadowRays,
+    Rays,
     /// The `volumes` baseline: receiver depths, stencil pass, lookup.
-    ShadowVolumes,
+    Volumes,
 }
 
-impl FramePasses {
+impl BaselinePasses {
     /// Words of the `SHADOW_MAP` buffer: the depths (one per texel of
     /// every cascade), then for a filtered map the blur's rows and its
     /// result (the moment count per texel each). The volumes keep a
     /// depth per pixel and the stencil bytes behind them.
     pub(super) fn shadow_map_words(&self, pixels: u64) -> u64 {
         match self {
-            FramePasses::Izb { .. } | FramePasses::ShadowRays => 0,
-            FramePasses::ShadowVolumes => pixels + pixels.div_ceil(4),
-            FramePasses::ShadowMap(s) => {
+            BaselinePasses::Rays => 0,
+            BaselinePasses::Volumes => pixels + pixels.div_ceil(4),
+            BaselinePasses::Map(s) => {
                 let texels = u64::from(s.cascades) * u64::from(s.side).pow(2);
                 let moments = s.filter.moments().map_or(0, |k| k.count() as u64);
                 texels * (1 + 2 * moments)
@@ -445,22 +431,14 @@ pub(super) struct FrameOutput {
     pub(super) counters: Vec<u32>,
     pub(super) light: LightState,
     pub(super) masks: Vec<u32>,
-    /// Bits 32–63 of `MODE_PAIRED64` masks, empty otherwise.
-    pub(super) masks_high: Vec<u32>,
     pub(super) shaded: Vec<u32>,
     pub(super) position: Vec<Vec3>,
     pub(super) axis_x: Vec<Vec3>,
     pub(super) axis_y: Vec<Vec3>,
     pub(super) id_flags: Vec<u32>,
-    /// With traced edge surfaces: the per-pixel records and the coverage
-    /// of each slot taken (the G-buffer vectors above hold those slots
-    /// after the pixels).
-    pub(super) edge_tables: Option<(Vec<[u32; 4]>, Vec<u32>)>,
     /// The shadow maps' depths when asked for, else empty.
     pub(super) shadow_maps: Vec<f32>,
     pub(super) millis: Option<GpuPassMillis>,
-    /// Per dispatch of the timed repetition: kernel and milliseconds.
-    pub(super) step_millis: Vec<(String, f64)>,
     pub(super) wall_seconds: f64,
     pub(super) memory: Vec<PassMemory>,
 }

@@ -1,19 +1,23 @@
-//! The IZB's frames on the GPU: the checks before a frame allocates, the
-//! frame itself ([`GpuRenderer::run_frame`]) and what follows a frame
-//! whose lists did not fit. A cell-list overrun never loses an occluder:
-//! the bin puts every placed triangle in the overflow list instead, so the
-//! frame is exact the slow way, and reports the need; `render` then grows
-//! the list and runs the frame again for its speed, while
+//! The IZB's batch frames — `izb render --backend vulkan`, `izb bench` and
+//! the tests — on the same shadow pass a host records into its own frame
+//! (one GPU path, issue 29): a pass made for the view (its G-buffer ray
+//! cast, or the CPU twin's uploaded), one frame per timed repetition
+//! recorded into one submission, waited for and read back; the checks
+//! before a frame allocates are here too. A cell-list overrun never loses
+//! an occluder: the bin puts every placed triangle in the overflow list
+//! instead, so the frame is exact the slow way, and reports the need;
+//! `render` then grows the pass and records the frame again for its
+//! speed (its first frame skips the slow way, `set_overrun_exact`), while
 //! `render_with_cell_capacity` keeps the one slow frame.
 
 use super::frame::{GBufferSource, GpuRenderer, LLVMPIPE_LOOP_CAP};
 use super::frame_inputs::{check_workgroups, grid_budget_side, triangle_normals, SceneUpload};
-use super::frame_memory::{initial_cell_capacity, initial_edge_capacity};
-use super::frame_report::{FrameOutput, FramePasses, GpuRender};
+use super::frame_report::{FrameOutput, GpuRender, IzbReadBack};
+use super::shadow_pass::{FrameView, GBufferInput, PassStatus, ShadowPass, ShadowPassConfig};
 use super::shared::{self, counter};
 use super::GpuError;
 use crate::scene::Scene;
-use crate::settings::IzbSettings;
+use crate::settings::{IzbSettings, PassTimes};
 use std::time::Instant;
 
 impl GpuRenderer {
@@ -83,56 +87,91 @@ impl GpuRenderer {
         fixed_cell_capacity: Option<u64>,
     ) -> Result<GpuRender, GpuError> {
         super::edge_surfaces::check_source(scene, settings, source)?;
-        let pixels = scene.pixel_count();
-        let upload = self.prepare_frame(scene, source)?;
-        let triangles = &upload.triangles;
-        let bvh_start = Instant::now();
-        let bvh = super::gbuffer::frame_bvh(source, triangles)?;
-        let bvh_build_seconds = bvh_start.elapsed().as_secs_f64();
-
-        let max_cells = max_cells(pixels, triangles.len(), settings)?;
-        let mut capacity =
-            fixed_cell_capacity.unwrap_or_else(|| initial_cell_capacity(triangles.len()));
-        let mut edge_capacity = initial_edge_capacity(pixels as u64);
+        // Timed repetitions are frames of their own slots, recorded back
+        // to back into one submission (`GpuRenderer::timed`).
+        let repeats = self.timed_repeats() as usize;
+        let config = ShadowPassConfig {
+            settings,
+            frames_in_flight: repeats,
+            cell_capacity: fixed_cell_capacity,
+            edge_slots: None,
+            gbuffer: GBufferInput::RayCast,
+        };
+        let mut pass = match source {
+            GBufferSource::Gpu => ShadowPass::new(self, scene.clone(), config)?,
+            GBufferSource::Upload(g) => {
+                let config = ShadowPassConfig {
+                    gbuffer: GBufferInput::Uploaded,
+                    ..config
+                };
+                ShadowPass::with_uploaded_gbuffer(self, scene.clone(), config, g)?
+            }
+        };
+        // A frame that will be recorded again after an overrun skips the
+        // slow exact way; one whose cell list never grows keeps it.
+        pass.set_overrun_exact(fixed_cell_capacity.is_some());
+        pass.time_steps()?;
+        let view = FrameView {
+            camera: scene.camera,
+            light: scene.light,
+            light_radius: scene.light_radius,
+            images: Default::default(),
+        };
+        let last = repeats - 1;
         let mut frames_run = 0;
         loop {
             frames_run += 1;
-            // A frame that will be rerun after an overrun skips the slow
-            // exact way (on lavapipe hairball's Paired64 frame took past
-            // the 600 s limit with it).
-            let passes = FramePasses::Izb {
-                edge_capacity,
-                overrun_exact: fixed_cell_capacity.is_some(),
-            };
-            let out = self.run_frame(
-                scene, settings, source, &upload, &bvh, max_cells, capacity, passes,
-            )?;
-            let needed = u64::from(out.counters[counter::CELL_ENTRIES]);
-            let cells_over =
-                out.counters[counter::CAPACITY_EXCEEDED] != 0 && fixed_cell_capacity.is_none();
-            let edges_needed = super::edge_surfaces::slots_needed(&out.counters);
-            let edges_over = edges_needed > edge_capacity;
+            let wall_seconds = record_and_wait(self, &mut pass, &view, repeats)?;
+            // SAFETY: the frames were waited for; none is executing.
+            let status = unsafe { pass.status(last) }?;
+            let cells_over = status.cell_list_overrun && fixed_cell_capacity.is_none();
+            let edges_over = status.edge_slots_overrun;
             if (cells_over || edges_over) && frames_run == 1 {
-                capacity = if cells_over { needed } else { capacity };
-                edge_capacity = edge_capacity.max(edges_needed);
+                let grown = PassStatus {
+                    cell_list_overrun: cells_over,
+                    ..status
+                };
+                pass.grow(&grown)?;
                 continue;
             }
-            self.check_loop_budget(&out)?;
+            if let Some(e) = pass.loop_cap_error(&status) {
+                return Err(e);
+            }
             if cells_over || edges_over {
                 return Err(GpuError::Unsupported(format!(
-                    "the cell list ({capacity} entries) or the edge surfaces' slots \
-                     ({edge_capacity}) still overflowed after growing"
+                    "the cell list ({} entries) or the edge surfaces' slots ({}) still \
+                     overflowed after growing",
+                    pass.cell_capacity(),
+                    pass.edge_slots()
                 )));
             }
-            return Ok(self.finish(
-                scene,
-                settings,
-                source,
-                out,
-                frames_run,
-                bvh_build_seconds,
-                &upload,
-            ));
+            // SAFETY: the frames were waited for; none is executing.
+            let read = unsafe {
+                let slots = (0..repeats).map(|slot| pass.gpu_millis(slot));
+                let millis: Vec<Option<PassTimes>> = slots.collect::<Result<_, _>>()?;
+                let millis: Option<Vec<PassTimes>> = millis.into_iter().collect();
+                // The repetitions after the first, as the clocks stay up.
+                let timed = millis.map(|m| match m.len() {
+                    1 => m[0].clone(),
+                    _ => PassTimes::median(m[1..].iter()),
+                });
+                let (counters, light) = pass.read_back_counters_and_light()?;
+                IzbReadBack {
+                    frame: pass.read_back_frame()?,
+                    gbuffer: match source {
+                        GBufferSource::Upload(g) => g.clone(),
+                        GBufferSource::Gpu => pass.read_back_gbuffer()?,
+                    },
+                    counters,
+                    light,
+                    millis: timed,
+                    step_millis: pass.step_millis()?,
+                    wall_seconds,
+                    memory: pass.memory(),
+                }
+            };
+            let bvh_seconds = pass.bvh_build_seconds();
+            return Ok(self.finish(scene, settings, source, read, frames_run, bvh_seconds));
         }
     }
 
@@ -175,4 +214,31 @@ fn check_triangle_ids(triangles: usize) -> Result<(), GpuError> {
         )));
     }
     Ok(())
+}
+
+/// Records `repeats` frames of `pass` — one per frame slot, back to back —
+/// into one command buffer of the renderer's own, submits it and waits:
+/// the wall seconds from recording to the fence.
+fn record_and_wait(
+    renderer: &GpuRenderer,
+    pass: &mut ShadowPass,
+    view: &FrameView,
+    repeats: usize,
+) -> Result<f64, GpuError> {
+    let start = Instant::now();
+    let record = |cmd| {
+        for slot in 0..repeats {
+            // SAFETY: `cmd` is the context's, recording on this thread and
+            // submitted to its compute queue after every earlier frame of
+            // the pass, each of which was waited for; the slots' previous
+            // frames are done; the view holds no host images; the pass
+            // outlives the wait.
+            unsafe { pass.record(cmd, slot, view) }?;
+        }
+        Ok(())
+    };
+    // SAFETY: everything the commands use (the pass's buffers, sets,
+    // pipelines, query pools) was made before this call and outlives it.
+    unsafe { renderer.context.submit_and_wait(record) }?;
+    Ok(start.elapsed().as_secs_f64())
 }

@@ -8,7 +8,7 @@
 
 use super::frame::{GBufferSource, GpuRenderer, GpuShadowMapRender};
 use super::frame_inputs::SceneUpload;
-use super::frame_report::{FrameOutput, FramePasses};
+use super::frame_report::{BaselinePasses, FrameOutput};
 use super::shadow_raster::{ShadowDepthTarget, ShadowRaster};
 use super::{GpuError, Kernels, Recorder};
 use crate::baseline::pcss::PcssLight;
@@ -116,7 +116,7 @@ impl GpuRenderer {
         map: ShadowMapSettings,
         source: GBufferSource,
     ) -> Result<GpuShadowMapRender, GpuError> {
-        let passes = FramePasses::ShadowMap(map);
+        let passes = BaselinePasses::Map(map);
         let (upload, out, map_bytes) =
             self.run_baseline_frame(scene, source, map.cascades, passes, &map.to_string())?;
         if out.light.grid_disabled != 0 {
@@ -141,7 +141,7 @@ impl GpuRenderer {
         scene: &Scene,
         source: GBufferSource,
         cascades: u32,
-        passes: FramePasses,
+        passes: BaselinePasses,
         method: &str,
     ) -> Result<(SceneUpload, FrameOutput, u64), GpuError> {
         let map_bytes = passes.shadow_map_words(scene.pixel_count() as u64) * 4;

@@ -7,7 +7,7 @@
 //! ([`GpuRenderer::render_shadow_rays`]).
 
 use super::frame::{GBufferSource, GpuRenderer};
-use super::frame_report::FramePasses;
+use super::frame_report::BaselinePasses;
 use super::frame_report::GpuPassMillis;
 use super::shared;
 use super::{GpuError, Kernels, Recorder};
@@ -61,7 +61,7 @@ impl GpuRenderer {
             &bvh,
             max_cells,
             1,
-            FramePasses::ShadowRays,
+            BaselinePasses::Rays,
         )?;
         self.check_loop_budget(&out)?;
         let visibility = out.per_tested_pixel(&out.shaded, |p| {

@@ -13,7 +13,7 @@
 
 use super::context::DeviceShared;
 use super::frame::{GBufferSource, GpuRenderer, GpuShadowMapRender};
-use super::frame_report::FramePasses;
+use super::frame_report::BaselinePasses;
 use super::pipeline::BindingLayout;
 use super::shadow_raster::{
     depth_pipeline, depth_render_pass, require_format, vertex_spirv, whole_target, DepthAttachment,
@@ -278,7 +278,7 @@ impl GpuRenderer {
         scene: &Scene,
         source: GBufferSource,
     ) -> Result<GpuShadowMapRender, GpuError> {
-        let passes = FramePasses::ShadowVolumes;
+        let passes = BaselinePasses::Volumes;
         let (upload, out, bytes) = self.run_baseline_frame(scene, source, 1, passes, "volumes")?;
         Ok(GpuShadowMapRender::from_frame(
             scene, source, &upload, out, bytes,

@@ -143,8 +143,10 @@ impl StepMarks {
         })
     }
 
+    /// Resets the marks for a new frame's (recorded into `cmd`).
     pub(super) fn reset(&self, cmd: vk::CommandBuffer) {
         self.pool.reset(cmd);
+        self.names.borrow_mut().clear();
     }
 
     /// A timestamp once the work recorded so far is done, named `name`

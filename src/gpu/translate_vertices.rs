@@ -22,6 +22,8 @@ pub struct WorldVertices {
     /// over the pairs' high parts ([`Self::anchor_triangles`]) and made
     /// eye-relative each frame; 0 without one.
     pub bvh_nodes: u32,
+    /// Host seconds the BVH's build took (0 without one).
+    pub bvh_build_seconds: f64,
 }
 
 impl WorldVertices {
@@ -51,6 +53,7 @@ impl WorldVertices {
             corners,
             pairs,
             bvh_nodes: 0,
+            bvh_build_seconds: 0.0,
         }
     }
 

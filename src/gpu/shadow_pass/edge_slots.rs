@@ -76,6 +76,14 @@ impl ShadowPass<'_> {
         self.sizes.edge_surfaces.map_or(0, |s| s.surfaces)
     }
 
+    /// The edge surfaces' slots the pass's `edge_surfaces` step traces
+    /// into (ray cast only; an uploaded G-buffer brings its own).
+    pub(super) fn traced_edge_slots(&self) -> Option<EdgeSlots> {
+        self.sizes
+            .edge_surfaces
+            .filter(|_| self.config.gbuffer == GBufferInput::RayCast)
+    }
+
     /// Rows of receivers now: the image's and the edge surfaces'.
     pub(super) fn receiver_rows(&self) -> u32 {
         receiver_rows(self.scene.resolution, self.sizes.edge_surfaces)
@@ -99,7 +107,7 @@ impl ShadowPass<'_> {
     /// mask and receiver buffers, a new descriptor set); whether they
     /// grew. As the cell list's growth, for a moving view.
     pub(super) fn grow_edge_slots(&mut self, need: u64) -> Result<bool, GpuError> {
-        let Some(slots) = self.sizes.edge_surfaces else {
+        let Some(slots) = self.traced_edge_slots() else {
             return Ok(false);
         };
         if need <= slots.surfaces {

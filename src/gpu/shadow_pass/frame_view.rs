@@ -48,6 +48,14 @@ impl ShadowPass<'_> {
         }
         let scene = &mut self.scene;
         let previous = (scene.camera, scene.light, scene.light_radius);
+        let wanted = (view.camera, view.light, view.light_radius);
+        if self.config.gbuffer == super::GBufferInput::Uploaded && wanted != previous {
+            return Err(GpuError::Unsupported(
+                "an uploaded G-buffer is one view's (its edge surfaces face that light): \
+                 the camera and light stay the pass's; make the pass again"
+                    .into(),
+            ));
+        }
         (scene.camera, scene.light, scene.light_radius) =
             (view.camera, view.light, view.light_radius);
         let checked = scene.validate_view(self.bounds);

@@ -33,10 +33,14 @@ impl HostGeometryConfig {
     /// Refuses limits and inputs the pass cannot be made with.
     pub(super) fn check(&self, config: &ShadowPassConfig) -> Result<(), GpuError> {
         let refuse = |what: String| Err(GpuError::Unsupported(what));
-        if config.gbuffer == GBufferInput::RayCast {
+        if matches!(
+            config.gbuffer,
+            GBufferInput::RayCast | GBufferInput::Uploaded
+        ) {
             return refuse(
                 "the host's geometry needs the host's G-buffer (a visibility buffer or depth \
-                 + normal): the ray-cast G-buffer's BVH is built over resident triangles"
+                 + normal): the ray-cast G-buffer's BVH and an uploaded G-buffer are the \
+                 resident triangles'"
                     .into(),
             );
         }
@@ -99,7 +103,7 @@ impl<'r> ShadowPass<'r> {
         config: ShadowPassConfig,
         geometry: HostGeometryConfig,
     ) -> Result<Self, GpuError> {
-        Self::make(renderer, scene, config, Some(geometry))
+        Self::make(renderer, scene, config, Some(geometry), None)
     }
 
     /// Records frame `slot` for `view` with `geometry` as the scene: the

@@ -52,14 +52,18 @@
 //! visible to later compute-shader and transfer reads; the output images
 //! are in `GENERAL`, written by compute shaders.
 
+mod batch;
 mod capacity;
+mod config;
 mod edge_slots;
 mod frame_view;
 mod host_geometry;
 mod read_back;
 mod slot_uploads;
 mod status;
+mod uploaded_gbuffer;
 
+pub use config::{GBufferInput, ShadowPassConfig};
 pub use frame_view::FrameView;
 pub use host_geometry::HostGeometryConfig;
 pub use read_back::{PassFrame, PassImages};
@@ -71,7 +75,7 @@ use super::frame_memory::{
     frame_buffer_descs, initial_cell_capacity, reset_pass_state, FrameSizes,
 };
 use super::gather_draws::FrameGeometry;
-use super::host_images::{HostImageSets, ImageUse, InputImages};
+use super::host_images::{HostImageSets, ImageUse};
 use super::pass_copies::upload_into;
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
@@ -80,62 +84,12 @@ use super::translate_vertices::WorldVertices;
 use super::{GpuError, Recorder};
 use crate::cpu::gather_draws::eye_relative_bounds;
 use crate::scene::Scene;
-use crate::settings::IzbSettings;
 use ash::vk;
 use frame_view::unorm_depth_step;
 use glam::{DVec3, Vec3};
 use std::sync::Arc;
 
 const BINDINGS: usize = BINDING_COUNT as usize;
-
-/// What a pass is made for.
-#[derive(Clone, Copy, Debug)]
-pub struct ShadowPassConfig {
-    /// Sample mode, skips, cascades, edge surfaces (ray cast only).
-    pub settings: IzbSettings,
-    /// Frames the host records before it waits for the oldest: each has
-    /// its own status buffer.
-    pub frames_in_flight: usize,
-    /// Entries of the cell list; `None`: max(4 × triangles, 2¹⁶).
-    pub cell_capacity: Option<u64>,
-    /// Slots for edge pixels' extra surfaces, with edge surfaces on;
-    /// `None`: one per 8 pixels, at least 1 024.
-    pub edge_slots: Option<u64>,
-    /// Where the G-buffer comes from.
-    pub gbuffer: GBufferInput,
-}
-
-/// The G-buffer's producer, the pass's first step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum GBufferInput {
-    /// Primary rays cast through a BVH of the scene (built once).
-    RayCast,
-    /// The host's visibility buffer, `FrameView::images.visibility`: per pixel
-    /// the id of the scene triangle it sees (the scene's triangle order),
-    /// `0xFFFFFFFF` for none. Each entry follows from the pixel's centre
-    /// ray and that triangle's plane, as the ray cast derives it from its
-    /// hit; no BVH is built.
-    Visibility,
-    /// The host's depth and geometric normal, `FrameView::images.depth`
-    /// and `.normal`, the depth under this convention: each entry's point
-    /// at the view depth its depth encodes on the pixel's centre ray, its
-    /// µQuad from that point and the normal. The receiver's triangle is
-    /// not known, so its own triangle is one more candidate that the
-    /// depth tolerance must reject: the depth format's precision shows in
-    /// the shadows (`paper-notes/embedding.md`, per format). No BVH.
-    DepthNormal(crate::gbuffer::DepthConvention),
-}
-
-impl GBufferInput {
-    /// The host images a frame gives this producer.
-    fn images(&self) -> InputImages {
-        match self {
-            GBufferInput::RayCast => InputImages::None,
-            GBufferInput::Visibility => InputImages::Visibility,
-            GBufferInput::DepthNormal(_) => InputImages::DepthNormal,
-        }
-    }
-}
 
 /// The IZB, resident on a device, recorded into the caller's command
 /// buffers.
@@ -180,6 +134,17 @@ pub struct ShadowPass<'r> {
     /// cell pyramid's size among them ([`Self::grow`] and
     /// [`Self::resize`] change it).
     sizes: FrameSizes,
+    /// `FrameParams::overrun_exact`: a frame whose cell list overruns
+    /// stays exact the slow way. Only the batch `render`, which records
+    /// such a frame again after growing, turns it off.
+    overrun_exact: bool,
+    /// With the batch `render`'s step timing on: a timestamp after each
+    /// dispatch of the last frame slot's frame.
+    step_marks: Option<super::timestamps::StepMarks>,
+    /// With an uploaded G-buffer that has edge surfaces: per pixel the
+    /// samples that count (`GBuffer::counted_samples`), for the lit
+    /// fraction [`Self::read_back_frame`] resolves.
+    uploaded_counted: Option<Vec<u32>>,
 }
 
 /// Most frame slots (a bit each in `Retired::slots_pending`).
@@ -198,20 +163,33 @@ impl<'r> ShadowPass<'r> {
         scene: Scene,
         config: ShadowPassConfig,
     ) -> Result<Self, GpuError> {
-        Self::make(renderer, scene, config, None)
+        if config.gbuffer == GBufferInput::Uploaded {
+            return Err(GpuError::Unsupported(
+                "an uploaded G-buffer is given when the pass is made: \
+                 ShadowPass::with_uploaded_gbuffer"
+                    .into(),
+            ));
+        }
+        Self::make(renderer, scene, config, None, None)
     }
 
     /// [`Self::new`], or with `host` the pass for the host's own vertex
     /// and index buffers ([`Self::with_host_geometry`]): the scene's
-    /// triangles are then neither read nor uploaded.
+    /// triangles are then neither read nor uploaded. `uploaded_edges`: the
+    /// slots of an uploaded G-buffer's edge surfaces
+    /// ([`Self::with_uploaded_gbuffer`]).
     fn make(
         renderer: &'r GpuRenderer,
         scene: Scene,
         config: ShadowPassConfig,
         host: Option<HostGeometryConfig>,
+        uploaded_edges: Option<super::frame_memory::EdgeSlots>,
     ) -> Result<Self, GpuError> {
         let settings = config.settings;
-        let edge_slots = edge_slots::edge_slots_for(&scene, &config)?;
+        let edge_slots = match config.gbuffer {
+            GBufferInput::Uploaded => uploaded_edges,
+            _ => edge_slots::edge_slots_for(&scene, &config)?,
+        };
         if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&config.frames_in_flight) {
             return Err(GpuError::Unsupported(format!(
                 "frames_in_flight is {}: from 1 to {MAX_FRAMES_IN_FLIGHT}",
@@ -246,7 +224,9 @@ impl<'r> ShadowPass<'r> {
         // refused with it: `HostGeometryConfig::check`).
         let bvh = match (config.gbuffer, &mut world) {
             (GBufferInput::RayCast, Some(w)) => {
+                let start = std::time::Instant::now();
                 let bvh = super::gbuffer::build_bvh(&w.anchor_triangles())?;
+                w.bvh_build_seconds = start.elapsed().as_secs_f64();
                 w.bvh_nodes = bvh.nodes.len() as u32;
                 bvh
             }
@@ -362,6 +342,9 @@ impl<'r> ShadowPass<'r> {
             retired: Vec::new(),
             world,
             sizes,
+            overrun_exact: true,
+            step_marks: None,
+            uploaded_counted: None,
         })
     }
 
@@ -453,8 +436,9 @@ impl<'r> ShadowPass<'r> {
             self.loop_budget,
             renderer.heavy_entries(),
         );
-        // Nothing reruns a recorded frame: an overrun stays exact.
-        params.overrun_exact = 1;
+        // Nothing reruns a recorded frame (but the batch `render`'s
+        // first): an overrun stays exact.
+        params.overrun_exact = u32::from(self.overrun_exact);
         if let Some(w) = &self.world {
             [params.eye_hi, params.eye_lo] = w.eye(scene.camera.eye).map(|v| v.to_array());
             params.world_vertex_count = w.pairs.len() as u32;
@@ -469,7 +453,7 @@ impl<'r> ShadowPass<'r> {
         }
         self.edge_params(&mut params);
         self.slot_edge_slots[slot] = self.edge_slots();
-        let traced_edges = self.sizes.edge_surfaces.is_some();
+        let traced_edges = self.traced_edge_slots().is_some();
         let rows = [w, self.receiver_rows()];
         if let Some(h) = &self.host_geometry {
             params.draw_count = h.table.len() as u32;
@@ -490,7 +474,7 @@ impl<'r> ShadowPass<'r> {
         let buffer = |b: u32| self.buffers[b as usize].buffer;
         // SAFETY: the caller's promise covers `cmd`, and the set, layout
         // and kernels live in the pass and its renderer.
-        let rec = unsafe { Recorder::new(shared, cmd, &renderer.layout, &self.set) };
+        let mut rec = unsafe { Recorder::new(shared, cmd, &renderer.layout, &self.set) };
         rec.begin_label("izb_shadow_pass");
         let timestamps = &self.timestamps[slot];
         // The slot's previous frame, which wrote them, is done (the caller).
@@ -508,6 +492,15 @@ impl<'r> ShadowPass<'r> {
         reset_pass_state(device, cmd, buffer, traced_edges);
         rec.barrier();
         timestamps.write(cmd, 0);
+        let steps = self
+            .step_marks
+            .as_ref()
+            .filter(|_| slot + 1 == self.status.len());
+        if let Some(steps) = steps {
+            steps.reset(cmd);
+            steps.mark(cmd, "start");
+            rec.time_steps(steps);
+        }
         if let Some(w) = &self.world {
             let threads = (w.pairs.len() as u32).max(w.bvh_nodes);
             super::translate_vertices::translate_vertices(&rec, &renderer.kernels, threads);
@@ -559,6 +552,8 @@ impl<'r> ShadowPass<'r> {
             GBufferInput::DepthNormal(_) => {
                 super::gbuffer::gbuffer_from_depth(&rec, &renderer.kernels, [w, h]);
             }
+            // Written when the pass was made.
+            GBufferInput::Uploaded => {}
         }
         timestamps.write(cmd, 1);
         super::light_setup::light_setup(&rec, &renderer.kernels, rows);

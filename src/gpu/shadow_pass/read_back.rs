@@ -5,7 +5,7 @@
 
 use super::ShadowPass;
 use crate::gbuffer::{GBuffer, DEPTH_SURFACE, NO_HIT};
-use crate::gpu::edge_surfaces::{FrameEdges, TracedEdges};
+use crate::gpu::edge_surfaces::{read_traced_tables, TracedEdges};
 use crate::gpu::frame_report::{gbuffer_from_gpu, resolved_images};
 use crate::gpu::pass_copies::read_back;
 use crate::gpu::shared::{self, binding, counter};
@@ -13,6 +13,29 @@ use crate::gpu::GpuError;
 use glam::Vec3;
 
 impl ShadowPass<'_> {
+    /// The counters and the light state (the light fit, cascades and
+    /// grids) of the last frame, copied back — for the batch `render`'s
+    /// report: it submits and waits.
+    ///
+    /// # Safety
+    /// No frame of this pass is executing.
+    pub(crate) unsafe fn read_back_counters_and_light(
+        &self,
+    ) -> Result<(Vec<u32>, shared::LightState), GpuError> {
+        let light_words = size_of::<shared::LightState>() / 4;
+        let [counters, light] = read_back(
+            self.renderer,
+            &self.buffers,
+            &self.readback,
+            [binding::COUNTERS, binding::LIGHT],
+            [counter::WORDS, light_words],
+        )?;
+        Ok((
+            counters,
+            bytemuck::pod_read_unaligned(bytemuck::cast_slice(&light)),
+        ))
+    }
+
     /// The masks, the second mask halves (empty with one) and the shaded
     /// pixels of the last frame, copied back — for tests and tools: it
     /// submits and waits.
@@ -179,7 +202,7 @@ impl ShadowPass<'_> {
                     .collect(),
             );
         }
-        if let Some(slots) = self.sizes.edge_surfaces {
+        if let Some(slots) = self.traced_edge_slots() {
             self.attach_edge_surfaces(&mut g, slots.surfaces, &counters)?;
         }
         g.truncate(pixels);
@@ -231,8 +254,8 @@ impl ShadowPass<'_> {
                 _ => &coverage_words,
             }))
         };
-        let edges = FrameEdges::Traced { capacity };
-        Ok(edges.read_back(&read, counters, self.scene.resolution)?.1)
+        let (_, tables) = read_traced_tables(&read, counters, self.scene.resolution, capacity)?;
+        Ok(Some(tables))
     }
 
     /// The last frame's images as the batch `render` returns them —
@@ -255,17 +278,20 @@ impl ShadowPass<'_> {
         let words = [pixels, pixels * (halves - 1), pixels, counter::WORDS];
         let [masks, masks_high, shaded, counters] =
             read_back(self.renderer, &self.buffers, &self.readback, wanted, words)?;
-        // The samples that count at edge pixels: the records' second word,
-        // on the first mask half only (as `GBuffer::counted_samples` of
-        // the batch frame's G-buffer).
-        let counted: Option<Vec<[u32; 4]>> = match self.sizes.edge_surfaces {
+        // The samples that count at edge pixels: the traced records'
+        // second word, on the first mask half only (as
+        // `GBuffer::counted_samples` of the batch frame's G-buffer), or
+        // an uploaded G-buffer's own.
+        let counted: Option<Vec<u32>> = match self.traced_edge_slots() {
             Some(slots) => self
                 .read_edge_tables(slots.surfaces, &counters)?
-                .map(|(records, _)| records),
-            None => None,
+                .map(|(records, _)| {
+                    let extra = 32 * (halves as u32 - 1);
+                    records.iter().map(|r| r[1].count_ones() + extra).collect()
+                }),
+            None => self.uploaded_counted.clone(),
         };
-        let counted = counted
-            .map(|records| move |i: usize| records[i][1].count_ones() + 32 * (halves as u32 - 1));
+        let counted = counted.map(|samples| move |i: usize| samples[i]);
         let (visibility, shaded) = resolved_images(&shaded, halves, counted);
         Ok(PassFrame {
             masks,

@@ -1,0 +1,60 @@
+//! What a pass is made for ([`ShadowPassConfig`]), and where its
+//! G-buffer comes from ([`GBufferInput`]).
+
+use crate::gpu::host_images::InputImages;
+use crate::settings::IzbSettings;
+
+/// What a pass is made for.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowPassConfig {
+    /// Sample mode, skips, cascades, edge surfaces (ray cast only).
+    pub settings: IzbSettings,
+    /// Frames the host records before it waits for the oldest: each has
+    /// its own status buffer.
+    pub frames_in_flight: usize,
+    /// Entries of the cell list; `None`: max(4 × triangles, 2¹⁶).
+    pub cell_capacity: Option<u64>,
+    /// Slots for edge pixels' extra surfaces, with edge surfaces on;
+    /// `None`: one per 8 pixels, at least 1 024.
+    pub edge_slots: Option<u64>,
+    /// Where the G-buffer comes from.
+    pub gbuffer: GBufferInput,
+}
+
+/// The G-buffer's producer, the pass's first step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GBufferInput {
+    /// Primary rays cast through a BVH of the scene (built once).
+    RayCast,
+    /// The host's visibility buffer, `FrameView::images.visibility`: per pixel
+    /// the id of the scene triangle it sees (the scene's triangle order),
+    /// `0xFFFFFFFF` for none. Each entry follows from the pixel's centre
+    /// ray and that triangle's plane, as the ray cast derives it from its
+    /// hit; no BVH is built.
+    Visibility,
+    /// The host's depth and geometric normal, `FrameView::images.depth`
+    /// and `.normal`, the depth under this convention: each entry's point
+    /// at the view depth its depth encodes on the pixel's centre ray, its
+    /// µQuad from that point and the normal. The receiver's triangle is
+    /// not known, so its own triangle is one more candidate that the
+    /// depth tolerance must reject: the depth format's precision shows in
+    /// the shadows (`paper-notes/embedding.md`, per format). No BVH.
+    DepthNormal(crate::gbuffer::DepthConvention),
+    /// The CPU twin's G-buffer (with its edge surfaces, their sample rays
+    /// cast in `f64`), written once by [`super::ShadowPass::with_uploaded_gbuffer`]:
+    /// the passes after it see exactly the twin's inputs. It is one view's,
+    /// so the camera and image size stay the pass's. For the twin tests
+    /// and `izb render --backend vulkan` with edge surfaces.
+    Uploaded,
+}
+
+impl GBufferInput {
+    /// The host images a frame gives this producer.
+    pub(super) fn images(&self) -> InputImages {
+        match self {
+            GBufferInput::RayCast | GBufferInput::Uploaded => InputImages::None,
+            GBufferInput::Visibility => InputImages::Visibility,
+            GBufferInput::DepthNormal(_) => InputImages::DepthNormal,
+        }
+    }
+}
