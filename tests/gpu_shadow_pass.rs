@@ -507,3 +507,75 @@ fn recording_adds_nothing_and_read_backs_keep_their_buffer() {
     }
     assert_eq!(checked, 3);
 }
+
+/// A pass fed the CPU twin's G-buffer (`GBufferInput::Uploaded`: the
+/// batch `render`'s with an uploaded G-buffer, on the same pass) is that
+/// view's: made only through `with_uploaded_gbuffer`, from a G-buffer of
+/// its size; its frame's masks are the twin's bit for bit (Exact32), and
+/// a moved camera or light and a resize are refused by name.
+#[test]
+fn an_uploaded_gbuffer_pass_is_one_view_s_and_gives_the_twin_s_masks() {
+    let Some(r) = pass_renderer() else { return };
+    let scene = scene::load("default")
+        .unwrap()
+        .with_resolution([64, 36])
+        .unwrap();
+    let s = settings(SampleMode::Exact32);
+    let config = ShadowPassConfig {
+        settings: s,
+        frames_in_flight: 1,
+        cell_capacity: None,
+        edge_slots: None,
+        gbuffer: GBufferInput::Uploaded,
+    };
+    let refused = ShadowPass::new(&r, scene.clone(), config).err().unwrap();
+    assert!(
+        refused.to_string().contains("with_uploaded_gbuffer"),
+        "{refused}"
+    );
+    let cpu = izb::cpu::render_cpu(&scene, &izb::bvh::SceneBvh::build(&scene), s);
+    let small = scene.clone().with_resolution([32, 18]).unwrap();
+    let refused = ShadowPass::with_uploaded_gbuffer(&r, small, config, &cpu.gbuffer)
+        .err()
+        .unwrap();
+    assert!(
+        refused.to_string().contains("uploaded G-buffer is 64x36"),
+        "{refused}"
+    );
+
+    let mut pass =
+        ShadowPass::with_uploaded_gbuffer(&r, scene.clone(), config, &cpu.gbuffer).unwrap();
+    let own = FrameView {
+        camera: scene.camera,
+        light: scene.light,
+        light_radius: scene.light_radius,
+        images: FrameImages::default(),
+    };
+    run_frame(&r, &mut pass, 0, &own);
+    // SAFETY: run_frame waited for the frame.
+    let frame = unsafe { pass.read_back_frame() }.unwrap();
+    let tested = cpu.visibility.iter().filter(|v| !v.is_nan()).count();
+    assert!(tested > 1000, "{tested} shadow-tested pixels");
+    assert_eq!(frame.masks, cpu.masks, "the twin's masks bit for bit");
+
+    let moved = view_at(&scene, 1);
+    let mut lit_elsewhere = own;
+    lit_elsewhere.light = moved.light;
+    let mut checked = 0;
+    for view in [&moved, &lit_elsewhere] {
+        assert_refused(&r, &mut pass, 0, view, "one view's");
+        checked += 1;
+    }
+    assert_eq!(checked, 2);
+    let refused = pass.resize([32, 18]).err().unwrap();
+    assert!(
+        refused.to_string().contains("one image size's"),
+        "{refused}"
+    );
+    // The refusals left the pass as it was.
+    run_frame(&r, &mut pass, 1, &own);
+    // SAFETY: run_frame waited for the frame.
+    let again = unsafe { pass.read_back_frame() }.unwrap();
+    assert_eq!(again.masks, cpu.masks);
+    assert_no_validation_messages(&r, "an uploaded G-buffer's pass");
+}

@@ -115,7 +115,8 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
                 },
             )
         });
-        let plan = crate::gpu::frame::planned_memory(&scene, IzbSettings::default(), extra)?;
+        let plan =
+            crate::gpu::shadow_pass::planned_memory(&scene, IzbSettings::default(), extra, true)?;
         let total: u64 = plan.iter().map(|m| m.bytes).sum();
         let (p, t) = (scene.pixel_count() as u64, scene.triangles.len() as u64);
         summary["gpu_memory"] = serde_json::json!({

@@ -17,7 +17,7 @@ use super::frame_inputs::{
 use super::frame_memory::{
     frame_allocation, memory_by_pass, reset_pass_state, restaged_each_repetition,
 };
-pub use super::frame_memory::{frame_buffer_descs, planned_memory, EdgeSlots, FrameSizes};
+pub use super::frame_memory::{frame_buffer_descs, EdgeSlots, FrameSizes};
 use super::frame_report::{BaselinePasses, FrameOutput};
 pub use super::frame_report::{
     GpuCascadeSummary, GpuCounters, GpuLightSummary, GpuPassMillis, GpuRender, GpuRenderReport,

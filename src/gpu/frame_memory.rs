@@ -1,13 +1,9 @@
 //! A frame's device buffers by intent: sizes per binding, grouped per
 //! pass for the report and for `izb info --gpu-memory` (no device needed).
 
-use super::frame_inputs::{grid_budget_side, SceneUpload};
 use super::frame_report::PassMemory;
 use super::resources::{BufferDesc, GpuBuffer};
 use super::shared::{binding, counter, FrameParams, GpuDraw, LightState, BINDING_COUNT};
-use super::GpuError;
-use crate::scene::Scene;
-use crate::settings::IzbSettings;
 use ash::vk;
 
 /// The sizes that decide a frame's buffers.
@@ -230,43 +226,6 @@ fn by_binding(keyed: [(u32, BufferDesc); BINDINGS]) -> [BufferDesc; BINDINGS] {
         assert!(previous.is_none(), "binding {b} has two buffers (`{name}`)");
     }
     slots.map(|d| d.expect("every binding has its buffer"))
-}
-
-/// The device memory a GPU frame of `scene` allocates before it runs (the
-/// cell list at its first guess), per pass, without a device: for budgets
-/// on machines that cannot run the frame; with `edge_surfaces` extra
-/// surfaces and edge pixels, their G-buffer rows and tables too.
-pub fn planned_memory(
-    scene: &Scene,
-    settings: IzbSettings,
-    edge_surfaces: Option<EdgeSlots>,
-) -> Result<Vec<PassMemory>, GpuError> {
-    let upload = SceneUpload::new(scene);
-    let triangles = &upload.triangles;
-    let bvh = super::gbuffer::build_bvh(triangles)?;
-    let side = grid_budget_side(scene.pixel_count(), triangles.len(), settings.cells);
-    let descs = frame_buffer_descs(&FrameSizes {
-        pixels: scene.pixel_count() as u64,
-        tiles: super::edge_surfaces::edge_tiles(scene.resolution),
-        receivers: receivers(scene.resolution, edge_surfaces.map_or(0, |e| e.surfaces)),
-        edge_surfaces,
-        triangles: triangles.len() as u64,
-        vertices: upload.vertices.len() as u64,
-        world_vertices: 0,
-        normal_entries: 0,
-        draws: 0,
-        bvh_nodes: bvh.nodes.len() as u64,
-        bvh_prims: bvh.prims.len() as u64,
-        max_cells: crate::cascades::max_total_cells(side),
-        cell_capacity: initial_cell_capacity(triangles.len()),
-        lut_entries: crate::lut::edge_lut().masks.len() as u64,
-        shadow_map_words: 0,
-        mask_halves: settings.mask_halves(scene) as u64,
-    });
-    let (buffers, _) = frame_allocation(descs);
-    Ok(group_by_pass(buffers.iter().map(|d| {
-        (d.pass, d.name, d.size.max(4).next_multiple_of(4))
-    })))
 }
 
 /// G-buffer entries of an image with `extra` edge surfaces: its pixels

@@ -98,7 +98,7 @@ impl GpuRenderer {
             gbuffer: GBufferInput::RayCast,
         };
         let mut pass = match source {
-            GBufferSource::Gpu => ShadowPass::new(self, scene.clone(), config)?,
+            GBufferSource::Gpu => ShadowPass::for_one_view(self, scene.clone(), config)?,
             GBufferSource::Upload(g) => {
                 let config = ShadowPassConfig {
                     gbuffer: GBufferInput::Uploaded,

@@ -22,8 +22,6 @@ pub struct WorldVertices {
     /// over the pairs' high parts ([`Self::anchor_triangles`]) and made
     /// eye-relative each frame; 0 without one.
     pub bvh_nodes: u32,
-    /// Host seconds the BVH's build took (0 without one).
-    pub bvh_build_seconds: f64,
 }
 
 impl WorldVertices {
@@ -53,7 +51,6 @@ impl WorldVertices {
             corners,
             pairs,
             bvh_nodes: 0,
-            bvh_build_seconds: 0.0,
         }
     }
 

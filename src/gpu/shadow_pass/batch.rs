@@ -40,12 +40,13 @@ impl ShadowPass<'_> {
 
     /// Host seconds the ray-cast G-buffer's BVH took to build (0 without).
     pub(crate) fn bvh_build_seconds(&self) -> f64 {
-        self.world.as_ref().map_or(0.0, |w| w.bvh_build_seconds)
+        self.bvh_build_seconds
     }
 
-    /// The pass's buffers by pass (the frame slots' status, uploads and
-    /// read-back buffers not counted).
+    /// The pass's device buffers by pass, each once (a pass for one view
+    /// shares some); the frame slots' status, uploads, the restaged BVH
+    /// and the read-back buffer are host-visible and not counted.
     pub(crate) fn memory(&self) -> Vec<PassMemory> {
-        memory_by_pass(&self.buffers)
+        memory_by_pass(&self.distinct_buffers())
     }
 }

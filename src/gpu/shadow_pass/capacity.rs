@@ -81,9 +81,11 @@ impl ShadowPass<'_> {
             return Ok(false);
         }
         crate::scene::check_resolution(resolution).map_err(GpuError::Unsupported)?;
-        if self.config.gbuffer == super::GBufferInput::Uploaded {
+        if self.is_one_view() {
             return Err(GpuError::Unsupported(
-                "an uploaded G-buffer is one image size's: make the pass again".into(),
+                "a pass for one view (an uploaded G-buffer's, or the batch render's) is one \
+                 image size's: make the pass again"
+                    .into(),
             ));
         }
         let pixels = u64::from(resolution[0]) * u64::from(resolution[1]);

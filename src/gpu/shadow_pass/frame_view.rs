@@ -56,6 +56,13 @@ impl ShadowPass<'_> {
                     .into(),
             ));
         }
+        if self.one_view && view.camera != previous.0 {
+            return Err(GpuError::Unsupported(
+                "a pass for one view (the batch render's) is one view's: its vertices and BVH \
+                 are that eye's; make the pass again, or a resident pass with ShadowPass::new"
+                    .into(),
+            ));
+        }
         (scene.camera, scene.light, scene.light_radius) =
             (view.camera, view.light, view.light_radius);
         let checked = scene.validate_view(self.bounds);

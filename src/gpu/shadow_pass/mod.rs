@@ -58,6 +58,8 @@ mod config;
 mod edge_slots;
 mod frame_view;
 mod host_geometry;
+mod layout;
+mod one_view;
 mod read_back;
 mod slot_uploads;
 mod status;
@@ -66,14 +68,13 @@ mod uploaded_gbuffer;
 pub use config::{GBufferInput, ShadowPassConfig};
 pub use frame_view::FrameView;
 pub use host_geometry::HostGeometryConfig;
+pub use layout::planned_memory;
 pub use read_back::{PassFrame, PassImages};
 pub use status::PassStatus;
 
 use super::frame::GpuRenderer;
 use super::frame_inputs::{frame_params, loop_budget};
-use super::frame_memory::{
-    frame_buffer_descs, initial_cell_capacity, reset_pass_state, FrameSizes,
-};
+use super::frame_memory::{reset_pass_state, FrameSizes};
 use super::gather_draws::FrameGeometry;
 use super::host_images::{HostImageSets, ImageUse};
 use super::pass_copies::upload_into;
@@ -145,6 +146,14 @@ pub struct ShadowPass<'r> {
     /// samples that count (`GBuffer::counted_samples`), for the lit
     /// fraction [`Self::read_back_frame`] resolves.
     uploaded_counted: Option<Vec<u32>>,
+    /// A pass for its scene's view only (`one_view.rs`): its camera and
+    /// image size stay.
+    one_view: bool,
+    /// For one view, the BVH copied in at each frame's start (the bin's
+    /// lists reuse its memory).
+    restaged_bvh: Option<one_view::RestagedBvh>,
+    /// Host seconds the ray cast's BVH took to build (0 without one).
+    bvh_build_seconds: f64,
 }
 
 /// Most frame slots (a bit each in `Retired::slots_pending`).
@@ -170,20 +179,22 @@ impl<'r> ShadowPass<'r> {
                     .into(),
             ));
         }
-        Self::make(renderer, scene, config, None, None)
+        Self::make(renderer, scene, config, None, None, false)
     }
 
     /// [`Self::new`], or with `host` the pass for the host's own vertex
     /// and index buffers ([`Self::with_host_geometry`]): the scene's
     /// triangles are then neither read nor uploaded. `uploaded_edges`: the
     /// slots of an uploaded G-buffer's edge surfaces
-    /// ([`Self::with_uploaded_gbuffer`]).
+    /// ([`Self::with_uploaded_gbuffer`]); `one_view`: a pass for the
+    /// scene's view only (`one_view.rs`).
     fn make(
         renderer: &'r GpuRenderer,
         scene: Scene,
         config: ShadowPassConfig,
         host: Option<HostGeometryConfig>,
         uploaded_edges: Option<super::frame_memory::EdgeSlots>,
+        one_view: bool,
     ) -> Result<Self, GpuError> {
         let settings = config.settings;
         let edge_slots = match config.gbuffer {
@@ -212,68 +223,22 @@ impl<'r> ShadowPass<'r> {
                 Vec::new()
             }
         };
-        // Nothing holds the eye's frame but the vertices (and a ray cast's
-        // BVH nodes), which `translate_vertices` makes for each frame's
-        // eye from anchor-space ones: the eye moves freely.
-        let bounds = host.map_or_else(|| scene.bounds(), |h| h.bounds);
-        let mut world = host
-            .is_none()
-            .then(|| WorldVertices::new(&scene, (bounds.0 + bounds.1) * 0.5));
-        let triangles = host.map_or(scene.triangles.len(), |h| h.max_triangles as usize);
-        // A ray cast reads the scene's triangles (the host's geometry is
-        // refused with it: `HostGeometryConfig::check`).
-        let bvh = match (config.gbuffer, &mut world) {
-            (GBufferInput::RayCast, Some(w)) => {
-                let start = std::time::Instant::now();
-                let bvh = super::gbuffer::build_bvh(&w.anchor_triangles())?;
-                w.bvh_build_seconds = start.elapsed().as_secs_f64();
-                w.bvh_nodes = bvh.nodes.len() as u32;
-                bvh
-            }
-            _ => super::gbuffer::GpuBvh::EMPTY,
-        };
-        // The eye-relative nodes, then the anchor-space ones they are
-        // made from (the first half is written before every reader).
-        let node_copies = 1 + usize::from(world.as_ref().is_some_and(|w| w.bvh_nodes > 0));
-        let max_cells = super::izb_frame::max_cells(scene.pixel_count(), triangles, settings)?;
-        let cell_capacity = config
-            .cell_capacity
-            .unwrap_or_else(|| initial_cell_capacity(triangles));
+        let layout = layout::ResidentLayout::new(&scene, &config, host, edge_slots, one_view)?;
+        let sizes = layout.sizes;
+        edge_slots::checked_receivers(&shared.limits, scene.resolution, edge_slots)?;
         let (lut, _) = crate::lut::tables_for(settings.light_samples(&scene));
-        let pixels = scene.pixel_count() as u64;
-        let sizes = FrameSizes {
-            pixels,
-            tiles: super::edge_surfaces::edge_tiles(scene.resolution),
-            receivers: edge_slots::checked_receivers(&shared.limits, scene.resolution, edge_slots)?,
-            edge_surfaces: edge_slots,
-            triangles: triangles as u64,
-            vertices: match &world {
-                Some(w) => w.pairs.len() as u64,
-                None => 3 * triangles as u64,
-            },
-            world_vertices: world.as_ref().map_or(0, |w| w.pairs.len()) as u64,
-            bvh_nodes: (bvh.nodes.len() * node_copies) as u64,
-            bvh_prims: bvh.prims.len() as u64,
-            max_cells,
-            cell_capacity,
-            lut_entries: lut.masks.len() as u64,
-            shadow_map_words: 0,
-            mask_halves: settings.mask_halves(&scene) as u64,
-            normal_entries: match config.gbuffer {
-                GBufferInput::DepthNormal(_) => pixels,
-                _ => 0,
-            },
-            draws: host.map_or(0, |h| u64::from(h.max_draws)),
-        };
-        let descs = frame_buffer_descs(&sizes);
-        // One buffer per binding: a batch frame lets the bin's lists
-        // alias the BVH (`frame_memory::SHARED_BUFFERS`) and uploads the
-        // BVH again each frame; a resident one keeps both.
+        // One buffer per binding, but for one view the bin's lists in the
+        // BVH's buffers (`layout.rs`).
+        let (descs, at) = layout.allocation();
         let made: Vec<Arc<GpuBuffer>> = descs
             .into_iter()
             .map(|d| GpuBuffer::new(shared, d).map(Arc::new))
             .collect::<Result<_, _>>()?;
-        let buffers: [Arc<GpuBuffer>; BINDINGS] = std::array::from_fn(|b| made[b].clone());
+        let buffers: [Arc<GpuBuffer>; BINDINGS] = std::array::from_fn(|b| made[at[b]].clone());
+        let restaged_bvh = one_view::RestagedBvh::new(shared, &layout, &at)?;
+        let (bounds, world, bvh) = (layout.bounds, layout.world, layout.bvh);
+        let (triangles, node_copies) = (layout.triangles, layout.node_copies);
+        let one_view = layout.one_view;
         let set = DescriptorSet::new(shared, &renderer.layout, buffers.clone())?;
         let host_sets = HostImageSets::new(shared, &renderer.layout, config.frames_in_flight)?;
         let status: Vec<GpuBuffer> = (0..config.frames_in_flight)
@@ -297,11 +262,18 @@ impl<'r> ShadowPass<'r> {
             // writes the vertices before every frame's first reader.
             (
                 binding::TRIANGLES,
-                world
-                    .as_ref()
-                    .map_or(Vec::new(), |w| bytemuck::cast_slice(&w.corners).to_vec()),
+                match (&world, &one_view) {
+                    (Some(w), _) => bytemuck::cast_slice(&w.corners).to_vec(),
+                    (None, Some(v)) => bytemuck::cast_slice(&v.corners).to_vec(),
+                    (None, None) => Vec::new(),
+                },
             ),
-            (binding::VERTICES, Vec::new()),
+            (
+                binding::VERTICES,
+                one_view
+                    .as_ref()
+                    .map_or(Vec::new(), |v| bytemuck::cast_slice(&v.vertices).to_vec()),
+            ),
             (
                 binding::WORLD_VERTICES,
                 world.as_ref().map_or(Vec::new(), |w| {
@@ -345,6 +317,9 @@ impl<'r> ShadowPass<'r> {
             overrun_exact: true,
             step_marks: None,
             uploaded_counted: None,
+            one_view: one_view.is_some(),
+            restaged_bvh,
+            bvh_build_seconds: layout.bvh_build_seconds,
         })
     }
 
@@ -365,9 +340,10 @@ impl<'r> ShadowPass<'r> {
 
     /// Bytes of the pass's buffers, its frame slots' status included.
     pub fn memory_bytes(&self) -> u64 {
-        let buffers: u64 = self.buffers.iter().map(|b| b.size()).sum();
+        let buffers: u64 = self.distinct_buffers().iter().map(|b| b.size()).sum();
+        let restaged = self.restaged_bvh.as_ref().map_or(0, |r| r.bytes());
         let status: u64 = self.status.iter().map(|b| b.size()).sum();
-        buffers + status + self.uploads.memory_bytes()
+        buffers + restaged + status + self.uploads.memory_bytes()
     }
 
     /// Records frame `slot`'s shadow pass for `view` into `cmd`.
@@ -489,6 +465,12 @@ impl<'r> ShadowPass<'r> {
             let parts = (&params, &light_start, draws);
             self.uploads.record(device, cmd, slot, parts, targets)
         }?;
+        if let Some(bvh) = &self.restaged_bvh {
+            // SAFETY: as above; the BVH's buffers are the pass's, and the
+            // previous frame's bin, which overwrote them, is done (the
+            // barrier above).
+            unsafe { bvh.record(device, cmd, buffer) };
+        }
         reset_pass_state(device, cmd, buffer, traced_edges);
         rec.barrier();
         timestamps.write(cmd, 0);

@@ -52,7 +52,7 @@ impl<'r> ShadowPass<'r> {
         let halves = settings.mask_halves(&scene);
         let pixels = scene.pixel_count();
         let slots = edges.as_ref().map(EdgeUpload::slots);
-        let mut pass = Self::make(renderer, scene, config, None, slots)?;
+        let mut pass = Self::make(renderer, scene, config, None, slots, true)?;
         let bytes = |v: &[glam::Vec3]| bytemuck::cast_slice::<_, u8>(v).to_vec();
         let words = |v: &[u32]| bytemuck::cast_slice::<_, u8>(v).to_vec();
         let uploads: Vec<(u32, Vec<u8>)> = match &edges {
