@@ -391,6 +391,26 @@ fn gpu_reports_memory_and_counters() {
     let rep = &gpu.report;
     let per_pass: u64 = rep.memory.iter().map(|m| m.bytes).sum();
     assert_eq!(per_pass, rep.memory_total_bytes);
+    // `izb info --gpu-memory`'s plan, made without a device, is what the
+    // frame allocated (its cell list did not grow), pass by pass; the
+    // batch pass for one view lets the bin's lists reuse the BVH's
+    // memory, which a resident pass keeps.
+    assert_eq!(rep.frames_run, 1);
+    let plan =
+        izb::gpu::shadow_pass::planned_memory(&scene, IzbSettings::default(), None, true).unwrap();
+    let by_pass = |m: &[izb::gpu::frame::PassMemory]| {
+        let mut v: Vec<(&str, u64)> = m.iter().map(|m| (m.pass, m.bytes)).collect();
+        v.sort();
+        v
+    };
+    assert_eq!(by_pass(&plan), by_pass(&rep.memory));
+    let resident =
+        izb::gpu::shadow_pass::planned_memory(&scene, IzbSettings::default(), None, false).unwrap();
+    let resident: u64 = resident.iter().map(|m| m.bytes).sum();
+    assert!(
+        resident > per_pass,
+        "resident {resident} B, one view {per_pass} B"
+    );
     for pass in ["gbuffer", "light_setup", "bin", "evaluate", "resolve"] {
         assert!(
             rep.memory.iter().any(|m| m.pass == pass && m.bytes > 0),

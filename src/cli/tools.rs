@@ -115,8 +115,13 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
                 },
             )
         });
-        let plan =
-            crate::gpu::shadow_pass::planned_memory(&scene, IzbSettings::default(), extra, true)?;
+        let plan_of = |one_view| {
+            crate::gpu::shadow_pass::planned_memory(&scene, IzbSettings::default(), extra, one_view)
+        };
+        // `izb render`'s pass (one view), and a resident one whose eye
+        // moves (the viewer's, a host's).
+        let plan = plan_of(true)?;
+        let resident: u64 = plan_of(false)?.iter().map(|m| m.bytes).sum();
         let total: u64 = plan.iter().map(|m| m.bytes).sum();
         let (p, t) = (scene.pixel_count() as u64, scene.triangles.len() as u64);
         summary["gpu_memory"] = serde_json::json!({
@@ -125,6 +130,8 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
             "total_mib": total as f64 / (1024.0 * 1024.0),
             "budget_bytes_64_per_pixel_plus_64_per_triangle": 64 * (p + t),
             "bytes_per_pixel_plus_triangle": total as f64 / (p + t).max(1) as f64,
+            "resident_pass_total_bytes": resident,
+            "resident_pass_bytes_per_pixel_plus_triangle": resident as f64 / (p + t).max(1) as f64,
             "edge_surfaces": extra.map(|e| e.surfaces),
             "edge_pixels": extra.map(|e| e.pixels),
         });

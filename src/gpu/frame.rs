@@ -138,9 +138,12 @@ impl GpuRenderer {
     /// at 345 MHz against 1 980 MHz under load), so one short frame after
     /// host work is timed at whatever clock it finds; back-to-back
     /// repetitions are timed under load. Results are the last
-    /// repetition's, the same as a single run's.
+    /// repetition's, the same as a single run's. The IZB's repetitions
+    /// are frame slots of its pass: at most
+    /// [`super::shadow_pass::MAX_FRAMES_IN_FLIGHT`].
     pub fn timed(mut self, repeats: u32) -> Self {
-        self.timed_repeats = repeats.max(1);
+        let most = super::shadow_pass::MAX_FRAMES_IN_FLIGHT as u32;
+        self.timed_repeats = repeats.clamp(1, most);
         self
     }
 

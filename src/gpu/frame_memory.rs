@@ -167,8 +167,10 @@ pub fn frame_buffer_descs(z: &FrameSizes) -> [BufferDesc; BINDINGS] {
 /// G-buffer passes (`gbuffer`, `edge_surfaces`) and the shadow-ray peer,
 /// which runs no bin, read the BVH; the bin writes its cell list and
 /// overflow list after them, over it. This is a render graph's transient
-/// aliasing (O'Donnell 2017). A frame timed over several repetitions
-/// copies the BVH in again before each ([`restaged_each_repetition`]).
+/// aliasing (O'Donnell 2017). A baseline's frame timed over several
+/// repetitions copies the BVH in again before each
+/// ([`restaged_each_repetition`]); the shadow pass for one view before
+/// every frame (`shadow_pass/one_view.rs`).
 const SHARED_BUFFERS: [(u32, u32, &str); 2] = [
     (
         binding::BVH_NODES,

@@ -110,7 +110,8 @@ impl GpuRenderer {
         // A frame that will be recorded again after an overrun skips the
         // slow exact way; one whose cell list never grows keeps it.
         pass.set_overrun_exact(fixed_cell_capacity.is_some());
-        pass.time_steps()?;
+        // SAFETY: the pass has recorded no frame yet.
+        unsafe { pass.time_steps() }?;
         let view = FrameView {
             camera: scene.camera,
             light: scene.light,

@@ -20,13 +20,16 @@
 //! [`shadow_volumes`] (a depth-fail stencil pass on the rasteriser
 //! between two compute passes) and [`shadow_rays`] (compute).
 //!
-//! A frame is one command buffer: uploads, the five passes with timestamps
-//! between them, and the read-backs; nothing is read back inside it (the
-//! light view and grid are fitted on the GPU). [`frame::GpuRenderer`] runs
-//! it; [`context`] opens the device, [`resources`] and [`pipeline`] own the
-//! Vulkan objects, [`shared`] mirrors `shaders/common.glsl`.
-//! [`shadow_pass`] records the same five passes into a caller's command
-//! buffer with every resource made once (`paper-notes/embedding.md`).
+//! [`shadow_pass`] records the IZB's five passes into a caller's command
+//! buffer with every resource made once (`paper-notes/embedding.md`);
+//! `izb_frame` is its batch host ([`frame::GpuRenderer::render`]: the
+//! CLI's, the bench's and the tests' frames), and the baselines run a
+//! batch frame of their own (`frame.rs`: one command buffer of uploads,
+//! the G-buffer and light setup, their passes with timestamps, the
+//! read-backs). Nothing is read back inside a frame (the light view and
+//! grid are fitted on the GPU). [`context`] opens the device,
+//! [`resources`] and [`pipeline`] own the Vulkan objects, [`shared`]
+//! mirrors `shaders/common.glsl`.
 
 pub mod bin;
 pub mod context;

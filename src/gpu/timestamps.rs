@@ -1,6 +1,6 @@
 //! The frame's timestamp queries: one per pass boundary, read back as
 //! milliseconds per pass, and one after each dispatch of the timed
-//! repetition ([`StepMarks`]), read back per dispatch.
+//! repetition or frame ([`StepMarks`]), read back per dispatch.
 
 use super::context::DeviceShared;
 use super::frame_report::GpuPassMillis;

@@ -12,16 +12,21 @@ use crate::gpu::GpuError;
 
 impl ShadowPass<'_> {
     /// Whether a frame whose cell list overruns stays exact the slow way
-    /// (on unless turned off here). Off only for a frame recorded again
-    /// after [`Self::grow`]: on lavapipe hairball's `Paired64` frame took
-    /// past the 600 s limit the slow way.
+    /// (on unless turned off here). Off only where an overrun frame is
+    /// never used but recorded again after [`Self::grow`] (the batch
+    /// `render`, whose second overrun is an error): on lavapipe
+    /// hairball's `Paired64` frame took past the 600 s limit the slow way.
     pub(crate) fn set_overrun_exact(&mut self, exact: bool) {
         self.overrun_exact = exact;
     }
 
     /// Times each dispatch of the last frame slot's frames from now on
     /// ([`Self::step_millis`]).
-    pub(crate) fn time_steps(&mut self) -> Result<(), GpuError> {
+    ///
+    /// # Safety
+    /// No frame of the pass is executing (a frame the last slot recorded
+    /// before may write the query pool this replaces).
+    pub(crate) unsafe fn time_steps(&mut self) -> Result<(), GpuError> {
         self.step_marks = Some(StepMarks::new(self.renderer.shared())?);
         Ok(())
     }

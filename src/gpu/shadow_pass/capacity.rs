@@ -43,10 +43,11 @@ impl ShadowPass<'_> {
     /// slot's status says the need of its own frame; the half again is
     /// for a moving view, whose need changes from frame to frame (grown to
     /// one frame's exact need, the list overruns again on the next larger
-    /// one). A need past the device's largest storage buffer is refused by
-    /// name; the pass goes on exact the slow way. Frames in flight may
-    /// still use the old list and set: they are released once every slot
-    /// has recorded again.
+    /// one); a pass for one view grows to the exact need, in one buffer
+    /// with the BVH it shares (`one_view.rs`). A need past the device's
+    /// largest storage buffer is refused by name; the pass goes on exact
+    /// the slow way. Frames in flight may still use the old list and set:
+    /// they are released once every slot has recorded again.
     fn grow_cells(&mut self, status: &PassStatus) -> Result<bool, GpuError> {
         if !status.cell_list_overrun || status.cell_entries <= self.sizes.cell_capacity {
             return Ok(false);
@@ -60,10 +61,24 @@ impl ShadowPass<'_> {
                  most {most}: the frames stay exact the slow way (the overflow list)"
             )));
         }
-        let capacity = need.saturating_add(need / 2).min(most);
-        let desc = BufferDesc::device("bin", "cell_triangles", capacity * 4);
         let mut buffers = self.buffers.clone();
-        buffers[binding::CELL_TRIANGLES as usize] = Arc::new(GpuBuffer::new(shared, desc)?);
+        let capacity = if self.is_one_view() {
+            let nodes = binding::BVH_NODES as usize;
+            let shares = Arc::ptr_eq(&buffers[nodes], &buffers[binding::CELL_TRIANGLES as usize]);
+            let mut desc = buffers[binding::CELL_TRIANGLES as usize].desc.clone();
+            desc.size = (need * 4).max(if shares { self.bvh_node_bytes() } else { 0 });
+            let grown = Arc::new(GpuBuffer::new(shared, desc)?);
+            if shares {
+                buffers[nodes] = grown.clone();
+            }
+            buffers[binding::CELL_TRIANGLES as usize] = grown;
+            need
+        } else {
+            let capacity = need.saturating_add(need / 2).min(most);
+            let desc = BufferDesc::device("bin", "cell_triangles", capacity * 4);
+            buffers[binding::CELL_TRIANGLES as usize] = Arc::new(GpuBuffer::new(shared, desc)?);
+            capacity
+        };
         self.replace_buffers(buffers)?;
         self.sizes.cell_capacity = capacity;
         Ok(true)

@@ -43,7 +43,7 @@ pub enum GBufferInput {
     /// The CPU twin's G-buffer (with its edge surfaces, their sample rays
     /// cast in `f64`), written once by [`super::ShadowPass::with_uploaded_gbuffer`]:
     /// the passes after it see exactly the twin's inputs. It is one view's,
-    /// so the camera and image size stay the pass's. For the twin tests
+    /// so the camera, the light and the image size stay the pass's. For the twin tests
     /// and `izb render --backend vulkan` with edge surfaces.
     Uploaded,
 }

@@ -1,7 +1,7 @@
 //! Edge pixels' per-sample surfaces in the pass (Wyman et al. 2015 §4
 //! put all 32 samples on the tangent plane at P; `edge_surfaces.comp`
 //! traces them at pixels whose neighbours leave P's plane): with the
-//! ray-cast G-buffer the pass runs the batch frame's `edge_surfaces` step,
+//! ray-cast G-buffer the pass runs the `edge_surfaces` step,
 //! its extra surfaces as receivers in rows below the image.
 //!
 //! Their slots are sized once ([`super::ShadowPassConfig::edge_slots`],
@@ -89,8 +89,8 @@ impl ShadowPass<'_> {
         receiver_rows(self.scene.resolution, self.sizes.edge_surfaces)
     }
 
-    /// `params` for a frame with edge surfaces, as the batch frame sets
-    /// them; nothing without.
+    /// `params` for a frame with edge surfaces (traced or uploaded), as
+    /// the passes after the G-buffer read them; nothing without.
     pub(super) fn edge_params(&self, params: &mut FrameParams) {
         let Some(slots) = self.sizes.edge_surfaces else {
             return;
@@ -104,8 +104,8 @@ impl ShadowPass<'_> {
     }
 
     /// Makes the edge surfaces hold half again `need` slots (new G-buffer,
-    /// mask and receiver buffers, a new descriptor set); whether they
-    /// grew. As the cell list's growth, for a moving view.
+    /// mask and receiver buffers, a new descriptor set), or for one view
+    /// exactly `need`; whether they grew. As the cell list's growth.
     pub(super) fn grow_edge_slots(&mut self, need: u64) -> Result<bool, GpuError> {
         let Some(slots) = self.traced_edge_slots() else {
             return Ok(false);
@@ -113,7 +113,10 @@ impl ShadowPass<'_> {
         if need <= slots.surfaces {
             return Ok(false);
         }
-        let grown = need.saturating_add(need / 2);
+        let grown = match self.is_one_view() {
+            true => need,
+            false => need.saturating_add(need / 2),
+        };
         let slots = Some(EdgeSlots {
             surfaces: grown,
             pixels: grown,

@@ -12,7 +12,8 @@ use ash::vk;
 pub struct FrameView {
     /// The camera; the eye may move (the vertices, and a ray cast's BVH
     /// nodes, are made eye-relative on the GPU from anchor-space ones;
-    /// with the host's vertex buffers the draws' transforms place them).
+    /// with the host's vertex buffers the draws' transforms place them),
+    /// but not in a pass for one view.
     pub camera: Camera,
     pub light: Light,
     /// The light's size (`Scene::light_radius`); whether it is 0 must stay

@@ -38,10 +38,12 @@ pub(super) struct ResidentLayout {
     /// A pass of one view: the scene's eye-relative triangles, vertices
     /// and normals for that view, as the CPU twin rounds them.
     pub(super) one_view: Option<SceneUpload>,
-    /// With a ray-cast G-buffer: its BVH, in anchor space.
+    /// With a ray-cast G-buffer: its BVH, in anchor space (for one view:
+    /// around that eye).
     pub(super) bvh: GpuBvh,
     /// Copies of the BVH's nodes `B_BVH_NODES` holds: the eye-relative
-    /// ones, then the anchor-space ones they are made from.
+    /// ones, then (a resident pass's) the anchor-space ones they are made
+    /// from.
     pub(super) node_copies: usize,
     /// Triangles the buffers hold: the scene's, or with the host's
     /// geometry the most a frame may draw.
@@ -65,9 +67,9 @@ impl ResidentLayout {
         one_view: bool,
     ) -> Result<Self, GpuError> {
         let settings = config.settings;
-        // Nothing holds the eye's frame but the vertices (and a ray cast's
-        // BVH nodes), which `translate_vertices` makes for each frame's
-        // eye from anchor-space ones: the eye moves freely.
+        // In a resident pass nothing holds the eye's frame but the vertices
+        // (and a ray cast's BVH nodes), which `translate_vertices` makes
+        // for each frame's eye from anchor-space ones: the eye moves freely.
         let bounds = host.map_or_else(|| scene.bounds(), |h| h.bounds);
         let resident = host.is_none() && !one_view;
         let mut world = resident.then(|| WorldVertices::new(scene, (bounds.0 + bounds.1) * 0.5));

@@ -1,11 +1,11 @@
-//! The IZB as a pass of a frame the caller records (issue 29, its first
-//! part): resources made once, then per frame only commands and
+//! The IZB as a pass of a frame the caller records (issue 29): resources
+//! made once, then per frame only commands and
 //! parameters — no buffer, descriptor set, mapping, submission, wait or
 //! read-back. The shape of shipped effect SDKs (AMD FidelityFX FSR2's
 //! context and dispatch, NVIDIA's GFSDK_ShadowLib: a context made once,
 //! per-frame parameters, a status for too many primitives).
 //!
-//! What this part does and does not do yet:
+//! What it holds and does:
 //! - The scene is resident: its vertices, normals, BVH (ray cast only)
 //!   and LUT are uploaded once. The camera may move and turn and the
 //!   light may move or change size per frame: the vertices are held
@@ -20,14 +20,19 @@
 //!   and stride, a transform per draw) and gathers them on the GPU into
 //!   its eye-relative triangles (`gather_draws.comp`, the twin
 //!   [`crate::cpu::gather_draws`]; `host_geometry.rs`).
-//! - The G-buffer is the pass's first step, from one of three producers
+//! - Or the pass is for one view (the batch `render`'s, whose eye never
+//!   moves: `one_view.rs`): the scene's eye-relative vertices and a BVH
+//!   built around that eye, the bin's lists in the BVH's memory and the
+//!   BVH copied in again at each frame's start.
+//! - The G-buffer is the pass's first step, from one of four producers
 //!   ([`GBufferInput`]): the ray-cast one (`gbuffer.comp`, over a BVH
 //!   built once), the host's visibility buffer (`R32_UINT` triangle ids,
-//!   `gbuffer_from_visibility.comp`), or the host's depth and normal
+//!   `gbuffer_from_visibility.comp`), the host's depth and normal
 //!   images (`gbuffer_from_depth.comp`), read under the state contract
-//!   of [`super::host_images`].
+//!   of [`super::host_images`], or the CPU twin's, written once
+//!   (`uploaded_gbuffer.rs`).
 //! - With the ray-cast G-buffer, edge pixels' per-sample surfaces are
-//!   traced as the batch frame traces them (`edge_slots.rs`: slots sized
+//!   traced by the `edge_surfaces` step (`edge_slots.rs`: slots sized
 //!   once, a frame past them keeps tangent-plane masks at the pixels that
 //!   did not fit and says so, [`ShadowPass::grow`] makes room); the host's
 //!   visibility buffer and depth carry one surface a pixel, so there they
@@ -41,7 +46,8 @@
 //! Per frame the recording is: a barrier after the previous frame's work
 //! on the pass's buffers, the parameters, the light state's start and
 //! the draw table written into the slot's upload ring and copied into
-//! the pass's buffers (`slot_uploads.rs`), the counters
+//! the pass's buffers (`slot_uploads.rs`), for one view the BVH copied
+//! in, the counters
 //! cleared, the host's images acquired (one barrier each, from the state
 //! the host declares: [`super::host_images`]), then `gbuffer` (or
 //! `gbuffer_from_visibility`, `gbuffer_from_depth`), `light_setup`, `bin`, `evaluate`,
@@ -157,7 +163,7 @@ pub struct ShadowPass<'r> {
 }
 
 /// Most frame slots (a bit each in `Retired::slots_pending`).
-const MAX_FRAMES_IN_FLIGHT: usize = 63;
+pub(crate) const MAX_FRAMES_IN_FLIGHT: usize = 63;
 
 /// Timestamps a frame writes: its start, then after the G-buffer, light
 /// setup, bin, evaluate and resolve (with the output images).
@@ -281,6 +287,9 @@ impl<'r> ShadowPass<'r> {
                 }),
             ),
             (binding::TRIANGLE_NORMALS, as_bytes(&normals)),
+        ];
+        // A restaged BVH is copied in at each frame's start instead.
+        let bvh_uploads = [
             (
                 binding::BVH_NODES,
                 bytemuck::cast_slice(&bvh.nodes).repeat(node_copies),
@@ -289,8 +298,12 @@ impl<'r> ShadowPass<'r> {
                 binding::BVH_PRIMS,
                 bytemuck::cast_slice(&bvh.prims).to_vec(),
             ),
-            (binding::EDGE_LUT, bytemuck::cast_slice(&lut.masks).to_vec()),
         ];
+        let uploads: Vec<(u32, Vec<u8>)> = uploads
+            .into_iter()
+            .chain(bvh_uploads.into_iter().filter(|_| restaged_bvh.is_none()))
+            .chain([(binding::EDGE_LUT, bytemuck::cast_slice(&lut.masks).to_vec())])
+            .collect();
         upload_into(renderer, &buffers, &uploads)?;
         let max_draws = host.map_or(0, |h| h.max_draws);
         let uploads = slot_uploads::SlotUploads::new(shared, config.frames_in_flight, max_draws)?;

@@ -9,6 +9,7 @@ use super::layout::ResidentLayout;
 use super::{GBufferInput, ShadowPass, ShadowPassConfig};
 use crate::gpu::context::DeviceShared;
 use crate::gpu::frame::GpuRenderer;
+use crate::gpu::frame_memory::frame_buffer_descs;
 use crate::gpu::resources::GpuBuffer;
 use crate::gpu::shared::{binding, BINDING_COUNT};
 use crate::gpu::GpuError;
@@ -90,6 +91,11 @@ impl<'r> ShadowPass<'r> {
             )));
         }
         Self::make(renderer, scene, config, None, None, true)
+    }
+
+    /// Bytes of the BVH's nodes the pass holds (0 without a ray cast).
+    pub(super) fn bvh_node_bytes(&self) -> u64 {
+        frame_buffer_descs(&self.sizes)[binding::BVH_NODES as usize].size
     }
 
     /// Whether the pass is for its scene's view only.

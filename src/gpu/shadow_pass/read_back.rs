@@ -81,6 +81,13 @@ impl ShadowPass<'_> {
     /// # Safety
     /// No frame of this pass is executing.
     pub unsafe fn read_back_bvh_nodes(&self) -> Result<[Vec<shared::BvhNode>; 2], GpuError> {
+        if self.is_one_view() {
+            return Err(GpuError::Unsupported(
+                "a pass for one view holds no anchor-space BVH, and after a frame its BVH's \
+                 memory holds the bin's cell list"
+                    .into(),
+            ));
+        }
         let nodes = self.world.as_ref().map_or(0, |w| w.bvh_nodes as usize);
         let words = nodes * size_of::<shared::BvhNode>() / 4;
         let [all] = read_back(
@@ -133,6 +140,11 @@ impl ShadowPass<'_> {
     /// # Safety
     /// No frame of this pass is executing.
     pub unsafe fn read_back_gbuffer(&self) -> Result<GBuffer, GpuError> {
+        if self.config.gbuffer == super::GBufferInput::Uploaded {
+            return Err(GpuError::Unsupported(
+                "an uploaded G-buffer is the caller's own: the pass has no other".into(),
+            ));
+        }
         let pixels = self.scene.pixel_count();
         // With traced edge surfaces the extra surfaces follow the pixels
         // (receiver rows below the image).
@@ -211,7 +223,7 @@ impl ShadowPass<'_> {
 
     /// The `edge_surfaces` step's tables read back into `g` (whose
     /// entries past the pixels are the extra surfaces' slots), as the
-    /// batch frame attaches them.
+    /// batch `render` attaches them.
     fn attach_edge_surfaces(
         &self,
         g: &mut GBuffer,
@@ -280,7 +292,7 @@ impl ShadowPass<'_> {
             read_back(self.renderer, &self.buffers, &self.readback, wanted, words)?;
         // The samples that count at edge pixels: the traced records'
         // second word, on the first mask half only (as
-        // `GBuffer::counted_samples` of the batch frame's G-buffer), or
+        // `GBuffer::counted_samples` of the CPU twin's G-buffer), or
         // an uploaded G-buffer's own.
         let counted: Option<Vec<u32>> = match self.traced_edge_slots() {
             Some(slots) => self
