@@ -42,6 +42,8 @@ pub mod scene;
 pub mod settings;
 pub mod skips;
 #[cfg(feature = "cli")]
+pub mod thread_time;
+#[cfg(feature = "cli")]
 pub mod view;
 
 /// Visibility samples per pixel: one bit each in a `u32` occlusion mask.

@@ -168,16 +168,7 @@ impl GpuMillis {
 /// CPU microseconds this thread has run (`CLOCK_THREAD_CPUTIME_ID`): its
 /// own work, without the time it was off the CPU.
 pub fn thread_cpu_us() -> f64 {
-    let mut t = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `t` is a valid timespec to write; the clock id is a constant.
-    let ok = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) } == 0;
-    match ok {
-        true => t.tv_sec as f64 * 1e6 + t.tv_nsec as f64 * 1e-3,
-        false => f64::NAN,
-    }
+    izb::thread_time::thread_cpu_seconds() * 1e6
 }
 
 /// The median of `v` (0 when empty).

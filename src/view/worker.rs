@@ -205,7 +205,7 @@ fn frame(
         request = newer;
     }
     let start = Instant::now();
-    let cpu_start = thread_cpu_seconds();
+    let cpu_start = crate::thread_time::thread_cpu_seconds();
     let mut frames = Vec::new();
     let mut validation = Vec::new();
     if let Some((r, passes)) = device {
@@ -220,7 +220,7 @@ fn frame(
             errors.push("the compute device was lost; it is reopened for the next frame".into());
         }
     }
-    let host_cpu_seconds = thread_cpu_seconds() - cpu_start;
+    let host_cpu_seconds = crate::thread_time::thread_cpu_seconds() - cpu_start;
     let candidates = request.candidates.then(|| {
         let bvh = SceneBvh::build(&request.scene);
         let settings = frames.first().and_then(|f| f.izb).unwrap_or_default();
@@ -236,28 +236,6 @@ fn frame(
         wall_seconds: start.elapsed().as_secs_f64(),
         host_cpu_seconds,
     }
-}
-
-/// CPU seconds this thread has run: its host work, without the time it
-/// slept waiting for the device (lavapipe executes on threads of its own).
-#[cfg(target_os = "linux")]
-fn thread_cpu_seconds() -> f64 {
-    let mut t = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `t` is a valid timespec to write; the clock id is a constant.
-    let ok = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) } == 0;
-    if ok {
-        t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
-    } else {
-        0.0
-    }
-}
-
-#[cfg(not(target_os = "linux"))]
-fn thread_cpu_seconds() -> f64 {
-    0.0
 }
 
 /// Renders one method on the GPU, or on the CPU twin when lavapipe's
