@@ -91,11 +91,9 @@ impl GpuRenderer {
         // to back into one submission (`GpuRenderer::timed`).
         let repeats = self.timed_repeats() as usize;
         let config = ShadowPassConfig {
-            settings,
             frames_in_flight: repeats,
             cell_capacity: fixed_cell_capacity,
-            edge_slots: None,
-            gbuffer: GBufferInput::RayCast,
+            ..ShadowPassConfig::ray_cast(settings)
         };
         let mut pass = match source {
             GBufferSource::Gpu => ShadowPass::for_one_view(self, scene.clone(), config)?,

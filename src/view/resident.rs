@@ -13,9 +13,7 @@
 //! reruns it.
 
 use crate::gpu::host_images::FrameImages;
-use crate::gpu::shadow_pass::{
-    FrameView, GBufferInput, PassFrame, PassStatus, ShadowPass, ShadowPassConfig,
-};
+use crate::gpu::shadow_pass::{FrameView, PassFrame, PassStatus, ShadowPass, ShadowPassConfig};
 use crate::gpu::{GpuError, GpuRenderer};
 use crate::scene::{Scene, Triangle};
 use crate::settings::{IzbSettings, PassTimes};
@@ -86,13 +84,7 @@ impl<'r> ResidentPasses<'r> {
         let made_pass = !self.passes.iter().any(fits);
         if made_pass {
             self.passes.retain(|r| r.method != method);
-            let config = ShadowPassConfig {
-                settings,
-                frames_in_flight: 1,
-                cell_capacity: None,
-                edge_slots: None,
-                gbuffer: GBufferInput::RayCast,
-            };
+            let config = ShadowPassConfig::ray_cast(settings);
             let pass = ShadowPass::new(self.renderer, scene.clone(), config)?;
             self.passes.push(Resident {
                 method: method.into(),

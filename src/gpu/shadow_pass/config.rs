@@ -21,6 +21,21 @@ pub struct ShadowPassConfig {
     pub gbuffer: GBufferInput,
 }
 
+impl ShadowPassConfig {
+    /// A pass of `settings` that casts its own G-buffer, with one frame
+    /// slot and the first-guess capacities (the viewer's, the batch
+    /// `render`'s).
+    pub fn ray_cast(settings: IzbSettings) -> Self {
+        ShadowPassConfig {
+            settings,
+            frames_in_flight: 1,
+            cell_capacity: None,
+            edge_slots: None,
+            gbuffer: GBufferInput::RayCast,
+        }
+    }
+}
+
 /// The G-buffer's producer, the pass's first step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GBufferInput {

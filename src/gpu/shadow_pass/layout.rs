@@ -161,13 +161,7 @@ pub fn planned_memory(
     edge_surfaces: Option<EdgeSlots>,
     one_view: bool,
 ) -> Result<Vec<PassMemory>, GpuError> {
-    let config = ShadowPassConfig {
-        settings,
-        frames_in_flight: 1,
-        cell_capacity: None,
-        edge_slots: None,
-        gbuffer: GBufferInput::RayCast,
-    };
+    let config = ShadowPassConfig::ray_cast(settings);
     let layout = ResidentLayout::new(scene, &config, None, edge_surfaces, one_view)?;
     let (descs, _) = layout.allocation();
     Ok(group_by_pass(descs.iter().map(|d| {
