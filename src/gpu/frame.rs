@@ -1,5 +1,5 @@
 //! The renderer ([`GpuRenderer`]: the device, the layout, every pipeline)
-//! and the baselines' batch frame ([`GpuRenderer::run_frame`]): one
+//! and the baselines' batch frame (`GpuRenderer::run_frame`): one
 //! command buffer (uploads → the IZB's G-buffer and light setup, then the
 //! baseline's own passes, with timestamps → read-backs). The IZB's own
 //! frames run on the shadow pass (`shadow_pass`, the batch `render`
@@ -139,8 +139,7 @@ impl GpuRenderer {
     /// host work is timed at whatever clock it finds; back-to-back
     /// repetitions are timed under load. Results are the last
     /// repetition's, the same as a single run's. The IZB's repetitions
-    /// are frame slots of its pass: at most
-    /// [`super::shadow_pass::MAX_FRAMES_IN_FLIGHT`].
+    /// are frame slots of its pass: at most 63.
     pub fn timed(mut self, repeats: u32) -> Self {
         let most = super::shadow_pass::MAX_FRAMES_IN_FLIGHT as u32;
         self.timed_repeats = repeats.clamp(1, most);

@@ -32,7 +32,7 @@ pub struct FrameSizes {
     /// Words of the shadow-map buffer: a depth per texel of every
     /// cascade, and a filtered map's moments twice (0 in an IZB frame).
     pub shadow_map_words: u64,
-    /// 32-bit mask halves per pixel ([`IzbSettings::mask_halves`]).
+    /// 32-bit mask halves per pixel ([`crate::settings::IzbSettings::mask_halves`]).
     pub mask_halves: u64,
     /// G-buffer entries that carry their own normal (`B_G_NORMAL`): the
     /// pixels with the shadow pass's depth + normal input, 0 elsewhere.
