@@ -44,13 +44,21 @@ impl GpuRenderer {
         Ok(SceneUpload::new(scene))
     }
 
-    /// What a resident pass needs of its scene on top of the vertices it
-    /// holds in anchor space (`translate_vertices`): the checks
-    /// [`Self::prepare_frame`] makes, and the triangles' normals.
-    pub(super) fn prepare_resident(&self, scene: &Scene) -> Result<Vec<[f32; 3]>, GpuError> {
+    /// What a pass holding the scene's triangles needs of its scene on top
+    /// of the vertices it holds: the checks [`Self::prepare_frame`] makes,
+    /// and the triangles' normals — `normals` where the caller made them
+    /// already (a pass for one view, with its eye-relative upload).
+    pub(super) fn prepare_resident(
+        &self,
+        scene: &Scene,
+        normals: Option<&[[f32; 3]]>,
+    ) -> Result<Vec<[f32; 3]>, GpuError> {
         check_workgroups(&self.shared().limits, scene.resolution)?;
         check_triangle_ids(scene.triangles.len())?;
-        Ok(triangle_normals(&scene.eye_relative_triangles()))
+        Ok(match normals {
+            Some(n) => n.to_vec(),
+            None => triangle_normals(&scene.eye_relative_triangles()),
+        })
     }
 
     /// Renders `scene`'s shadow mask. A frame whose cell list overran is

@@ -103,7 +103,7 @@ impl<'r> ShadowPass<'r> {
         config: ShadowPassConfig,
         geometry: HostGeometryConfig,
     ) -> Result<Self, GpuError> {
-        Self::make(renderer, scene, config, Some(geometry), None, false)
+        Self::make(renderer, scene, config, Some(geometry), None, None)
     }
 
     /// Records frame `slot` for `view` with `geometry` as the scene: the

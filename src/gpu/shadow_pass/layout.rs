@@ -58,22 +58,23 @@ pub(super) struct ResidentLayout {
 impl ResidentLayout {
     /// The layout of a pass for `scene` under `config`, with the host's
     /// geometry `host` and `edge_slots` slots for edge surfaces; with
-    /// `one_view`, for `scene`'s view only (no host geometry).
+    /// `one_view` (the scene's eye-relative upload), for `scene`'s view
+    /// only (no host geometry).
     pub(super) fn new(
         scene: &Scene,
         config: &ShadowPassConfig,
         host: Option<HostGeometryConfig>,
         edge_slots: Option<EdgeSlots>,
-        one_view: bool,
+        one_view: Option<SceneUpload>,
     ) -> Result<Self, GpuError> {
         let settings = config.settings;
         // In a resident pass nothing holds the eye's frame but the vertices
         // (and a ray cast's BVH nodes), which `translate_vertices` makes
         // for each frame's eye from anchor-space ones: the eye moves freely.
         let bounds = host.map_or_else(|| scene.bounds(), |h| h.bounds);
-        let resident = host.is_none() && !one_view;
+        let one_view = one_view.filter(|_| host.is_none());
+        let resident = host.is_none() && one_view.is_none();
         let mut world = resident.then(|| WorldVertices::new(scene, (bounds.0 + bounds.1) * 0.5));
-        let one_view = (host.is_none() && one_view).then(|| SceneUpload::new(scene));
         let triangles = host.map_or(scene.triangles.len(), |h| h.max_triangles as usize);
         // A ray cast reads the scene's triangles (the host's geometry is
         // refused with it: `HostGeometryConfig::check`).
@@ -162,7 +163,8 @@ pub fn planned_memory(
     one_view: bool,
 ) -> Result<Vec<PassMemory>, GpuError> {
     let config = ShadowPassConfig::ray_cast(settings);
-    let layout = ResidentLayout::new(scene, &config, None, edge_surfaces, one_view)?;
+    let upload = one_view.then(|| SceneUpload::new(scene));
+    let layout = ResidentLayout::new(scene, &config, None, edge_surfaces, upload)?;
     let (descs, _) = layout.allocation();
     Ok(group_by_pass(descs.iter().map(|d| {
         (d.pass, d.name, d.size.max(4).next_multiple_of(4))

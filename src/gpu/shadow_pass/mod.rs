@@ -79,7 +79,7 @@ pub use read_back::{PassFrame, PassImages};
 pub use status::PassStatus;
 
 use super::frame::GpuRenderer;
-use super::frame_inputs::{frame_params, loop_budget};
+use super::frame_inputs::{frame_params, loop_budget, SceneUpload};
 use super::frame_memory::{reset_pass_state, FrameSizes};
 use super::gather_draws::FrameGeometry;
 use super::host_images::{HostImageSets, ImageUse};
@@ -185,7 +185,7 @@ impl<'r> ShadowPass<'r> {
                     .into(),
             ));
         }
-        Self::make(renderer, scene, config, None, None, false)
+        Self::make(renderer, scene, config, None, None, None)
     }
 
     /// [`Self::new`], or with `host` the pass for the host's own vertex
@@ -193,14 +193,15 @@ impl<'r> ShadowPass<'r> {
     /// triangles are then neither read nor uploaded. `uploaded_edges`: the
     /// slots of an uploaded G-buffer's edge surfaces
     /// ([`Self::with_uploaded_gbuffer`]); `one_view`: a pass for the
-    /// scene's view only (`one_view.rs`).
+    /// scene's view only (`one_view.rs`), with the scene's eye-relative
+    /// upload its callers made.
     fn make(
         renderer: &'r GpuRenderer,
         scene: Scene,
         config: ShadowPassConfig,
         host: Option<HostGeometryConfig>,
         uploaded_edges: Option<super::frame_memory::EdgeSlots>,
-        one_view: bool,
+        one_view: Option<SceneUpload>,
     ) -> Result<Self, GpuError> {
         let settings = config.settings;
         let edge_slots = match config.gbuffer {
@@ -223,7 +224,10 @@ impl<'r> ShadowPass<'r> {
         // The scene's triangle normals, or none where `gather_draws` makes
         // them from the host's geometry each frame.
         let normals = match host {
-            None => renderer.prepare_resident(&scene)?,
+            None => {
+                let known = one_view.as_ref().map(|u| &u.normals[..]);
+                renderer.prepare_resident(&scene, known)?
+            }
             Some(_) => {
                 super::frame_inputs::check_workgroups(&shared.limits, scene.resolution)?;
                 Vec::new()

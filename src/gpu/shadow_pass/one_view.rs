@@ -9,6 +9,7 @@ use super::layout::ResidentLayout;
 use super::{GBufferInput, ShadowPass, ShadowPassConfig};
 use crate::gpu::context::DeviceShared;
 use crate::gpu::frame::GpuRenderer;
+use crate::gpu::frame_inputs::SceneUpload;
 use crate::gpu::frame_memory::frame_buffer_descs;
 use crate::gpu::resources::GpuBuffer;
 use crate::gpu::shared::{binding, BINDING_COUNT};
@@ -90,7 +91,8 @@ impl<'r> ShadowPass<'r> {
                 config.gbuffer
             )));
         }
-        Self::make(renderer, scene, config, None, None, true)
+        let upload = SceneUpload::new(&scene);
+        Self::make(renderer, scene, config, None, None, Some(upload))
     }
 
     /// Bytes of the BVH's nodes the pass holds (0 without a ray cast).

@@ -52,7 +52,12 @@ impl<'r> ShadowPass<'r> {
         let halves = settings.mask_halves(&scene);
         let pixels = scene.pixel_count();
         let slots = edges.as_ref().map(EdgeUpload::slots);
-        let mut pass = Self::make(renderer, scene, config, None, slots, true)?;
+        let pixel_words = match edges {
+            Some(_) => Vec::new(),
+            None => upload.gbuffer_words(g)?,
+        };
+        // The same upload gives the pass its eye-relative vertices.
+        let mut pass = Self::make(renderer, scene, config, None, slots, Some(upload))?;
         let bytes = |v: &[glam::Vec3]| bytemuck::cast_slice::<_, u8>(v).to_vec();
         let words = |v: &[u32]| bytemuck::cast_slice::<_, u8>(v).to_vec();
         let uploads: Vec<(u32, Vec<u8>)> = match &edges {
@@ -68,7 +73,7 @@ impl<'r> ShadowPass<'r> {
                 (binding::G_POSITION, bytes(&g.position)),
                 (binding::G_AXIS_X, bytes(&g.axis_x)),
                 (binding::G_AXIS_Y, bytes(&g.axis_y)),
-                (binding::G_ID_FLAGS, words(&upload.gbuffer_words(g)?)),
+                (binding::G_ID_FLAGS, words(&pixel_words)),
             ],
         };
         upload_into(renderer, &pass.buffers, &uploads)?;
