@@ -344,6 +344,10 @@ shared_constants! {
         /// Words per tile of `B_EDGE_PIXELS`' table: a 64-bit mask of its
         /// pixels with records, and its first record's index.
         EDGE_TILE_WORDS = 3;
+        /// Samples a pixel of a multisampled visibility buffer may have
+        /// (its candidates, and the edge surfaces' 3×3 of them, are held
+        /// per thread).
+        MAX_VISIBILITY_SAMPLES = 8;
     }
 }
 

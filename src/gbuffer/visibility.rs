@@ -9,7 +9,7 @@
 //! cast sees gives the same entry, with no depth-buffer quantisation.
 
 use super::{facing_normal, GBuffer, PixelSurface, SurfaceHit, NO_HIT};
-use crate::scene::Scene;
+use crate::scene::{CameraFrame, Light, Scene, Triangle};
 
 /// [`gbuffer_from_visibility`]'s G-buffer, and how many pixels it stored
 /// as misses because their id named no triangle (other than
@@ -18,6 +18,12 @@ use crate::scene::Scene;
 pub struct VisibilityGBuffer {
     pub gbuffer: GBuffer,
     pub rejected: usize,
+    /// With a multisampled buffer ([`super::gbuffer_from_multisampled_visibility`]):
+    /// pixels some of whose samples saw a triangle but whose centre ray
+    /// meets none that the samples of the pixel and its neighbours saw —
+    /// the background between a silhouette's samples, or a triangle no
+    /// sample saw — stored as misses.
+    pub uncovered: usize,
 }
 
 /// The G-buffer of `scene`'s view from `visibility`, row-major, one
@@ -40,31 +46,44 @@ pub fn gbuffer_from_visibility(
     let mut g = GBuffer::with_capacity(w, h);
     let mut rejected = 0;
     for (i, &id) in visibility.iter().enumerate() {
-        let (x, y) = ((i % w as usize) as f64, (i / w as usize) as f64);
-        let (px, py) = (x + 0.5, y + 0.5);
-        let surface = (id != NO_HIT).then(|| {
-            let tri = triangles.get(id as usize)?;
-            let d = frame.direction(px, py);
-            let normal = facing_normal(tri, d);
-            let t = normal.dot(tri[0]) / normal.dot(d);
-            if !(t > 0.0 && t.is_finite()) {
-                return None;
-            }
-            let hit = SurfaceHit {
-                triangle: id,
-                t,
-                position: d * t,
-                normal,
-            };
-            Some(PixelSurface::of_hit(&frame, (px, py), hit, &light))
-        });
+        let pixel = ((i % w as usize) as u32, (i / w as usize) as u32);
+        let surface = (id != NO_HIT).then(|| surface_of(&triangles, &frame, &light, pixel, id));
         rejected += usize::from(matches!(surface, Some(None)));
         g.push(surface.flatten().as_ref());
     }
     Ok(VisibilityGBuffer {
         gbuffer: g,
         rejected,
+        uncovered: 0,
     })
+}
+
+/// The entry of pixel (`x`, `y`) whose centre ray sees triangle `id` of
+/// the eye-relative `triangles`: the point where the ray meets its plane;
+/// `None` when `id` names no triangle or the ray does not cross the plane
+/// in front of the eye.
+pub(super) fn surface_of(
+    triangles: &[Triangle],
+    frame: &CameraFrame,
+    light: &Light,
+    (x, y): (u32, u32),
+    id: u32,
+) -> Option<PixelSurface> {
+    let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+    let tri = triangles.get(id as usize)?;
+    let d = frame.direction(px, py);
+    let normal = facing_normal(tri, d);
+    let t = normal.dot(tri[0]) / normal.dot(d);
+    if !(t > 0.0 && t.is_finite()) {
+        return None;
+    }
+    let hit = SurfaceHit {
+        triangle: id,
+        t,
+        position: d * t,
+        normal,
+    };
+    Some(PixelSurface::of_hit(frame, (px, py), hit, light))
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@ mod gltf_load;
 mod light;
 pub mod procedural;
 mod spec;
+mod watertight_ray;
 
 pub use camera::{Camera, CameraFrame};
 #[cfg(feature = "cli")]
@@ -41,6 +42,7 @@ pub fn load_gltf(path: &Path) -> Result<GltfMeshes, SceneError> {
 pub use light::{light_disk, light_disk_f32, Light, LightDisk, MAX_ANGULAR_RADIUS_DEG};
 pub(crate) use spec::check_resolution;
 pub use spec::{CameraSpec, LightSpec, SceneSpec, MAX_RESOLUTION};
+pub use watertight_ray::WatertightRay;
 
 use glam::DVec3;
 use std::path::Path;

@@ -44,10 +44,14 @@
 use super::{GBuffer, PixelSurface, SurfaceHit};
 use glam::DVec3;
 
+mod grouping;
+mod image;
 // The sample rays trace the CPU BVH (obvhs): not part of the pass alone
 // (`--no-default-features`).
 #[cfg(feature = "cli")]
 mod sample_rays;
+pub use grouping::{group_sample_hits, sample_points};
+pub use image::edge_surfaces_of;
 #[cfg(feature = "cli")]
 pub use sample_rays::sample_surfaces;
 
