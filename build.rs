@@ -96,8 +96,18 @@ const SHADERS: &[(&str, &str, Defines)] = &[
         "gbuffer_from_visibility.comp",
         &[],
     ),
+    (
+        "gbuffer_from_multisampled_visibility",
+        "gbuffer_from_visibility.comp",
+        &[("MULTISAMPLED", "1")],
+    ),
     ("gbuffer_from_depth", "gbuffer_from_depth.comp", &[]),
     ("edge_surfaces", "edge_surfaces.comp", &[]),
+    (
+        "edge_surfaces_from_candidates",
+        "edge_surfaces.comp",
+        &[("CANDIDATE_HITS", "1")],
+    ),
     (
         "light_setup_receivers",
         "light_setup.comp",

@@ -25,15 +25,24 @@
 // (LOOP_TRIP_COST): counted once, lavapipe's own count (which also takes
 // each loop's exit test) passed the cap first and cut hairball's surface
 // selection without a word.
+//
+// Built with CANDIDATE_HITS (`edge_surfaces_from_candidates`: the host's
+// multisampled visibility buffer, no BVH) the sample rays take the
+// closest hit among the triangles the samples of the pixel and its eight
+// neighbours saw (visibility_candidates.glsl; the twin
+// `izb::gbuffer::gbuffer_from_multisampled_visibility`).
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_samplerless_texture_functions : require
 #include "common.glsl"
 
 layout(local_size_x = WORKGROUP_PIXELS_X, local_size_y = WORKGROUP_PIXELS_Y) in;
 
 layout(scalar, binding = B_FRAME) readonly buffer FrameBuf { FrameParams frame; };
 #include "scene_triangles.glsl"
+#ifndef CANDIDATE_HITS
 layout(scalar, binding = B_BVH_NODES) readonly buffer NodeBuf { BvhNode nodes[]; };
 layout(scalar, binding = B_BVH_PRIMS) readonly buffer PrimBuf { uint prims[]; };
+#endif
 layout(scalar, binding = B_G_POSITION) buffer PosBuf { vec3 g_position[]; };
 layout(scalar, binding = B_G_AXIS_X) buffer AxBuf { vec3 g_axis_x[]; };
 layout(scalar, binding = B_G_AXIS_Y) buffer AyBuf { vec3 g_axis_y[]; };
@@ -48,8 +57,14 @@ layout(scalar, binding = B_EDGE_COVERAGE) writeonly buffer EdgeCoverageBuf { uin
 #define LOOP_TRIP_COST 2u
 #include "loop_budget.glsl"
 #include "counters.glsl"
+#ifdef CANDIDATE_HITS
+layout(set = HOST_SET, binding = HOST_VISIBILITY) uniform utexture2DMS visibility;
+#define CANDIDATE_TRIP() spend_trip()
+#include "visibility_candidates.glsl"
+#else
 #define BVH_TRIP() spend_trip()
 #include "bvh_closest_hit.glsl"
+#endif
 #include "surface_hit.glsl"
 
 // Plane groups a pixel tracks: one per sample at most, as the CPU twin
@@ -113,6 +128,9 @@ bool trace_edge_pixel(uvec2 pixel, uint i, out uvec4 record) {
     if (!candidate) return false;
     count_add(C_EDGE_CANDIDATES, 1u);
 
+#ifdef CANDIDATE_HITS
+    add_neighbourhood_candidates(ivec2(pixel), visibility_samples());
+#endif
     // 2. The sample rays: each hit on the centre's plane or a group's.
     uint centre_coverage = 0u, missed = 0u, dropped = 0u;
     Group groups[MAX_GROUPS];
@@ -124,7 +142,11 @@ bool trace_edge_pixel(uvec2 pixel, uint i, out uvec4 record) {
         vec2 image_point = vec2(pixel) + frame.pair_pattern[s];
         vec3 d = ray_direction(image_point);
         float t = frame.far;
+#ifdef CANDIDATE_HITS
+        uint id = candidate_closest_hit(d, t);
+#else
         uint id = closest_hit(d, t);
+#endif
         if (id == NO_HIT) {
             missed |= bit;
             continue;

@@ -226,8 +226,14 @@ shared_constants! {
         /// (`PassStatus::geometry_error`).
         INDEX_OUT_OF_RANGE = 42;
         OUTSIDE_BOUNDS = 43;
+        /// `gbuffer_from_visibility` on a multisampled buffer: pixels some
+        /// of whose samples saw a triangle but whose centre ray meets none
+        /// that the samples of the pixel and its neighbours saw (the
+        /// background between a silhouette's samples, or a triangle no
+        /// sample saw), stored as misses.
+        CENTRE_UNCOVERED = 44;
         /// Words in the counters buffer.
-        WORDS = 44;
+        WORDS = 45;
     }
 }
 

@@ -176,6 +176,30 @@ pub fn gbuffer_from_visibility(rec: &Recorder, kernels: &Kernels, size: [u32; 2]
     rec.end_label();
 }
 
+/// Records the G-buffer from the host's multisampled visibility buffer
+/// (`shaders/gbuffer_from_visibility.comp` built with `MULTISAMPLED`, the
+/// twin of [`crate::gbuffer::gbuffer_from_multisampled_visibility`]): one
+/// thread per pixel, each centre's triangle chosen among the ids its
+/// samples (or its 3×3 pixels' samples) saw by the watertight test; with
+/// `edge_surfaces` then the edge pixels' sample rays among the 3×3
+/// pixels' ids (`edge_surfaces.comp` built with `CANDIDATE_HITS`). The
+/// caller has bound the host-image set holding the visibility buffer.
+pub fn gbuffer_from_multisampled_visibility(
+    rec: &Recorder,
+    kernels: &Kernels,
+    size: [u32; 2],
+    edge_surfaces: bool,
+) {
+    rec.begin_label("gbuffer_from_multisampled_visibility");
+    rec.dispatch_pixels(&kernels.gbuffer_from_multisampled_visibility, size);
+    rec.barrier();
+    if edge_surfaces {
+        rec.dispatch_pixels(&kernels.edge_surfaces_from_candidates, size);
+        rec.barrier();
+    }
+    rec.end_label();
+}
+
 /// Records the G-buffer from the host's depth and normal images
 /// (`shaders/gbuffer_from_depth.comp`, the twin of
 /// [`crate::gbuffer::gbuffer_from_depth`]): one thread per pixel, each

@@ -51,9 +51,10 @@ pub struct HostImage {
     /// The usage the image was created with (the pass samples it:
     /// `SAMPLED`).
     pub usage: vk::ImageUsageFlags,
-    /// The sample count it was created with: `TYPE_1` (a multisampled
-    /// G-buffer is not read yet, and one bound where the pass reads a
-    /// single-sampled image would be undefined: refused by name).
+    /// The sample count it was created with: `TYPE_1`, or for a pass made
+    /// for a multisampled visibility buffer
+    /// (`GBufferInput::MultisampledVisibility`) that count (one bound
+    /// where the pass reads another would be undefined: refused by name).
     pub samples: vk::SampleCountFlags,
     /// Its layout when the frame's commands start executing.
     pub layout: vk::ImageLayout,
@@ -107,8 +108,8 @@ pub const NORMAL_FORMATS: [vk::Format; 3] = [
 pub enum InputImages {
     /// None (the pass casts its own rays).
     None,
-    /// A visibility buffer.
-    Visibility,
+    /// A visibility buffer of this many samples a pixel.
+    Visibility(vk::SampleCountFlags),
     /// A depth and a normal.
     DepthNormal,
 }
@@ -176,6 +177,7 @@ impl HostImage {
         usage: ImageUse,
         (formats, format_why): (&[vk::Format], &str),
         resolution: [u32; 2],
+        samples: vk::SampleCountFlags,
     ) -> Result<(), GpuError> {
         let (flag, how) = match usage {
             ImageUse::Read => (vk::ImageUsageFlags::SAMPLED, "reads it with texelFetch"),
@@ -191,10 +193,11 @@ impl HostImage {
                 "it is {}x{}; the pass renders {}x{}",
                 self.extent[0], self.extent[1], resolution[0], resolution[1]
             ))
-        } else if self.samples != vk::SampleCountFlags::TYPE_1 {
+        } else if self.samples != samples {
             Some(format!(
-                "it has {:?} samples a pixel; the pass reads single-sampled images (a \
-                 multisampled G-buffer is not read yet: draw or resolve a single-sampled one)",
+                "it has {:?} samples a pixel; the pass was made for {samples:?} (a \
+                 multisampled visibility buffer is GBufferInput::MultisampledVisibility; \
+                 depth, normal and outputs are single-sampled)",
                 self.samples
             ))
         } else if !self.usage.contains(flag) {
@@ -231,14 +234,19 @@ impl HostImage {
     }
 
     /// Checks the declaration of a visibility buffer for a `resolution`
-    /// image: `R32_UINT`, the same size, sampled usage, contents defined.
-    pub fn check_visibility(&self, resolution: [u32; 2]) -> Result<(), GpuError> {
+    /// image of `samples` samples a pixel: `R32_UINT`, the same size and
+    /// sample count, sampled usage, contents defined.
+    pub fn check_visibility(
+        &self,
+        resolution: [u32; 2],
+        samples: vk::SampleCountFlags,
+    ) -> Result<(), GpuError> {
         let why = format!(
             " (per pixel a triangle id, {:#x} for none)",
             izb_contract::word::NO_HIT
         );
         let formats = (&[vk::Format::R32_UINT][..], why.as_str());
-        self.check("visibility", ImageUse::Read, formats, resolution)
+        self.check("visibility", ImageUse::Read, formats, resolution, samples)
     }
 }
 
@@ -264,7 +272,7 @@ impl FrameImages {
             (
                 "visibility buffer",
                 self.visibility,
-                input == InputImages::Visibility,
+                matches!(input, InputImages::Visibility(_)),
             ),
             ("depth image", self.depth, input == InputImages::DepthNormal),
             (
@@ -278,16 +286,29 @@ impl FrameImages {
                 return Err(input_mismatch(input, what, given.is_some()));
             }
         }
-        if let Some(v) = &self.visibility {
-            v.check_visibility(resolution)?;
+        if let (Some(v), InputImages::Visibility(samples)) = (&self.visibility, input) {
+            v.check_visibility(resolution, samples)?;
         }
+        let one = vk::SampleCountFlags::TYPE_1;
         if let Some(d) = &self.depth {
             let why = " (its depth aspect: the view must have that aspect alone)";
-            d.check("depth", ImageUse::Read, (&DEPTH_FORMATS, why), resolution)?;
+            d.check(
+                "depth",
+                ImageUse::Read,
+                (&DEPTH_FORMATS, why),
+                resolution,
+                one,
+            )?;
         }
         if let Some(n) = &self.normal {
             let why = " (x, y, z in the first three channels)";
-            n.check("normal", ImageUse::Read, (&NORMAL_FORMATS, why), resolution)?;
+            n.check(
+                "normal",
+                ImageUse::Read,
+                (&NORMAL_FORMATS, why),
+                resolution,
+                one,
+            )?;
         }
         if let Some(m) = &self.masks {
             let format = if mask_halves == 2 {
@@ -295,11 +316,12 @@ impl FrameImages {
             } else {
                 vk::Format::R32_UINT
             };
-            m.check("masks", ImageUse::Write, (&[format], ""), resolution)?;
+            m.check("masks", ImageUse::Write, (&[format], ""), resolution, one)?;
         }
         if let Some(l) = &self.lit_fraction {
             let formats = [vk::Format::R16_UNORM, vk::Format::R8_UNORM];
-            l.check("lit fraction", ImageUse::Write, (&formats, ""), resolution)?;
+            let formats = (&formats[..], "");
+            l.check("lit fraction", ImageUse::Write, formats, resolution, one)?;
         }
         Ok(())
     }

@@ -7,6 +7,7 @@
 //! | 0, moving eye | [`translate_vertices`] | `translate_vertices.comp` | [`crate::cpu::translate_vertices`] |
 //! | 0, host geometry | [`gather_draws`] | `gather_draws.comp` | [`crate::cpu::gather_draws`] |
 //! | 0, host input | [`gbuffer::gbuffer_from_visibility`] | `gbuffer_from_visibility.comp` | [`crate::gbuffer::gbuffer_from_visibility`] |
+//! | 0, host input | [`gbuffer::gbuffer_from_multisampled_visibility`] | `gbuffer_from_visibility.comp` (`MULTISAMPLED`), `edge_surfaces.comp` (`CANDIDATE_HITS`) | [`crate::gbuffer::gbuffer_from_multisampled_visibility`] |
 //! | 0, host input | [`gbuffer::gbuffer_from_depth`] | `gbuffer_from_depth.comp` | [`crate::gbuffer::gbuffer_from_depth`] |
 //! | 1 | [`light_setup`] | `light_setup.comp` | [`mod@crate::cpu::light_setup`] |
 //! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
@@ -143,13 +144,21 @@ macro_rules! spirv {
 
 /// Every compiled shader module by name, as `build.rs` wrote them (for
 /// tests that read the SPIR-V back, `tests/spirv_layout.rs`).
-pub const SPIRV_MODULES: [(&str, &[u8]); 38] = [
+pub const SPIRV_MODULES: [(&str, &[u8]); 40] = [
     ("gbuffer", spirv!("gbuffer")),
     ("translate_vertices", spirv!("translate_vertices")),
     ("gather_draws", spirv!("gather_draws")),
     ("gbuffer_from_visibility", spirv!("gbuffer_from_visibility")),
+    (
+        "gbuffer_from_multisampled_visibility",
+        spirv!("gbuffer_from_multisampled_visibility"),
+    ),
     ("gbuffer_from_depth", spirv!("gbuffer_from_depth")),
     ("edge_surfaces", spirv!("edge_surfaces")),
+    (
+        "edge_surfaces_from_candidates",
+        spirv!("edge_surfaces_from_candidates"),
+    ),
     ("light_setup_receivers", spirv!("light_setup_receivers")),
     ("light_setup_frame", spirv!("light_setup_frame")),
     ("light_setup_extent", spirv!("light_setup_extent")),
@@ -195,6 +204,10 @@ pub struct Kernels {
     pub gbuffer: ComputeKernel,
     /// The G-buffer from the host's visibility buffer (the shadow pass).
     pub gbuffer_from_visibility: ComputeKernel,
+    /// The same from a multisampled visibility buffer, and its edge
+    /// surfaces from the samples' candidates (no BVH).
+    pub gbuffer_from_multisampled_visibility: ComputeKernel,
+    pub edge_surfaces_from_candidates: ComputeKernel,
     pub gbuffer_from_depth: ComputeKernel,
     /// The shadow pass's eye-relative vertices for a moving eye.
     pub translate_vertices: ComputeKernel,
@@ -243,6 +256,14 @@ impl Kernels {
             gbuffer_from_visibility: k(
                 "gbuffer_from_visibility",
                 spirv!("gbuffer_from_visibility"),
+            )?,
+            gbuffer_from_multisampled_visibility: k(
+                "gbuffer_from_multisampled_visibility",
+                spirv!("gbuffer_from_multisampled_visibility"),
+            )?,
+            edge_surfaces_from_candidates: k(
+                "edge_surfaces_from_candidates",
+                spirv!("edge_surfaces_from_candidates"),
             )?,
             gbuffer_from_depth: k("gbuffer_from_depth", spirv!("gbuffer_from_depth"))?,
             translate_vertices: k("translate_vertices", spirv!("translate_vertices"))?,

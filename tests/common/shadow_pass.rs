@@ -91,7 +91,7 @@ pub struct HostTestImage {
     pub image: vk::Image,
     pub view: vk::ImageView,
     allocation: Option<Allocation>,
-    extent: [u32; 2],
+    pub extent: [u32; 2],
     format: vk::Format,
     usage: vk::ImageUsageFlags,
     /// Where the previous frame left it (`HostImage::layout_after`).
@@ -132,6 +132,17 @@ impl HostTestImage {
         format: vk::Format,
         usage: vk::ImageUsageFlags,
     ) -> Self {
+        Self::with_samples(shared, extent, format, usage, vk::SampleCountFlags::TYPE_1)
+    }
+
+    /// [`Self::new`] with `samples` samples a pixel.
+    pub fn with_samples(
+        shared: &Arc<DeviceShared>,
+        extent: [u32; 2],
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+        samples: vk::SampleCountFlags,
+    ) -> Self {
         let d = &shared.device;
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
@@ -143,7 +154,7 @@ impl HostTestImage {
             })
             .mip_levels(1)
             .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
+            .samples(samples)
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(usage)
             .initial_layout(vk::ImageLayout::UNDEFINED);

@@ -2,7 +2,9 @@
 //! G-buffer comes from ([`GBufferInput`]).
 
 use crate::gpu::host_images::InputImages;
+use crate::gpu::GpuError;
 use crate::settings::IzbSettings;
+use ash::vk;
 
 /// What a pass is made for.
 #[derive(Clone, Copy, Debug)]
@@ -55,6 +57,15 @@ pub enum GBufferInput {
     /// depth tolerance must reject: the depth format's precision shows in
     /// the shadows (`paper-notes/embedding.md`, per format). No BVH.
     DepthNormal(crate::gbuffer::DepthConvention),
+    /// The host's visibility buffer drawn with `samples` samples a pixel
+    /// (2, 4 or 8, within the device's `sampledImageIntegerSampleCounts`)
+    /// and not resolved, `FrameView::images.visibility` of that sample
+    /// count: each centre's triangle is chosen among the ids its samples
+    /// (or its 3×3 pixels' samples) saw by the centre ray's watertight
+    /// test, and edge pixels get their per-sample surfaces from the 3×3
+    /// pixels' ids (`edge_surfaces`), with no BVH. The twin is
+    /// [`crate::gbuffer::gbuffer_from_multisampled_visibility`].
+    MultisampledVisibility { samples: u32 },
     /// The CPU twin's G-buffer (with its edge surfaces, their sample rays
     /// cast in `f64`), written once by [`super::ShadowPass::with_uploaded_gbuffer`]:
     /// the passes after it see exactly the twin's inputs. It is one view's,
@@ -64,11 +75,48 @@ pub enum GBufferInput {
 }
 
 impl GBufferInput {
+    /// Whether the pass's `edge_surfaces` step finds edge pixels' sample
+    /// hits for this producer: through the BVH, or among a multisampled
+    /// visibility buffer's ids.
+    pub(super) fn finds_edge_surfaces(&self) -> bool {
+        matches!(
+            self,
+            GBufferInput::RayCast | GBufferInput::MultisampledVisibility { .. }
+        )
+    }
+
+    /// Refuses a multisampled visibility buffer's sample count that is not
+    /// 2, 4 or 8 or that the device cannot sample from an integer image
+    /// (`sampledImageIntegerSampleCounts` of its `limits`).
+    pub(super) fn check(&self, limits: &vk::PhysicalDeviceLimits) -> Result<(), GpuError> {
+        let GBufferInput::MultisampledVisibility { samples } = *self else {
+            return Ok(());
+        };
+        let most = crate::gbuffer::MAX_VISIBILITY_SAMPLES as u32;
+        if !(2..=most).contains(&samples) || !samples.is_power_of_two() {
+            return Err(GpuError::Unsupported(format!(
+                "a multisampled visibility buffer of {samples} samples a pixel: the pass reads \
+                 2, 4 or 8 (one sample is GBufferInput::Visibility)"
+            )));
+        }
+        let counts = limits.sampled_image_integer_sample_counts;
+        if !counts.contains(vk::SampleCountFlags::from_raw(samples)) {
+            return Err(GpuError::Unsupported(format!(
+                "the device cannot sample an integer image of {samples} samples a pixel \
+                 (its sampledImageIntegerSampleCounts are {counts:?})"
+            )));
+        }
+        Ok(())
+    }
+
     /// The host images a frame gives this producer.
     pub(super) fn images(&self) -> InputImages {
         match self {
             GBufferInput::RayCast | GBufferInput::Uploaded => InputImages::None,
-            GBufferInput::Visibility => InputImages::Visibility,
+            GBufferInput::Visibility => InputImages::Visibility(vk::SampleCountFlags::TYPE_1),
+            GBufferInput::MultisampledVisibility { samples } => {
+                InputImages::Visibility(vk::SampleCountFlags::from_raw(*samples))
+            }
             GBufferInput::DepthNormal(_) => InputImages::DepthNormal,
         }
     }

@@ -12,7 +12,7 @@
 //! and its status says so ([`super::PassStatus::edge_slots_overrun`],
 //! with the need). [`ShadowPass::grow`] makes room between frames.
 
-use super::{GBufferInput, ShadowPass, ShadowPassConfig};
+use super::{ShadowPass, ShadowPassConfig};
 use crate::gpu::frame_inputs::check_workgroups;
 use crate::gpu::frame_memory::{heavy_capacity, initial_edge_capacity, receivers, EdgeSlots};
 use crate::gpu::shared::FrameParams;
@@ -28,10 +28,11 @@ pub(super) fn edge_slots_for(
     if !config.settings.uses_edge_surfaces(scene) {
         return Ok(None);
     }
-    if config.gbuffer != GBufferInput::RayCast {
+    if !config.gbuffer.finds_edge_surfaces() {
         return Err(GpuError::Unsupported(
             "edge pixels' per-sample surfaces need the ray-cast G-buffer (its BVH traces their \
-             32 sample rays; the host's visibility buffer or depth carry one surface a pixel): \
+             32 sample rays) or a multisampled visibility buffer (its samples nominate their \
+             hits); a single-sampled visibility buffer or depth carry one surface a pixel: \
              make the pass with `edge_surfaces: false` (--no-edge-surfaces) for this input"
                 .into(),
         ));
@@ -77,11 +78,12 @@ impl ShadowPass<'_> {
     }
 
     /// The edge surfaces' slots the pass's `edge_surfaces` step traces
-    /// into (ray cast only; an uploaded G-buffer brings its own).
+    /// into (ray cast or multisampled visibility; an uploaded G-buffer
+    /// brings its own).
     pub(super) fn traced_edge_slots(&self) -> Option<EdgeSlots> {
         self.sizes
             .edge_surfaces
-            .filter(|_| self.config.gbuffer == GBufferInput::RayCast)
+            .filter(|_| self.config.gbuffer.finds_edge_surfaces())
     }
 
     /// Rows of receivers now: the image's and the edge surfaces'.

@@ -34,9 +34,11 @@
 //! - With the ray-cast G-buffer, edge pixels' per-sample surfaces are
 //!   traced by the `edge_surfaces` step (`edge_slots.rs`: slots sized
 //!   once, a frame past them keeps tangent-plane masks at the pixels that
-//!   did not fit and says so, [`ShadowPass::grow`] makes room); the host's
-//!   visibility buffer and depth carry one surface a pixel, so there they
-//!   are refused by name (`--no-edge-surfaces`).
+//!   did not fit and says so, [`ShadowPass::grow`] makes room); with the
+//!   host's multisampled visibility buffer the same step finds their
+//!   hits among the ids its samples saw; a single-sampled visibility
+//!   buffer and depth carry one surface a pixel, so there they are
+//!   refused by name (`--no-edge-surfaces`).
 //! - A frame whose cell list overruns stays exact the slow way
 //!   (`bin.comp`) and says so in its status; [`ShadowPass::grow`] makes
 //!   room between frames and [`ShadowPass::resize`] follows a new image
@@ -218,6 +220,7 @@ impl<'r> ShadowPass<'r> {
             convention.check().map_err(GpuError::Unsupported)?;
         }
         let shared = renderer.shared();
+        config.gbuffer.check(&shared.limits)?;
         if let Some(h) = &host {
             h.check(&config)?;
         }
@@ -547,6 +550,10 @@ impl<'r> ShadowPass<'r> {
             }
             GBufferInput::Visibility => {
                 super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
+            }
+            GBufferInput::MultisampledVisibility { .. } => {
+                let k = &renderer.kernels;
+                super::gbuffer::gbuffer_from_multisampled_visibility(&rec, k, [w, h], traced_edges);
             }
             GBufferInput::DepthNormal(_) => {
                 super::gbuffer::gbuffer_from_depth(&rec, &renderer.kernels, [w, h]);

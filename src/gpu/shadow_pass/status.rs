@@ -34,6 +34,12 @@ pub struct PassStatus {
     /// their id named no triangle of the pass, or a triangle whose plane
     /// their centre ray does not cross in front of the eye.
     pub visibility_rejected: u32,
+    /// With a multisampled visibility buffer: pixels some of whose samples
+    /// saw a triangle but whose centre ray meets none that the samples of
+    /// the pixel and its neighbours saw (the background between a
+    /// silhouette's samples, or a triangle no sample saw), stored as
+    /// misses; the twin's `VisibilityGBuffer::uncovered`.
+    pub centre_uncovered: u32,
     /// With the host's geometry: triangles with an index at or past their
     /// draw's vertex count, and triangles with a vertex outside the
     /// bounds the pass was made for ([`Self::geometry_error`]).
@@ -83,6 +89,7 @@ impl ShadowPass<'_> {
             tests_spawned: u64::from(c[counter::TESTS_SPAWNED])
                 | (u64::from(c[counter::TESTS_SPAWNED + 1]) << 32),
             visibility_rejected: c[counter::VISIBILITY_REJECTED],
+            centre_uncovered: c[counter::CENTRE_UNCOVERED],
             index_out_of_range: c[counter::INDEX_OUT_OF_RANGE],
             outside_bounds: c[counter::OUTSIDE_BOUNDS],
             edge_slots_needed: needed,
