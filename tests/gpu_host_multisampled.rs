@@ -292,7 +292,7 @@ fn a_multisampled_visibility_buffer_gives_the_twin_s_masks() {
             "{same} of {}",
             tested.len()
         );
-        assert!(centre.iter().any(|&id| id == NO_HIT));
+        assert!(centre.contains(&NO_HIT));
         assert_no_validation_messages(&r, "multisampled visibility input");
         checked += 1;
     }

@@ -68,7 +68,8 @@ pub struct HostImage {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FrameImages {
     /// In: per pixel the scene triangle it sees (`R32_UINT`, sampled),
-    /// with the pass's `GBufferInput::Visibility` and only then.
+    /// with the pass's `GBufferInput::Visibility` and only then; per
+    /// sample, unresolved, with `GBufferInput::MultisampledVisibility`.
     pub visibility: Option<HostImage>,
     /// In: the host's depth (with the pass's `GBufferInput::DepthNormal`
     /// and only then): one of [`DEPTH_FORMATS`], sampled.

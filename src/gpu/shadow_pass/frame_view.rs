@@ -20,7 +20,9 @@ pub struct FrameView {
     /// as the scene had it (it decides the masks' layout).
     pub light_radius: f64,
     /// The host's images: the visibility buffer in (with
-    /// [`super::GBufferInput::Visibility`], and only then), the masks and lit
+    /// [`super::GBufferInput::Visibility`] or, of its sample count,
+    /// [`super::GBufferInput::MultisampledVisibility`], and only then), the
+    /// depth and normal in (with [`super::GBufferInput::DepthNormal`]), the masks and lit
     /// fraction out (optional); their declared state, barriers and the
     /// layouts they are left in: [`crate::gpu::host_images`].
     pub images: FrameImages,
