@@ -199,6 +199,16 @@ const SHADERS: &[(&str, &str, Defines)] = &[
     // The worked host's own lighting pass (`examples/embed_host`), built
     // here so the example needs no shader compiler of its own.
     ("host_lighting", "../examples/embed_host/lighting.comp", &[]),
+    (
+        "host_lighting_multisampled",
+        "../examples/embed_host/lighting.comp",
+        &[("MULTISAMPLED", "1")],
+    ),
+    (
+        "host_multisampled_ids",
+        "../examples/embed_host/multisampled_ids.comp",
+        &[],
+    ),
 ];
 
 /// Resolves `#include "x"` against `OUT_DIR` (the generated
@@ -235,6 +245,7 @@ fn compile_shaders(out_dir: &std::path::Path) {
         .join("shaders");
     println!("cargo:rerun-if-changed=shaders");
     println!("cargo:rerun-if-changed=examples/embed_host/lighting.comp");
+    println!("cargo:rerun-if-changed=examples/embed_host/multisampled_ids.comp");
     let compiler = glslang::Compiler::acquire().expect("glslang initialises");
     let options = glslang::CompilerOptions {
         source_language: glslang::SourceLanguage::GLSL,

@@ -38,7 +38,7 @@ pub fn agreement_with_render(scene: &Scene, run: &HostRun, mode: SampleMode) -> 
     (moved.camera, moved.light, moved.light_radius) = (view.camera, view.light, view.light_radius);
     moved.resolution = run.resolution;
     let bvh = izb::bvh::SceneBvh::build(&moved);
-    let render = izb::cpu::render_cpu(&moved, &bvh, pass_settings(mode));
+    let render = izb::cpu::render_cpu(&moved, &bvh, pass_settings(mode, run.msaa > 1));
     let mut a = Agreement::default();
     for i in (0..render.masks.len()).filter(|&i| !render.visibility[i].is_nan()) {
         let equal = run.last_masks.get(i) == Some(&render.masks[i]);

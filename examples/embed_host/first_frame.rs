@@ -61,6 +61,60 @@ pub unsafe fn twin_on_pass_gbuffer(
     Ok(c)
 }
 
+/// The CPU twin fed the host's multisampled visibility buffer — `ids`,
+/// every sample of frame 0's, read back — on the pass's triangles
+/// (`gbuffer_from_multisampled_visibility_on`, its sample rays in `f64`),
+/// against the pass's masks; and the centres' triangles against the
+/// pass's G-buffer (`centre_mismatches`).
+///
+/// # Safety
+/// No frame of the pass is executing.
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn twin_on_multisampled_ids(
+    pass: &ShadowPass,
+    scene: &Scene,
+    view: &FrameView,
+    geometry: &FrameGeometry,
+    (vertices, indices): (&[Vec3], &[u32]),
+    settings: IzbSettings,
+    (ids, samples): (&[u32], usize),
+) -> Result<(TwinComparison, usize), String> {
+    // SAFETY: the caller's promise.
+    let (g, images) = unsafe { (pass.read_back_gbuffer(), pass.read_back()) };
+    let (g, images) = (
+        g.map_err(|e| e.to_string())?,
+        images.map_err(|e| e.to_string())?,
+    );
+    let moved = seen_as(scene, view, pass.resolution());
+    let mut table = Vec::new();
+    draw_table(geometry, view.camera.eye, u64::MAX, &mut table).map_err(|e| e.to_string())?;
+    let words: [&[u32]; 2] = [bytemuck::cast_slice(vertices), indices];
+    let bounds = izb::cpu::gather_draws::eye_relative_bounds(scene.bounds(), view.camera.eye);
+    let gathered = izb::cpu::gather_draws::gather_draws(&table, &words, bounds);
+    let triangles: Vec<izb::scene::Triangle> = gathered
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| v.as_dvec3()))
+        .collect();
+    let halves = settings.edge_halves(&moved);
+    let twin = izb::gbuffer::gbuffer_from_multisampled_visibility_on(
+        &moved, &triangles, ids, samples, halves,
+    )?;
+    let centre_mismatches = (0..g.triangle_id.len())
+        .filter(|&i| g.triangle_id[i] != twin.gbuffer.triangle_id[i])
+        .count();
+    let render = izb::cpu::render_cpu_with(&moved, twin.gbuffer, &gathered.triangles, settings);
+    let mut c = TwinComparison {
+        masks_compared: render.masks.len(),
+        ..Default::default()
+    };
+    for (a, b) in render.masks.iter().zip(&images.masks) {
+        c.mask_mismatches += usize::from(a != b);
+        c.sample_mismatches += u64::from((a ^ b).count_ones());
+    }
+    Ok((c, centre_mismatches))
+}
+
 /// Writes the host's lighting of a frame (RGBA8 words, `resolution`) as
 /// `dir/host_shaded.png`.
 pub fn write_host_shaded(words: &[u32], [w, h]: [u32; 2], dir: &Path) -> Result<(), String> {

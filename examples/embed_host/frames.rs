@@ -9,12 +9,13 @@
 //! descriptor-set counters say so.
 
 use crate::after_loop::{read_back, record_alone};
-use crate::first_frame::twin_on_pass_gbuffer;
+use crate::first_frame::{twin_on_multisampled_ids, twin_on_pass_gbuffer};
 use crate::gpu_timing::{thread_cpu_us, GpuMillis, Mark, PassTimer};
 use crate::host_device::HostGpu;
 pub use crate::host_run::{HostOptions, HostRun};
 use crate::lighting::{compare_lighting, lighting_view};
 use crate::mesh::{host_buffer, indexed_mesh};
+use crate::multisampled_ids::read_back_samples;
 use crate::targets::{declared, Targets};
 use ash::vk;
 use glam::DMat3;
@@ -64,17 +65,33 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     // function, after the idle wait) before the device.
     let renderer = unsafe { GpuRenderer::on_host_device(gpu.host_device(), options.heavy_entries) }
         .map_err(|e| e.to_string())?;
-    let settings = pass_settings(options.mode);
+    let multisampled = options.msaa > 1;
+    if multisampled && options.depth.is_some() {
+        return Err(
+            "--msaa with --depth: a multisampled depth + normal G-buffer is not read \
+                    (draw the visibility buffer multisampled)"
+                .into(),
+        );
+    }
+    let settings = pass_settings(options.mode, multisampled);
     let config = ShadowPassConfig {
         settings,
         frames_in_flight: options.frames_in_flight,
         cell_capacity: options.cell_capacity,
-        edge_slots: None,
+        // Edge surfaces for one pixel in two (the pass's default, one in
+        // eight, is a ray-cast pass's first guess: the samples of
+        // `default` at 96×54 nominate 1 231 surfaces for 5 184 pixels);
+        // a frame past them says so and the pass grows.
+        edge_slots: multisampled.then_some(scene.pixel_count() as u64 / 2),
         gbuffer: match options.depth {
             Some(d) => GBufferInput::DepthNormal(d.convention),
+            None if multisampled => GBufferInput::MultisampledVisibility {
+                samples: options.msaa,
+            },
             None => GBufferInput::Visibility,
         },
     };
+    let samples = vk::SampleCountFlags::from_raw(options.msaa);
     // The pass reads the host's own vertex and index buffers (the raster's).
     let triangles = scene.triangles.len() as u32;
     let limits = HostGeometryConfig {
@@ -143,7 +160,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         gpu,
         scene.resolution,
         options.frames_in_flight,
-        options.depth,
+        (options.depth, samples),
         mesh_buffers,
     );
     let pool_info = vk::CommandPoolCreateInfo::default()
@@ -170,6 +187,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         triangles: scene.triangles.len(),
         frames: options.frames,
         frames_in_flight: options.frames_in_flight,
+        msaa: options.msaa,
+        first_frame_centre_mismatches: None,
         allocations_after_first_frame: [0; 2],
         resize_allocations: [0; 2],
         grown: 0,
@@ -227,7 +246,8 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 fresh.fill(true);
                 targets.destroy(gpu);
                 let slots = options.frames_in_flight;
-                targets = Targets::new(gpu, size, slots, options.depth, mesh_buffers);
+                let shape = (options.depth, samples);
+                targets = Targets::new(gpu, size, slots, shape, mesh_buffers);
                 let before = renderer.context.shared.allocations();
                 pass.resize(size).map_err(|e| e.to_string())?;
                 let after = renderer.context.shared.allocations();
@@ -393,10 +413,24 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                 unsafe { d.wait_for_fences(&[fences[slot]], true, u64::MAX) }
                     .map_err(|e| e.to_string())?;
                 let mesh = (&vertices[..], &indices[..]);
-                // SAFETY: frame 0 is done and no other frame was submitted.
-                let twin = unsafe {
-                    twin_on_pass_gbuffer(&pass, scene, &view, &geometry, mesh, settings)
-                }?;
+                let twin = if multisampled {
+                    let image = &targets.slots[slot].visibility;
+                    // SAFETY: frame 0 is done and no other frame was
+                    // submitted; this waits for its own dispatch.
+                    let ids = unsafe { read_back_samples(gpu, pool, image, extent) };
+                    let ids = (&ids[..], options.msaa as usize);
+                    // SAFETY: as above.
+                    let (twin, centres) = unsafe {
+                        twin_on_multisampled_ids(
+                            &pass, scene, &view, &geometry, mesh, settings, ids,
+                        )
+                    }?;
+                    run.first_frame_centre_mismatches = Some(centres);
+                    twin
+                } else {
+                    // SAFETY: frame 0 is done and no other frame was submitted.
+                    unsafe { twin_on_pass_gbuffer(&pass, scene, &view, &geometry, mesh, settings) }?
+                };
                 // SAFETY: as above.
                 let images = unsafe { pass.read_back_frame() }.map_err(|e| e.to_string())?;
                 let shaded = (&targets.slots[slot].shaded, vk::ImageLayout::GENERAL);
@@ -438,7 +472,18 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
             Err(e) => failure = Some(e),
         }
     }
-    if failure.is_none() && options.frames > 0 {
+    if failure.is_none() && options.frames > 0 && multisampled {
+        // A multisampled image cannot be copied to a buffer: the centre
+        // triangles are the pass's G-buffer's (the last frame's).
+        let last = &targets.slots[(options.frames - 1) % options.frames_in_flight];
+        let images = [(&last.masks, vk::ImageLayout::GENERAL)];
+        run.last_masks = read_back(gpu, pool, &images, targets.extent).remove(0);
+        // SAFETY: every frame is done (the waits above).
+        match unsafe { pass.read_back_gbuffer() } {
+            Ok(g) => run.last_ids = g.triangle_id,
+            Err(e) => failure = Some(e.to_string()),
+        }
+    } else if failure.is_none() && options.frames > 0 {
         let last = &targets.slots[(options.frames - 1) % options.frames_in_flight];
         // The pass or the host's lighting left the visibility buffer read-only.
         let images = [
@@ -480,12 +525,13 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
     }
 }
 
-/// The pass's settings for `mode` (edge pixels' extra surfaces are not
-/// traced by the pass yet).
-pub fn pass_settings(mode: SampleMode) -> IzbSettings {
+/// The pass's settings for `mode`: edge pixels' extra surfaces with a
+/// multisampled visibility buffer (its samples nominate their hits), none
+/// with one surface a pixel.
+pub fn pass_settings(mode: SampleMode, multisampled: bool) -> IzbSettings {
     IzbSettings {
         mode,
-        edge_surfaces: false,
+        edge_surfaces: multisampled,
         ..Default::default()
     }
 }

@@ -23,6 +23,11 @@ pub struct HostOptions {
     /// The G-buffer the pass reads: the host's depth and normal in this
     /// format and convention, or (`None`) its visibility buffer.
     pub depth: Option<HostDepth>,
+    /// Samples a pixel of the host's visibility buffer and depth (`--msaa
+    /// N`; 1: single-sampled). Above 1 the pass reads the visibility
+    /// buffer unresolved (`GBufferInput::MultisampledVisibility`), with
+    /// edge pixels' surfaces from its samples.
+    pub msaa: u32,
     /// Wait for frame 0 before recording frame 1, read its G-buffer and
     /// images back and run the CPU twin on them ([`HostRun::first_frame`]).
     pub check_first_frame: bool,
@@ -37,6 +42,12 @@ pub struct HostRun {
     pub triangles: usize,
     pub frames: usize,
     pub frames_in_flight: usize,
+    /// Samples a pixel of the host's visibility buffer.
+    pub msaa: u32,
+    /// With `msaa` above 1: pixels of frame 0 whose centre triangle in
+    /// the pass's G-buffer differs from the CPU twin's fed the same
+    /// samples.
+    pub first_frame_centre_mismatches: Option<usize>,
     /// izb's buffers and descriptor sets made inside `record` after the
     /// first frame (growth and resizes happen between frames).
     pub allocations_after_first_frame: [u64; 2],

@@ -6,13 +6,21 @@
 // sampled from the image the shadow pass left. Ambient + Lambert × lit,
 // with the constants the host passes (izb's own shading's, so the two
 // images can be compared), sRGB-encoded into an RGBA8 storage image.
-// Compiled by izb's build script (`host_lighting.spv`), so the example
+// Compiled by izb's build script (`host_lighting.spv`, and with
+// MULTISAMPLED `host_lighting_multisampled.spv`), so the example
 // needs no compiler of its own.
 #extension GL_EXT_scalar_block_layout : require
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
+#ifdef MULTISAMPLED
+// A multisampled visibility buffer (`--msaa N`): each pixel shaded by its
+// sample 0's triangle (an engine would shade its samples and resolve;
+// the comparison with izb's own shading then holds away from edges).
+layout(binding = 0) uniform usampler2DMS visibility;
+#else
 layout(binding = 0) uniform usampler2D visibility;
+#endif
 layout(binding = 1) uniform sampler2D lit_fraction;
 layout(binding = 2, rgba8) uniform writeonly image2D shaded;
 layout(binding = 3, scalar) readonly buffer Vertices { vec3 vertices[]; };

@@ -21,6 +21,9 @@ use izb::scene::Light;
 
 /// The lighting shader's SPIR-V, compiled by izb's build script.
 const LIGHTING_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/host_lighting.spv"));
+/// The same over a multisampled visibility buffer (its sample 0).
+const LIGHTING_MULTISAMPLED_SPIRV: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/host_lighting_multisampled.spv"));
 
 /// The lighting pass's push constants (`lighting.comp`'s `Lighting`,
 /// scalar layout): every point relative to the mesh's origin.
@@ -132,7 +135,15 @@ impl HostLighting {
             .push_constant_ranges(&push);
         // SAFETY: as above.
         let layout = unsafe { d.create_pipeline_layout(&layout_info, None) }.expect("a layout");
-        let words = ash::util::read_spv(&mut std::io::Cursor::new(LIGHTING_SPIRV)).expect("SPIR-V");
+        let multisampled = slots
+            .first()
+            .is_some_and(|s| s.visibility.samples != vk::SampleCountFlags::TYPE_1);
+        let spirv = if multisampled {
+            LIGHTING_MULTISAMPLED_SPIRV
+        } else {
+            LIGHTING_SPIRV
+        };
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv)).expect("SPIR-V");
         let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
         // SAFETY: `words` is whole SPIR-V compiled by izb's build script.
         let module = unsafe { d.create_shader_module(&module_info, None) }.expect("a module");

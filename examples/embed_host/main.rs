@@ -15,12 +15,18 @@
 //! ```text
 //! cargo run --release --example embed_host -- [SCENE ...] [--frames N] [--resolution WxH]
 //!     [--depth d32|d24s8|x8d24|d32s8] [--standard-z] [--infinite-far]
-//!     [--exact] [--out DIR] [--stats FILE]
+//!     [--msaa 1|2|4|8] [--exact] [--out DIR] [--stats FILE]
 //! ```
 //!
 //! SCENE: a procedural name (`default`) or a `*.scene.json` spec;
 //! default `default`. Frame 0 has the spec's camera and light. The mode is
-//! the 32-sample LUT (`--exact`: the exact test). `--out DIR` writes frame
+//! the 32-sample LUT (`--exact`: the exact test). `--msaa N` draws the
+//! visibility buffer and its depth with N samples a pixel, not resolved:
+//! the pass reads every sample (`GBufferInput::MultisampledVisibility`,
+//! edge pixels' surfaces from them), the host's lighting shades sample 0,
+//! and the twin check feeds the CPU twin every sample, read back
+//! (`centre_mismatches`: frame 0's centre triangles that differ from the
+//! twin's). `--out DIR` writes frame
 //! 0 as `izb render` writes a frame (`DIR/SCENE` with several scenes),
 //! and the host's own lighting of it as `host_shaded.png`;
 //! `--stats FILE` writes the run's counters as one JSON object (an array
@@ -42,6 +48,7 @@ mod host_device;
 mod host_run;
 mod lighting;
 mod mesh;
+mod multisampled_ids;
 mod raster;
 mod targets;
 
@@ -58,6 +65,7 @@ fn main() -> Result<(), String> {
     let mut resolution = [160, 90];
     let (mut depth_format, mut standard_z, mut infinite_far) = (None, false, false);
     let (mut mode, mut out, mut stats_path) = (SampleMode::Lut32, None, None);
+    let mut msaa = 1;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--frames" => {
@@ -84,6 +92,15 @@ fn main() -> Result<(), String> {
                 })
             }
             "--standard-z" => standard_z = true,
+            "--msaa" => {
+                msaa = match args.next().as_deref() {
+                    Some("1") => 1,
+                    Some("2") => 2,
+                    Some("4") => 4,
+                    Some("8") => 8,
+                    _ => return Err("--msaa 1|2|4|8".into()),
+                }
+            }
             "--exact" => mode = SampleMode::Exact32,
             "--out" => out = Some(std::path::PathBuf::from(args.next().ok_or("--out DIR")?)),
             "--stats" => {
@@ -118,6 +135,7 @@ fn main() -> Result<(), String> {
                     reversed: !standard_z,
                 },
             }),
+            msaa,
             heavy_entries: std::env::var("IZB_GPU_HEAVY_ENTRIES")
                 .ok()
                 .and_then(|v| v.parse().ok()),
@@ -166,6 +184,8 @@ fn stats_of(run: &frames::HostRun, validation: bool) -> serde_json::Value {
         "resolution": run.resolution,
         "frames": run.frames,
         "frames_in_flight": run.frames_in_flight,
+        "msaa": run.msaa,
+        "centre_mismatches": run.first_frame_centre_mismatches,
         "allocations_after_first": after.buffers,
         "descriptor_allocations_after_first": after.descriptor_sets,
         "maps_after_first": after.mappings,

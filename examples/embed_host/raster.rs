@@ -5,7 +5,10 @@
 //! (`izb::gpu::visibility_raster`). The colour attachments are left in
 //! `COLOR_ATTACHMENT_OPTIMAL`, written at `COLOR_ATTACHMENT_OUTPUT`, and
 //! the depth in `DEPTH_STENCIL_ATTACHMENT_OPTIMAL`, written at
-//! `LATE_FRAGMENT_TESTS`: what the host declares to the shadow pass. With
+//! `LATE_FRAGMENT_TESTS`: what the host declares to the shadow pass.
+//! With `--msaa N` the visibility buffer and depth have N samples a pixel
+//! and are not resolved (integer ids cannot be averaged): the pass reads
+//! every sample. With
 //! a depth + normal G-buffer the pass also writes the geometric normal
 //! (`depth_normal_raster.frag`) and keeps the depth, in the host's chosen
 //! format and convention.
@@ -31,6 +34,8 @@ pub struct OwnedImage {
     pub attachment_view: vk::ImageView,
     pub format: vk::Format,
     pub usage: vk::ImageUsageFlags,
+    /// Samples a pixel (`TYPE_1` but for a multisampled raster's targets).
+    pub samples: vk::SampleCountFlags,
     allocation: Option<Allocation>,
 }
 
@@ -41,6 +46,25 @@ impl OwnedImage {
         extent: [u32; 2],
         format: vk::Format,
         usage: vk::ImageUsageFlags,
+    ) -> Self {
+        Self::with_samples(
+            gpu,
+            name,
+            extent,
+            format,
+            usage,
+            vk::SampleCountFlags::TYPE_1,
+        )
+    }
+
+    /// [`Self::new`] with `samples` samples a pixel.
+    pub fn with_samples(
+        gpu: &HostGpu,
+        name: &str,
+        extent: [u32; 2],
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+        samples: vk::SampleCountFlags,
     ) -> Self {
         let aspects = format_aspects(format);
         let aspect = if aspects.contains(vk::ImageAspectFlags::DEPTH) {
@@ -58,7 +82,7 @@ impl OwnedImage {
             })
             .mip_levels(1)
             .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
+            .samples(samples)
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(usage)
             .initial_layout(vk::ImageLayout::UNDEFINED);
@@ -92,6 +116,7 @@ impl OwnedImage {
             attachment_view,
             format,
             usage,
+            samples,
             allocation: Some(allocation),
         }
     }
@@ -188,13 +213,15 @@ pub struct VisibilityRaster {
 }
 
 impl VisibilityRaster {
-    /// The pass drawing into `targets`' (visibility, normal, depth) images;
-    /// `depth`: the depth + normal G-buffer's format and convention.
+    /// The pass drawing into `targets`' (visibility, normal, depth) images
+    /// of `samples` samples a pixel; `depth`: the depth + normal
+    /// G-buffer's format and convention.
     pub fn new(
         gpu: &HostGpu,
         extent: [u32; 2],
         targets: &[(&OwnedImage, Option<&OwnedImage>, &OwnedImage)],
         depth: Option<HostDepth>,
+        samples: vk::SampleCountFlags,
     ) -> Self {
         let device = &gpu.device;
         let draws_normal = depth.is_some();
@@ -202,7 +229,7 @@ impl VisibilityRaster {
         let colour_attachment = |format| {
             vk::AttachmentDescription::default()
                 .format(format)
-                .samples(vk::SampleCountFlags::TYPE_1)
+                .samples(samples)
                 .load_op(vk::AttachmentLoadOp::CLEAR)
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .initial_layout(vk::ImageLayout::UNDEFINED)
@@ -221,7 +248,7 @@ impl VisibilityRaster {
         attachments.push(
             vk::AttachmentDescription::default()
                 .format(depth.map_or(vk::Format::D32_SFLOAT, |d| d.format))
-                .samples(vk::SampleCountFlags::TYPE_1)
+                .samples(samples)
                 .load_op(vk::AttachmentLoadOp::CLEAR)
                 .store_op(depth_store)
                 .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
@@ -281,7 +308,8 @@ impl VisibilityRaster {
         let layout_info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
         // SAFETY: as above.
         let layout = unsafe { device.create_pipeline_layout(&layout_info, None) }.expect("layout");
-        let pipeline = pipeline(gpu, (render_pass, layout), extent, draws_normal, reversed);
+        let shape = (draws_normal, reversed, samples);
+        let pipeline = pipeline(gpu, (render_pass, layout), extent, shape);
         let framebuffers = targets
             .iter()
             .map(|(visibility, normal, depth)| {
@@ -384,8 +412,7 @@ fn pipeline(
     gpu: &HostGpu,
     (render_pass, layout): (vk::RenderPass, vk::PipelineLayout),
     extent: [u32; 2],
-    draws_normal: bool,
-    reversed: bool,
+    (draws_normal, reversed, samples): (bool, bool, vk::SampleCountFlags),
 ) -> vk::Pipeline {
     let d = &gpu.device;
     let module = |bytes: &[u8]| {
@@ -442,8 +469,11 @@ fn pipeline(
         .polygon_mode(vk::PolygonMode::FILL)
         .cull_mode(vk::CullModeFlags::NONE)
         .line_width(1.0);
-    let multisample = vk::PipelineMultisampleStateCreateInfo::default()
-        .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+    // A multisampled target gets each sample's own coverage and depth test
+    // (not sample shading: the fragment's id is the same for every sample
+    // it covers).
+    let multisample =
+        vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(samples);
     let depth = vk::PipelineDepthStencilStateCreateInfo::default()
         .depth_test_enable(true)
         .depth_write_enable(true)

@@ -56,13 +56,14 @@ pub struct Targets {
 impl Targets {
     /// `depth`: a depth + normal G-buffer for the pass (its depth sampled,
     /// a normal image drawn), else a visibility buffer and a `D32` depth
-    /// the raster alone uses. `mesh`: the vertex and index buffers the
+    /// the raster alone uses; `samples`: the visibility buffer's and
+    /// depth's samples a pixel (`--msaa`). `mesh`: the vertex and index buffers the
     /// lighting reads.
     pub fn new(
         gpu: &HostGpu,
         extent: [u32; 2],
         frames_in_flight: usize,
-        depth: Option<HostDepth>,
+        (depth, samples): (Option<HostDepth>, vk::SampleCountFlags),
         mesh: (vk::Buffer, vk::Buffer),
     ) -> Self {
         let sampled_colour = vk::ImageUsageFlags::COLOR_ATTACHMENT
@@ -71,14 +72,15 @@ impl Targets {
         let storage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC;
         let slots: Vec<SlotImages> = (0..frames_in_flight)
             .map(|_| SlotImages {
-                visibility: OwnedImage::new(
+                visibility: OwnedImage::with_samples(
                     gpu,
                     "visibility",
                     extent,
                     vk::Format::R32_UINT,
                     sampled_colour,
+                    samples,
                 ),
-                depth: OwnedImage::new(
+                depth: OwnedImage::with_samples(
                     gpu,
                     "depth",
                     extent,
@@ -87,6 +89,7 @@ impl Targets {
                         | depth.map_or(vk::ImageUsageFlags::empty(), |_| {
                             vk::ImageUsageFlags::SAMPLED
                         }),
+                    samples,
                 ),
                 normal: depth.map(|_| {
                     let format = vk::Format::R32G32B32A32_SFLOAT;
@@ -108,7 +111,7 @@ impl Targets {
             .iter()
             .map(|s| (&s.visibility, s.normal.as_ref(), &s.depth))
             .collect();
-        let raster = VisibilityRaster::new(gpu, extent, &targets, depth);
+        let raster = VisibilityRaster::new(gpu, extent, &targets, depth, samples);
         let images: Vec<_> = slots.iter().map(SlotImages::lighting).collect();
         let lighting = HostLighting::new(gpu, extent, &images, mesh);
         Targets {
@@ -154,7 +157,7 @@ pub fn declared(
         format: image.format,
         extent,
         usage: image.usage,
-        samples: vk::SampleCountFlags::TYPE_1,
+        samples: image.samples,
         layout,
         written_by,
     }

@@ -15,7 +15,10 @@ mod visibility;
 pub use depth::{
     depth_uncertainty, gbuffer_from_depth, DepthConvention, DEPTH_SURFACE, UNORM24_DEPTH_STEP,
 };
-pub use multisampled::{gbuffer_from_multisampled_visibility, MAX_VISIBILITY_SAMPLES};
+pub use multisampled::{
+    gbuffer_from_multisampled_visibility, gbuffer_from_multisampled_visibility_on,
+    MAX_VISIBILITY_SAMPLES,
+};
 pub use visibility::{gbuffer_from_visibility, VisibilityGBuffer};
 // The ray-cast producer needs the CPU BVH (obvhs): not part of the pass
 // alone (`--no-default-features`).

@@ -51,6 +51,20 @@ pub fn gbuffer_from_multisampled_visibility(
     samples: usize,
     edge_halves: usize,
 ) -> Result<VisibilityGBuffer, String> {
+    let triangles = scene.eye_relative_triangles();
+    gbuffer_from_multisampled_visibility_on(scene, &triangles, ids, samples, edge_halves)
+}
+
+/// [`gbuffer_from_multisampled_visibility`] on eye-relative `triangles`
+/// other than the scene's (a host's own vertices, as the pass gathered
+/// them), which the ids index.
+pub fn gbuffer_from_multisampled_visibility_on(
+    scene: &Scene,
+    triangles: &[Triangle],
+    ids: &[u32],
+    samples: usize,
+    edge_halves: usize,
+) -> Result<VisibilityGBuffer, String> {
     let [w, h] = scene.resolution;
     if !(2..=MAX_VISIBILITY_SAMPLES).contains(&samples) || !samples.is_power_of_two() {
         return Err(format!(
@@ -63,7 +77,6 @@ pub fn gbuffer_from_multisampled_visibility(
             ids.len()
         ));
     }
-    let triangles = scene.eye_relative_triangles();
     let frame = scene.camera.frame(scene.resolution);
     let light = scene.light.relative_to(scene.camera.eye);
     let near_far = (scene.camera.near, scene.camera.far);
@@ -112,13 +125,13 @@ pub fn gbuffer_from_multisampled_visibility(
             // agreeing pixel whose centre ray misses its one triangle.
             let unanimous = candidates.count == 1 && !own.contains(&NO_HIT);
             let own_hit = unanimous
-                .then(|| candidates.closest_hit(&triangles, d, near_far))
+                .then(|| candidates.closest_hit(triangles, d, near_far))
                 .flatten();
-            let hit = own_hit.or_else(|| neighbourhood(x, y).closest_hit(&triangles, d, near_far));
+            let hit = own_hit.or_else(|| neighbourhood(x, y).closest_hit(triangles, d, near_far));
             let Some(hit) = hit else {
                 return (None, Outcome::Uncovered);
             };
-            match surface_of(&triangles, &frame, &light, (x, y), hit.triangle) {
+            match surface_of(triangles, &frame, &light, (x, y), hit.triangle) {
                 Some(s) => (Some(s), Outcome::Surface),
                 None => (None, Outcome::Rejected),
             }
@@ -139,7 +152,7 @@ pub fn gbuffer_from_multisampled_visibility(
         let sample_surfaces = |x: u32, y: u32, centre: &PixelSurface, _: &[Option<SurfaceHit>]| {
             let candidates = neighbourhood(x, y);
             sample_surfaces(
-                &triangles,
+                triangles,
                 &frame,
                 (x, y),
                 centre,
