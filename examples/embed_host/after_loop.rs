@@ -131,88 +131,74 @@ pub fn read_back(
             OwnedBuffer::new(gpu, "read_back", bytes, usage, MemoryLocation::GpuToCpu)
         })
         .collect();
-    let alloc = vk::CommandBufferAllocateInfo::default()
-        .command_pool(pool)
-        .level(vk::CommandBufferLevel::PRIMARY)
-        .command_buffer_count(1);
-    // SAFETY: the pool is live; nothing executes (the caller waited).
-    unsafe {
-        let cmd = d
-            .allocate_command_buffers(&alloc)
-            .expect("a command buffer")[0];
-        d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap();
-        let barriers: Vec<_> = images
-            .iter()
-            .map(|(image, old)| {
-                vk::ImageMemoryBarrier::default()
-                    // Compute writes, or the raster's.
-                    .src_access_mask(
-                        vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
-                    )
-                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
-                    .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .old_layout(*old)
-                    .image(image.image)
-                    .subresource_range(whole(vk::ImageAspectFlags::COLOR))
-            })
-            .collect();
-        d.cmd_pipeline_barrier(
-            cmd,
-            vk::PipelineStageFlags::COMPUTE_SHADER
-                | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::DependencyFlags::empty(),
-            &[],
-            &[],
-            &barriers,
-        );
-        let region = [vk::BufferImageCopy::default()
-            .image_subresource(
-                vk::ImageSubresourceLayers::default()
-                    .aspect_mask(vk::ImageAspectFlags::COLOR)
-                    .layer_count(1),
-            )
-            .image_extent(vk::Extent3D {
-                width: extent[0],
-                height: extent[1],
-                depth: 1,
-            })];
-        for ((image, _), buffer) in images.iter().zip(&out) {
-            d.cmd_copy_image_to_buffer(
+    let record = |cmd| {
+        // SAFETY: `cmd` is recording (`submit_once`); the images are
+        // live in the layouts given, the buffers are the copies' size.
+        unsafe {
+            let barriers: Vec<_> = images
+                .iter()
+                .map(|(image, old)| {
+                    vk::ImageMemoryBarrier::default()
+                        // Compute writes, or the raster's.
+                        .src_access_mask(
+                            vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                        )
+                        .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+                        .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+                        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                        .old_layout(*old)
+                        .image(image.image)
+                        .subresource_range(whole(vk::ImageAspectFlags::COLOR))
+                })
+                .collect();
+            d.cmd_pipeline_barrier(
                 cmd,
-                image.image,
-                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                buffer.buffer,
-                &region,
+                vk::PipelineStageFlags::COMPUTE_SHADER
+                    | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &barriers,
+            );
+            let region = [vk::BufferImageCopy::default()
+                .image_subresource(
+                    vk::ImageSubresourceLayers::default()
+                        .aspect_mask(vk::ImageAspectFlags::COLOR)
+                        .layer_count(1),
+                )
+                .image_extent(vk::Extent3D {
+                    width: extent[0],
+                    height: extent[1],
+                    depth: 1,
+                })];
+            for ((image, _), buffer) in images.iter().zip(&out) {
+                d.cmd_copy_image_to_buffer(
+                    cmd,
+                    image.image,
+                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                    buffer.buffer,
+                    &region,
+                );
+            }
+            let to_host = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ)];
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &to_host,
+                &[],
+                &[],
             );
         }
-        let to_host = [vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-            .dst_access_mask(vk::AccessFlags::HOST_READ)];
-        d.cmd_pipeline_barrier(
-            cmd,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::PipelineStageFlags::HOST,
-            vk::DependencyFlags::empty(),
-            &to_host,
-            &[],
-            &[],
-        );
-        d.end_command_buffer(cmd).unwrap();
-        let fence = d
-            .create_fence(&vk::FenceCreateInfo::default(), None)
-            .unwrap();
-        let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
-        let queue = gpu.queue.lock().unwrap();
-        d.queue_submit(*queue, &submit, fence).unwrap();
-        drop(queue);
-        d.wait_for_fences(&[fence], true, u64::MAX).unwrap();
-        d.destroy_fence(fence, None);
-        d.free_command_buffers(pool, &[cmd]);
-    }
+    };
+    // SAFETY: the pool is live; nothing executes (the caller waited); the
+    // images and buffers outlive the call, which waits.
+    unsafe { gpu.submit_once(pool, record) };
     let words: Vec<Vec<u32>> = out
         .iter_mut()
         .map(|b| bytemuck::pod_collect_to_vec(b.bytes()))

@@ -37,28 +37,64 @@ pub unsafe fn twin_on_pass_gbuffer(
     settings: IzbSettings,
 ) -> Result<TwinComparison, String> {
     // SAFETY: the caller's promise.
-    let (g, images) = unsafe { (pass.read_back_gbuffer(), pass.read_back()) };
-    let (g, images) = (
-        g.map_err(|e| e.to_string())?,
-        images.map_err(|e| e.to_string())?,
-    );
-    let moved = seen_as(scene, view, pass.resolution());
-    // The pass's triangles, gathered by the twin from the same words.
-    let mut table = Vec::new();
-    draw_table(geometry, view.camera.eye, u64::MAX, &mut table).map_err(|e| e.to_string())?;
-    let words: [&[u32]; 2] = [bytemuck::cast_slice(vertices), indices];
-    let bounds = izb::cpu::gather_draws::eye_relative_bounds(scene.bounds(), view.camera.eye);
-    let gathered = izb::cpu::gather_draws::gather_draws(&table, &words, bounds);
-    let twin = izb::cpu::render_cpu_with(&moved, g, &gathered.triangles, settings);
-    let mut c = TwinComparison {
-        masks_compared: twin.masks.len(),
-        ..Default::default()
-    };
-    for (a, b) in twin.masks.iter().zip(&images.masks) {
-        c.mask_mismatches += usize::from(a != b);
-        c.sample_mismatches += u64::from((a ^ b).count_ones());
+    let frame = unsafe { PassInputs::read(pass, scene, view, geometry, (vertices, indices)) }?;
+    let twin = izb::cpu::render_cpu_with(&frame.moved, frame.g, &frame.triangles, settings);
+    Ok(TwinComparison::of(&twin.masks, &frame.masks))
+}
+
+/// What the twin checks read of frame 0: the pass's G-buffer and masks
+/// read back, the scene as the frame saw it, and the pass's triangles
+/// gathered by the twin from the host's own words.
+struct PassInputs {
+    g: izb::gbuffer::GBuffer,
+    masks: Vec<u32>,
+    moved: Scene,
+    triangles: Vec<[Vec3; 3]>,
+}
+
+impl PassInputs {
+    /// # Safety
+    /// No frame of the pass is executing.
+    unsafe fn read(
+        pass: &ShadowPass,
+        scene: &Scene,
+        view: &FrameView,
+        geometry: &FrameGeometry,
+        (vertices, indices): (&[Vec3], &[u32]),
+    ) -> Result<PassInputs, String> {
+        // SAFETY: the caller's promise.
+        let (g, images) = unsafe { (pass.read_back_gbuffer(), pass.read_back()) };
+        let (g, images) = (
+            g.map_err(|e| e.to_string())?,
+            images.map_err(|e| e.to_string())?,
+        );
+        let mut table = Vec::new();
+        draw_table(geometry, view.camera.eye, u64::MAX, &mut table).map_err(|e| e.to_string())?;
+        let words: [&[u32]; 2] = [bytemuck::cast_slice(vertices), indices];
+        let bounds = izb::cpu::gather_draws::eye_relative_bounds(scene.bounds(), view.camera.eye);
+        let gathered = izb::cpu::gather_draws::gather_draws(&table, &words, bounds);
+        Ok(PassInputs {
+            g,
+            masks: images.masks,
+            moved: seen_as(scene, view, pass.resolution()),
+            triangles: gathered.triangles,
+        })
     }
-    Ok(c)
+}
+
+impl TwinComparison {
+    /// The twin's masks against the pass's, pixel by pixel.
+    fn of(twin: &[u32], pass: &[u32]) -> TwinComparison {
+        let mut c = TwinComparison {
+            masks_compared: twin.len(),
+            ..Default::default()
+        };
+        for (a, b) in twin.iter().zip(pass) {
+            c.mask_mismatches += usize::from(a != b);
+            c.sample_mismatches += u64::from((a ^ b).count_ones());
+        }
+        c
+    }
 }
 
 /// The CPU twin fed the host's multisampled visibility buffer — `ids`,
@@ -80,39 +116,28 @@ pub unsafe fn twin_on_multisampled_ids(
     (ids, samples): (&[u32], usize),
 ) -> Result<(TwinComparison, usize), String> {
     // SAFETY: the caller's promise.
-    let (g, images) = unsafe { (pass.read_back_gbuffer(), pass.read_back()) };
-    let (g, images) = (
-        g.map_err(|e| e.to_string())?,
-        images.map_err(|e| e.to_string())?,
-    );
-    let moved = seen_as(scene, view, pass.resolution());
-    let mut table = Vec::new();
-    draw_table(geometry, view.camera.eye, u64::MAX, &mut table).map_err(|e| e.to_string())?;
-    let words: [&[u32]; 2] = [bytemuck::cast_slice(vertices), indices];
-    let bounds = izb::cpu::gather_draws::eye_relative_bounds(scene.bounds(), view.camera.eye);
-    let gathered = izb::cpu::gather_draws::gather_draws(&table, &words, bounds);
-    let triangles: Vec<izb::scene::Triangle> = gathered
+    let frame = unsafe { PassInputs::read(pass, scene, view, geometry, (vertices, indices)) }?;
+    let triangles: Vec<izb::scene::Triangle> = frame
         .triangles
         .iter()
         .map(|t| t.map(|v| v.as_dvec3()))
         .collect();
-    let halves = settings.edge_halves(&moved);
+    let halves = settings.edge_halves(&frame.moved);
     let twin = izb::gbuffer::gbuffer_from_multisampled_visibility_on(
-        &moved, &triangles, ids, samples, halves,
+        &frame.moved,
+        &triangles,
+        ids,
+        samples,
+        halves,
     )?;
-    let centre_mismatches = (0..g.triangle_id.len())
-        .filter(|&i| g.triangle_id[i] != twin.gbuffer.triangle_id[i])
+    let centre_mismatches = (0..frame.g.triangle_id.len())
+        .filter(|&i| frame.g.triangle_id[i] != twin.gbuffer.triangle_id[i])
         .count();
-    let render = izb::cpu::render_cpu_with(&moved, twin.gbuffer, &gathered.triangles, settings);
-    let mut c = TwinComparison {
-        masks_compared: render.masks.len(),
-        ..Default::default()
-    };
-    for (a, b) in render.masks.iter().zip(&images.masks) {
-        c.mask_mismatches += usize::from(a != b);
-        c.sample_mismatches += u64::from((a ^ b).count_ones());
-    }
-    Ok((c, centre_mismatches))
+    let render = izb::cpu::render_cpu_with(&frame.moved, twin.gbuffer, &frame.triangles, settings);
+    Ok((
+        TwinComparison::of(&render.masks, &frame.masks),
+        centre_mismatches,
+    ))
 }
 
 /// Writes the host's lighting of a frame (RGBA8 words, `resolution`) as

@@ -163,6 +163,47 @@ impl HostGpu {
         }
     }
 
+    /// Records `record` into a fresh primary command buffer of `pool`,
+    /// submits it under the queue's lock and waits for it: the host's
+    /// checks outside its measured frames (read-backs).
+    ///
+    /// # Safety
+    /// `pool` is this device's, used by this thread only; what `record`
+    /// records is valid on this device, and the objects it uses outlive
+    /// the call (which waits).
+    pub unsafe fn submit_once(
+        &self,
+        pool: vk::CommandPool,
+        record: impl FnOnce(vk::CommandBuffer),
+    ) {
+        let d = &self.device;
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: the caller's promise; the fence and command buffer are
+        // freed after the wait.
+        unsafe {
+            let cmd = d
+                .allocate_command_buffers(&alloc)
+                .expect("a command buffer")[0];
+            d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+                .unwrap();
+            record(cmd);
+            d.end_command_buffer(cmd).unwrap();
+            let fence = d
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .unwrap();
+            let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
+            let queue = self.queue.lock().unwrap();
+            d.queue_submit(*queue, &submit, fence).unwrap();
+            drop(queue);
+            d.wait_for_fences(&[fence], true, u64::MAX).unwrap();
+            d.destroy_fence(fence, None);
+            d.free_command_buffers(pool, &[cmd]);
+        }
+    }
+
     /// The validation messages since the last call.
     pub fn take_messages(&self) -> Vec<String> {
         std::mem::take(&mut *self.messages.lock().unwrap_or_else(|e| e.into_inner()))

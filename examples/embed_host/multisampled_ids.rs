@@ -105,42 +105,28 @@ pub unsafe fn read_back_samples(
         ];
         d.update_descriptor_sets(&writes, &[]);
 
-        let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(1);
-        let cmd = d.allocate_command_buffers(&alloc).unwrap()[0];
-        d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap();
-        d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pipeline);
-        d.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, layout, 0, &[set], &[]);
-        let size = [extent[0], extent[1], samples];
-        let stage = vk::ShaderStageFlags::COMPUTE;
-        d.cmd_push_constants(cmd, layout, stage, 0, bytemuck::cast_slice(&size));
-        d.cmd_dispatch(cmd, extent[0].div_ceil(8), extent[1].div_ceil(8), 1);
-        let to_host = [vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-            .dst_access_mask(vk::AccessFlags::HOST_READ)];
-        d.cmd_pipeline_barrier(
-            cmd,
-            vk::PipelineStageFlags::COMPUTE_SHADER,
-            vk::PipelineStageFlags::HOST,
-            vk::DependencyFlags::empty(),
-            &to_host,
-            &[],
-            &[],
-        );
-        d.end_command_buffer(cmd).unwrap();
-        let fence = d
-            .create_fence(&vk::FenceCreateInfo::default(), None)
-            .unwrap();
-        let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
-        let queue = gpu.queue.lock().unwrap();
-        d.queue_submit(*queue, &submit, fence).unwrap();
-        drop(queue);
-        d.wait_for_fences(&[fence], true, u64::MAX).unwrap();
-        d.destroy_fence(fence, None);
-        d.free_command_buffers(pool, &[cmd]);
+        let record = |cmd| {
+            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pipeline);
+            let point = vk::PipelineBindPoint::COMPUTE;
+            d.cmd_bind_descriptor_sets(cmd, point, layout, 0, &[set], &[]);
+            let size = [extent[0], extent[1], samples];
+            let stage = vk::ShaderStageFlags::COMPUTE;
+            d.cmd_push_constants(cmd, layout, stage, 0, bytemuck::cast_slice(&size));
+            d.cmd_dispatch(cmd, extent[0].div_ceil(8), extent[1].div_ceil(8), 1);
+            let to_host = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ)];
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &to_host,
+                &[],
+                &[],
+            );
+        };
+        gpu.submit_once(pool, record);
         d.destroy_descriptor_pool(descriptors, None);
         d.destroy_pipeline(pipeline, None);
         d.destroy_pipeline_layout(layout, None);

@@ -147,28 +147,21 @@ pub fn gbuffer_from_multisampled_visibility_on(
         .chunks(w as usize)
         .map(|row| row.iter().map(|(s, _)| *s).collect())
         .collect();
-    let edges_of = |half| {
-        let pattern = crate::lut::paired_patterns(half).1;
-        let sample_surfaces = |x: u32, y: u32, centre: &PixelSurface, _: &[Option<SurfaceHit>]| {
-            let candidates = neighbourhood(x, y);
-            sample_surfaces(
-                triangles,
-                &frame,
-                (x, y),
-                centre,
-                &candidates,
-                pattern,
-                scene,
-            )
-        };
-        Box::new(edge_surfaces::edge_surfaces_of(
+    let from_candidates = |pattern: &[[f32; 2]; 32], x: u32, y: u32, centre: &PixelSurface| {
+        let candidates = neighbourhood(x, y);
+        sample_surfaces(
+            triangles,
+            &frame,
+            (x, y),
+            centre,
+            &candidates,
+            pattern,
             scene,
-            &rows,
-            sample_surfaces,
-        ))
+        )
     };
-    g.edges = (edge_halves >= 1).then(|| edges_of(0));
-    g.edges_high = (edge_halves >= 2).then(|| edges_of(1));
+    edge_surfaces::add_edge_surfaces(&mut g, scene, &rows, edge_halves, |p, x, y, c, _| {
+        from_candidates(p, x, y, c)
+    });
     Ok(VisibilityGBuffer {
         gbuffer: g,
         rejected,

@@ -68,18 +68,10 @@ pub fn gbuffer_with(scene: &Scene, bvh: &SceneBvh, edge_halves: usize) -> GBuffe
     for s in rows.iter().flatten() {
         g.push(s.as_ref());
     }
-    let edges_of = |half| {
-        let pattern = crate::lut::paired_patterns(half).1;
-        let sample_surfaces = |x, y, centre: &PixelSurface, probes: &[Option<SurfaceHit>]| {
+    let sample_surfaces =
+        |pattern: &[[f32; 2]; 32], x, y, centre: &PixelSurface, probes: &[Option<SurfaceHit>]| {
             edge_surfaces::sample_surfaces(bvh, scene, &frame, x, y, centre, probes, pattern)
         };
-        Box::new(edge_surfaces::edge_surfaces_of(
-            scene,
-            &rows,
-            sample_surfaces,
-        ))
-    };
-    g.edges = (edge_halves >= 1).then(|| edges_of(0));
-    g.edges_high = (edge_halves >= 2).then(|| edges_of(1));
+    edge_surfaces::add_edge_surfaces(&mut g, scene, &rows, edge_halves, sample_surfaces);
     g
 }

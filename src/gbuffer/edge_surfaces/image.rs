@@ -9,6 +9,29 @@ use crate::gbuffer::{GBuffer, PixelSurface, SurfaceHit};
 use crate::scene::Scene;
 use rayon::prelude::*;
 
+/// Gives `g`, whose centre surfaces are `rows`, the edge surfaces of its
+/// `edge_halves` mask halves (0, 1, or 2 for the paired mode's second
+/// µQuad pattern, [`crate::lut::paired_patterns`]): per edge candidate
+/// what `sample_surfaces(pattern, x, y, centre, probes)` finds.
+pub fn add_edge_surfaces(
+    g: &mut GBuffer,
+    scene: &Scene,
+    rows: &[Vec<Option<PixelSurface>>],
+    edge_halves: usize,
+    sample_surfaces: impl Fn(&[[f32; 2]; 32], u32, u32, &PixelSurface, &[Option<SurfaceHit>]) -> PixelSamples
+        + Sync,
+) {
+    let edges_of = |half| {
+        let pattern = crate::lut::paired_patterns(half).1;
+        let of_pattern = |x, y, centre: &PixelSurface, probes: &[Option<SurfaceHit>]| {
+            sample_surfaces(pattern, x, y, centre, probes)
+        };
+        Box::new(edge_surfaces_of(scene, rows, of_pattern))
+    };
+    g.edges = (edge_halves >= 1).then(|| edges_of(0));
+    g.edges_high = (edge_halves >= 2).then(|| edges_of(1));
+}
+
 /// The edge pixels' surfaces of `scene`'s image whose centre surfaces
 /// are `rows`: per edge candidate (a shadow-tested pixel whose neighbours'
 /// centre hits leave its plane, [`super::is_edge_candidate`]) what

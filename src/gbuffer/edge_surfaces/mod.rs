@@ -51,7 +51,7 @@ mod image;
 #[cfg(feature = "cli")]
 mod sample_rays;
 pub use grouping::{group_sample_hits, sample_points};
-pub use image::edge_surfaces_of;
+pub use image::{add_edge_surfaces, edge_surfaces_of};
 #[cfg(feature = "cli")]
 pub use sample_rays::sample_surfaces;
 
