@@ -7,7 +7,8 @@
 // one of its eight neighbours' centre hits misses or lies off its centre's
 // plane (by more than EDGE_PLANE_TOLERANCE of its µQuad). A candidate
 // casts its 32 µQuad samples as primary rays through the BVH (the gbuffer
-// pass's traversal, against lavapipe's loop cap), puts each hit on the
+// pass's traversal, against lavapipe's loop cap; with CANDIDATE_HITS
+// against the multisampled visibility buffer's candidates), puts each hit on the
 // centre's plane or groups it by plane, keeps the centre's surface and the
 // EDGE_MAX_SURFACES − 1 largest groups (most samples first, ties by the
 // first sample), and gives each kept group facing the light a µQuad of its

@@ -24,7 +24,8 @@
 // the pixel and its eight neighbours do, and the centre ray keeps the
 // closest candidate by the watertight test (visibility_candidates.glsl).
 // A centre that meets none of them is a miss, counted in
-// C_CENTRE_UNCOVERED.
+// C_CENTRE_UNCOVERED. Its loops are bounded by the sample count
+// (visibility_candidates.glsl says how far below lavapipe's cap).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_samplerless_texture_functions : require
 #include "common.glsl"
@@ -69,7 +70,7 @@ void main() {
         return;
     }
     bool any_miss = false;
-    for (uint s = 0u; s < samples; ++s) {
+    for (uint s = 0u; s < samples && CANDIDATE_TRIP(); ++s) {
         any_miss = any_miss || texelFetch(visibility, ivec2(pixel), int(s)).x == NO_HIT;
     }
     float t = frame.far;

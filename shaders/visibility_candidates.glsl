@@ -6,7 +6,10 @@
 // meets first is among them unless no sample near it saw that triangle.
 // Include after common.glsl and the frame and triangle bindings, with
 // `visibility` bound as a `utexture2DMS`; define CANDIDATE_TRIP() as
-// spend_trip() to count the loops against lavapipe's cap.
+// spend_trip() to count the loops against lavapipe's cap. Uncounted (the
+// G-buffer step), one invocation runs at most about 800 loop passes
+// (9 pixels × (8 validity + 8 × 8 own-dedupe) + 72 candidates, at 8
+// samples): 8 lanes apart stay far below lavapipe's 65 535.
 
 #ifndef CANDIDATE_TRIP
 #define CANDIDATE_TRIP() true
@@ -29,19 +32,24 @@ uint visibility_samples() {
 // pass (a pixel with another is rejected and nominates nothing).
 bool pixel_ids_valid(ivec2 q, uint samples) {
     bool valid = true;
-    for (uint s = 0u; s < samples; ++s) {
+    for (uint s = 0u; s < samples && CANDIDATE_TRIP(); ++s) {
         uint id = texelFetch(visibility, q, int(s)).x;
         valid = valid && (id == NO_HIT || id < frame.triangle_count);
     }
     return valid;
 }
 
-// Adds pixel q's ids not yet held (in the order first seen).
+// Adds pixel q's distinct ids (in the order first seen). Only the
+// pixel's own are deduplicated: 9 pixels of at most MAX_VISIBILITY_SAMPLES
+// ids fill MAX_CANDIDATES at most, a repeat across pixels changes no
+// closest hit (the same triangle, the same t), and a deduplication across
+// all 72 cost lavapipe's loop budget quadratically.
 void add_pixel_candidates(ivec2 q, uint samples) {
+    uint first = candidate_count;
     for (uint s = 0u; s < samples && CANDIDATE_TRIP(); ++s) {
         uint id = texelFetch(visibility, q, int(s)).x;
         bool seen = id == NO_HIT;
-        for (uint k = 0u; k < candidate_count && !seen && CANDIDATE_TRIP(); ++k) {
+        for (uint k = first; k < candidate_count && !seen && CANDIDATE_TRIP(); ++k) {
             seen = candidate_ids[k] == id;
         }
         if (!seen && candidate_count < MAX_CANDIDATES) {
@@ -54,8 +62,8 @@ void add_pixel_candidates(ivec2 q, uint samples) {
 // The candidates of pixel p and its neighbours inside the image, valid
 // pixels only.
 void add_neighbourhood_candidates(ivec2 p, uint samples) {
-    for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
+    for (int dy = -1; dy <= 1 && CANDIDATE_TRIP(); ++dy) {
+        for (int dx = -1; dx <= 1 && CANDIDATE_TRIP(); ++dx) {
             ivec2 q = p + ivec2(dx, dy);
             if (any(lessThan(q, ivec2(0))) || q.x >= int(frame.width) || q.y >= int(frame.height)) continue;
             if (pixel_ids_valid(q, samples)) add_pixel_candidates(q, samples);

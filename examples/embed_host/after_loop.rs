@@ -22,7 +22,9 @@ pub struct Agreement {
     pub tested: usize,
     /// Of them, where the host's masks equal render's.
     pub equal: usize,
-    /// Of them, where the host's rasteriser saw render's triangle.
+    /// Of them, where the host's rasteriser saw render's triangle (with
+    /// `--msaa`: where the pass's centre, chosen among the samples, is
+    /// render's triangle).
     pub same_triangle: usize,
     /// Of those, where the masks are equal: all of them, bit for bit,
     /// when the pass is exact.

@@ -97,11 +97,26 @@ impl TwinComparison {
     }
 }
 
+/// What a multisampled frame 0's twin check found beside the masks.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct MultisampledCheck {
+    /// Pixels whose centre triangle in the pass's G-buffer differs from
+    /// the twin's.
+    pub centre_mismatches: usize,
+    /// The twin's rejected and uncovered centres (the pass's are in its
+    /// status: `PassStatus::visibility_rejected`, `centre_uncovered`).
+    pub twin_rejected: usize,
+    pub twin_centre_uncovered: usize,
+    pub pass_rejected: usize,
+    pub pass_centre_uncovered: usize,
+}
+
 /// The CPU twin fed the host's multisampled visibility buffer — `ids`,
 /// every sample of frame 0's, read back — on the pass's triangles
 /// (`gbuffer_from_multisampled_visibility_on`, its sample rays in `f64`),
-/// against the pass's masks; and the centres' triangles against the
-/// pass's G-buffer (`centre_mismatches`).
+/// against the pass's masks; and the centres' triangles and counts
+/// against the pass's G-buffer (the pass's counts left 0 for the caller,
+/// who reads its status).
 ///
 /// # Safety
 /// No frame of the pass is executing.
@@ -114,7 +129,7 @@ pub unsafe fn twin_on_multisampled_ids(
     (vertices, indices): (&[Vec3], &[u32]),
     settings: IzbSettings,
     (ids, samples): (&[u32], usize),
-) -> Result<(TwinComparison, usize), String> {
+) -> Result<(TwinComparison, MultisampledCheck), String> {
     // SAFETY: the caller's promise.
     let frame = unsafe { PassInputs::read(pass, scene, view, geometry, (vertices, indices)) }?;
     let triangles: Vec<izb::scene::Triangle> = frame
@@ -130,14 +145,16 @@ pub unsafe fn twin_on_multisampled_ids(
         samples,
         halves,
     )?;
-    let centre_mismatches = (0..frame.g.triangle_id.len())
-        .filter(|&i| frame.g.triangle_id[i] != twin.gbuffer.triangle_id[i])
-        .count();
+    let check = MultisampledCheck {
+        centre_mismatches: (0..frame.g.triangle_id.len())
+            .filter(|&i| frame.g.triangle_id[i] != twin.gbuffer.triangle_id[i])
+            .count(),
+        twin_rejected: twin.rejected,
+        twin_centre_uncovered: twin.centre_uncovered,
+        ..Default::default()
+    };
     let render = izb::cpu::render_cpu_with(&frame.moved, twin.gbuffer, &frame.triangles, settings);
-    Ok((
-        TwinComparison::of(&render.masks, &frame.masks),
-        centre_mismatches,
-    ))
+    Ok((TwinComparison::of(&render.masks, &frame.masks), check))
 }
 
 /// Writes the host's lighting of a frame (RGBA8 words, `resolution`) as

@@ -78,11 +78,9 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         settings,
         frames_in_flight: options.frames_in_flight,
         cell_capacity: options.cell_capacity,
-        // Edge surfaces for one pixel in two (the pass's default, one in
-        // eight, is a ray-cast pass's first guess: the samples of
-        // `default` at 96×54 nominate 1 231 surfaces for 5 184 pixels);
-        // a frame past them says so and the pass grows.
-        edge_slots: multisampled.then_some(scene.pixel_count() as u64 / 2),
+        // The pass's default edge slots for its input (a frame past them
+        // says so and the pass grows).
+        edge_slots: None,
         gbuffer: match options.depth {
             Some(d) => GBufferInput::DepthNormal(d.convention),
             None if multisampled => GBufferInput::MultisampledVisibility {
@@ -92,6 +90,18 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         },
     };
     let samples = vk::SampleCountFlags::from_raw(options.msaa);
+    if multisampled {
+        // SAFETY: the physical device is the host device's.
+        let limits = unsafe { gpu.instance.get_physical_device_properties(gpu.physical) }.limits;
+        let counts =
+            limits.framebuffer_color_sample_counts & limits.framebuffer_depth_sample_counts;
+        if !counts.contains(samples) {
+            return Err(format!(
+                "--msaa {}: the device's colour and depth attachments take {counts:?} samples",
+                options.msaa
+            ));
+        }
+    }
     // The pass reads the host's own vertex and index buffers (the raster's).
     let triangles = scene.triangles.len() as u32;
     let limits = HostGeometryConfig {
@@ -188,7 +198,7 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
         frames: options.frames,
         frames_in_flight: options.frames_in_flight,
         msaa: options.msaa,
-        first_frame_centre_mismatches: None,
+        first_frame_multisampled: None,
         allocations_after_first_frame: [0; 2],
         resize_allocations: [0; 2],
         grown: 0,
@@ -420,12 +430,16 @@ pub fn run(gpu: &HostGpu, scene: &Scene, options: HostOptions) -> Result<HostRun
                     let ids = unsafe { read_back_samples(gpu, pool, image, extent) };
                     let ids = (&ids[..], options.msaa as usize);
                     // SAFETY: as above.
-                    let (twin, centres) = unsafe {
+                    let (twin, mut check) = unsafe {
                         twin_on_multisampled_ids(
                             &pass, scene, &view, &geometry, mesh, settings, ids,
                         )
                     }?;
-                    run.first_frame_centre_mismatches = Some(centres);
+                    // SAFETY: as above.
+                    let status = unsafe { pass.status(slot) }.map_err(|e| e.to_string())?;
+                    check.pass_rejected = status.visibility_rejected as usize;
+                    check.pass_centre_uncovered = status.centre_uncovered as usize;
+                    run.first_frame_multisampled = Some(check);
                     twin
                 } else {
                     // SAFETY: frame 0 is done and no other frame was submitted.

@@ -1,6 +1,6 @@
 //! What a run of the host is asked to do, and what it measured.
 
-use crate::first_frame::TwinComparison;
+use crate::first_frame::{MultisampledCheck, TwinComparison};
 use crate::gpu_timing::GpuMillis;
 use crate::lighting::LightingComparison;
 use crate::targets::HostDepth;
@@ -44,10 +44,9 @@ pub struct HostRun {
     pub frames_in_flight: usize,
     /// Samples a pixel of the host's visibility buffer.
     pub msaa: u32,
-    /// With `msaa` above 1: pixels of frame 0 whose centre triangle in
-    /// the pass's G-buffer differs from the CPU twin's fed the same
-    /// samples.
-    pub first_frame_centre_mismatches: Option<usize>,
+    /// With `msaa` above 1: frame 0's centres, pass against the CPU twin
+    /// fed the same samples.
+    pub first_frame_multisampled: Option<MultisampledCheck>,
     /// izb's buffers and descriptor sets made inside `record` after the
     /// first frame (growth and resizes happen between frames).
     pub allocations_after_first_frame: [u64; 2],

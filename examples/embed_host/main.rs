@@ -25,8 +25,8 @@
 //! the pass reads every sample (`GBufferInput::MultisampledVisibility`,
 //! edge pixels' surfaces from them), the host's lighting shades sample 0,
 //! and the twin check feeds the CPU twin every sample, read back
-//! (`centre_mismatches`: frame 0's centre triangles that differ from the
-//! twin's). `--out DIR` writes frame
+//! (`multisampled`: frame 0's centre triangles that differ from the
+//! twin's, and the rejected and uncovered centres of both). `--out DIR` writes frame
 //! 0 as `izb render` writes a frame (`DIR/SCENE` with several scenes),
 //! and the host's own lighting of it as `host_shaded.png`;
 //! `--stats FILE` writes the run's counters as one JSON object (an array
@@ -185,7 +185,7 @@ fn stats_of(run: &frames::HostRun, validation: bool) -> serde_json::Value {
         "frames": run.frames,
         "frames_in_flight": run.frames_in_flight,
         "msaa": run.msaa,
-        "centre_mismatches": run.first_frame_centre_mismatches,
+        "multisampled": run.first_frame_multisampled,
         "allocations_after_first": after.buffers,
         "descriptor_allocations_after_first": after.descriptor_sets,
         "maps_after_first": after.mappings,

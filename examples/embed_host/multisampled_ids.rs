@@ -17,8 +17,10 @@ const SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/host_multisampled
 /// pass's): `ids[(y * w + x) * N + s]`.
 ///
 /// # Safety
-/// Nothing that uses `image` is executing, and nothing else runs on the
-/// host's queue until this returns (it waits).
+/// `image` is a live `R32_UINT` image of this device with more than one
+/// sample, in `SHADER_READ_ONLY_OPTIMAL`, its last write made visible to
+/// compute-shader reads (the pass's barrier did); nothing that uses it is
+/// executing; `pool` is this device's and used by this thread only.
 pub unsafe fn read_back_samples(
     gpu: &HostGpu,
     pool: vk::CommandPool,

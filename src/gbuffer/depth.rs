@@ -180,7 +180,7 @@ pub fn gbuffer_from_depth(
     Ok(VisibilityGBuffer {
         gbuffer: g,
         rejected,
-        uncovered: 0,
+        centre_uncovered: 0,
     })
 }
 

@@ -9,12 +9,19 @@
 //! its sample rays can see first, up to a triangle thinner than the sample
 //! spacing. So:
 //! - **The centre.** A standard N× pattern has no sample at the pixel
-//!   centre, where every pass after the G-buffer puts P. The centre ray
-//!   meets each distinct id of the pixel's samples with the watertight test
-//!   (Woop et al. 2013) and keeps the closest hit, ties to the lower id;
-//!   the entry then follows from that triangle's plane exactly as the
+//!   centre, where every pass after the G-buffer puts P. Samples that
+//!   agree on one triangle nominate it alone; where they disagree or some
+//!   missed (a sliver between them, the far side of a quad's diagonal),
+//!   or the centre ray misses their one triangle, the distinct ids of the
+//!   3×3 pixels' samples do. The centre ray meets each with the watertight
+//!   test (Woop et al. 2013) and keeps the closest hit, ties to the lower
+//!   id (the GPU traversal's rule; the CPU BVH keeps its first); the entry
+//!   then follows from that triangle's plane exactly as the
 //!   single-sampled visibility buffer's ([`super::gbuffer_from_visibility`]).
-//!   A centre no candidate covers is a miss, counted as `uncovered`.
+//!   A centre no candidate covers is a miss, counted as
+//!   `centre_uncovered`. A pixel with a sample id past the triangles is a
+//!   rejected miss and nominates nothing for its neighbours. No sample
+//!   position is assumed: the samples only nominate.
 //! - **Edge pixels** (the ray cast's rule: a neighbour's centre off the
 //!   plane): their 32 µQuad sample rays take the closest hit among the
 //!   distinct ids of the 3×3 pixels' samples (at most 9N) in place of the
@@ -165,7 +172,7 @@ pub fn gbuffer_from_multisampled_visibility_on(
     Ok(VisibilityGBuffer {
         gbuffer: g,
         rejected,
-        uncovered,
+        centre_uncovered: uncovered,
     })
 }
 
@@ -347,7 +354,7 @@ mod tests {
             eprintln!(
                 "{name}: {nominated} nominated centres, {same} of {all} masks equal, {} uncovered, \
                  {edges} edge pixels (the ray cast's: {})",
-                v.uncovered,
+                v.centre_uncovered,
                 cast.edges.as_ref().unwrap().stats.edge_pixels
             );
             assert!(edges > 0, "{name}: no edge pixel");

@@ -12,9 +12,10 @@ use super::{facing_normal, GBuffer, PixelSurface, SurfaceHit, NO_HIT};
 use crate::scene::{CameraFrame, Light, Scene, Triangle};
 
 /// [`gbuffer_from_visibility`]'s G-buffer, and how many pixels it stored
-/// as misses because their id named no triangle (other than
-/// [`NO_HIT`]) or a triangle whose plane the centre ray does not cross in
-/// front of the eye.
+/// as misses because their id (with a multisampled buffer: any of their
+/// samples' ids, and such a pixel nominates nothing for its neighbours)
+/// named no triangle (other than [`NO_HIT`]) or a triangle whose plane
+/// the centre ray does not cross in front of the eye.
 pub struct VisibilityGBuffer {
     pub gbuffer: GBuffer,
     pub rejected: usize,
@@ -23,7 +24,7 @@ pub struct VisibilityGBuffer {
     /// meets none that the samples of the pixel and its neighbours saw —
     /// the background between a silhouette's samples, or a triangle no
     /// sample saw — stored as misses.
-    pub uncovered: usize,
+    pub centre_uncovered: usize,
 }
 
 /// The G-buffer of `scene`'s view from `visibility`, row-major, one
@@ -54,7 +55,7 @@ pub fn gbuffer_from_visibility(
     Ok(VisibilityGBuffer {
         gbuffer: g,
         rejected,
-        uncovered: 0,
+        centre_uncovered: 0,
     })
 }
 

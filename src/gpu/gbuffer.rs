@@ -168,8 +168,9 @@ pub fn gbuffer(rec: &Recorder, kernels: &Kernels, size: [u32; 2], edge_surfaces:
 /// [`crate::gbuffer::gbuffer_from_visibility`]): one thread per pixel,
 /// each entry from its centre ray and the triangle the host's raster saw.
 /// The caller has bound the host-image set holding the visibility buffer
-/// (`Recorder::bind_host_images`).
-pub fn gbuffer_from_visibility(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+/// (`Recorder::bind_host_images`): crate-only, as the shadow pass records
+/// it, since a recorder without that set would read an unbound image.
+pub(crate) fn gbuffer_from_visibility(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
     rec.begin_label("gbuffer_from_visibility");
     rec.dispatch_pixels(&kernels.gbuffer_from_visibility, size);
     rec.barrier();
@@ -184,7 +185,7 @@ pub fn gbuffer_from_visibility(rec: &Recorder, kernels: &Kernels, size: [u32; 2]
 /// `edge_surfaces` then the edge pixels' sample rays among the 3×3
 /// pixels' ids (`edge_surfaces.comp` built with `CANDIDATE_HITS`). The
 /// caller has bound the host-image set holding the visibility buffer.
-pub fn gbuffer_from_multisampled_visibility(
+pub(crate) fn gbuffer_from_multisampled_visibility(
     rec: &Recorder,
     kernels: &Kernels,
     size: [u32; 2],
@@ -206,7 +207,7 @@ pub fn gbuffer_from_multisampled_visibility(
 /// entry from its centre ray at the view depth the host's depth encodes,
 /// with the host's normal kept per entry (`B_G_NORMAL`). The caller has
 /// bound the host-image set holding both images.
-pub fn gbuffer_from_depth(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
+pub(crate) fn gbuffer_from_depth(rec: &Recorder, kernels: &Kernels, size: [u32; 2]) {
     rec.begin_label("gbuffer_from_depth");
     rec.dispatch_pixels(&kernels.gbuffer_from_depth, size);
     rec.barrier();

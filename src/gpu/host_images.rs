@@ -260,9 +260,10 @@ fn input_mismatch(made_for: InputImages, what: &str, given: bool) -> GpuError {
 }
 
 impl FrameImages {
-    /// Checks a frame's images for a pass that does (`wants_visibility`)
-    /// or does not read a visibility buffer, renders `resolution` and
-    /// keeps `mask_halves` mask halves; each problem named.
+    /// Checks a frame's images for a pass whose G-buffer producer reads
+    /// `input` (a visibility buffer of its sample count, depth + normal, or
+    /// none), renders `resolution` and keeps `mask_halves` mask halves;
+    /// each problem named.
     pub fn check(
         &self,
         input: InputImages,

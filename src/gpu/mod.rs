@@ -6,9 +6,9 @@
 //! | 0 | [`gbuffer`] | `gbuffer.comp` | [`crate::gbuffer::gbuffer`] |
 //! | 0, moving eye | [`translate_vertices`] | `translate_vertices.comp` | [`crate::cpu::translate_vertices`] |
 //! | 0, host geometry | [`gather_draws`] | `gather_draws.comp` | [`crate::cpu::gather_draws`] |
-//! | 0, host input | [`gbuffer::gbuffer_from_visibility`] | `gbuffer_from_visibility.comp` | [`crate::gbuffer::gbuffer_from_visibility`] |
-//! | 0, host input | [`gbuffer::gbuffer_from_multisampled_visibility`] | `gbuffer_from_visibility.comp` (`MULTISAMPLED`), `edge_surfaces.comp` (`CANDIDATE_HITS`) | [`crate::gbuffer::gbuffer_from_multisampled_visibility`] |
-//! | 0, host input | [`gbuffer::gbuffer_from_depth`] | `gbuffer_from_depth.comp` | [`crate::gbuffer::gbuffer_from_depth`] |
+//! | 0, host input | `gbuffer::gbuffer_from_visibility` | `gbuffer_from_visibility.comp` | [`crate::gbuffer::gbuffer_from_visibility`] |
+//! | 0, host input | `gbuffer::gbuffer_from_multisampled_visibility` | `gbuffer_from_visibility.comp` (`MULTISAMPLED`), `edge_surfaces.comp` (`CANDIDATE_HITS`) | [`crate::gbuffer::gbuffer_from_multisampled_visibility`] |
+//! | 0, host input | `gbuffer::gbuffer_from_depth` | `gbuffer_from_depth.comp` | [`crate::gbuffer::gbuffer_from_depth`] |
 //! | 1 | [`light_setup`] | `light_setup.comp` | [`mod@crate::cpu::light_setup`] |
 //! | 2 | [`bin`] | `bin.comp` | [`crate::cpu::bin::bin`] |
 //! | 3 | [`evaluate`] | `evaluate.comp` | [`crate::cpu::evaluate::evaluate`] |

@@ -9,7 +9,9 @@ use ash::vk;
 /// What a pass is made for.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadowPassConfig {
-    /// Sample mode, skips, cascades, edge surfaces (ray cast only).
+    /// Sample mode, skips, cascades, edge surfaces (with the ray cast, a
+    /// multisampled visibility buffer or an uploaded G-buffer; not
+    /// `Paired64`'s second half from the pass's own G-buffer).
     pub settings: IzbSettings,
     /// Frames the host records before it waits for the oldest: each has
     /// its own status buffer.
@@ -17,7 +19,8 @@ pub struct ShadowPassConfig {
     /// Entries of the cell list; `None`: max(4 × triangles, 2¹⁶).
     pub cell_capacity: Option<u64>,
     /// Slots for edge pixels' extra surfaces, with edge surfaces on;
-    /// `None`: one per 8 pixels, at least 1 024.
+    /// `None`: one per 8 pixels, at least 1 024 (one per 2 pixels with a
+    /// multisampled visibility buffer, whose samples nominate more).
     pub edge_slots: Option<u64>,
     /// Where the G-buffer comes from.
     pub gbuffer: GBufferInput,
@@ -63,7 +66,13 @@ pub enum GBufferInput {
     /// count: each centre's triangle is chosen among the ids its samples
     /// (or its 3×3 pixels' samples) saw by the centre ray's watertight
     /// test, and edge pixels get their per-sample surfaces from the 3×3
-    /// pixels' ids (`edge_surfaces`), with no BVH. The twin is
+    /// pixels' ids (`edge_surfaces`), with no BVH. No sample position is
+    /// assumed (any pattern, `VK_EXT_sample_locations` included: samples
+    /// only nominate triangles, the rays are the pass's own); one sample
+    /// whose id is past the pass's triangles (not `0xFFFFFFFF`) makes its
+    /// whole pixel a miss, counted in `PassStatus::visibility_rejected`,
+    /// and nominates nothing for its neighbours. The image declared each
+    /// frame (`HostImage::samples`) must have this count. The twin is
     /// [`crate::gbuffer::gbuffer_from_multisampled_visibility`].
     MultisampledVisibility { samples: u32 },
     /// The CPU twin's G-buffer (with its edge surfaces, their sample rays

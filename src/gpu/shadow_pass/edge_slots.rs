@@ -5,14 +5,15 @@
 //! its extra surfaces as receivers in rows below the image.
 //!
 //! Their slots are sized once ([`super::ShadowPassConfig::edge_slots`],
-//! else one per 8 pixels) and never grown inside a frame: a frame whose
+//! else one per 8 pixels, one per 2 with a multisampled visibility
+//! buffer) and never grown inside a frame: a frame whose
 //! edge pixels need more keeps the surfaces that fit, and the pixels past
 //! the capacity see all their samples on their centre's surface — the
 //! pass without edge surfaces, tangent-plane masks, no occluder lost —
 //! and its status says so ([`super::PassStatus::edge_slots_overrun`],
 //! with the need). [`ShadowPass::grow`] makes room between frames.
 
-use super::{ShadowPass, ShadowPassConfig};
+use super::{GBufferInput, ShadowPass, ShadowPassConfig};
 use crate::gpu::frame_inputs::check_workgroups;
 use crate::gpu::frame_memory::{heavy_capacity, initial_edge_capacity, receivers, EdgeSlots};
 use crate::gpu::shared::FrameParams;
@@ -37,6 +38,15 @@ pub(super) fn edge_slots_for(
                 .into(),
         ));
     }
+    if config.settings.edge_halves(scene) == 2 {
+        return Err(GpuError::Unsupported(
+            "Paired64's edge surfaces from the pass's own G-buffer: its edge_surfaces step \
+             traces the first half's µQuad pattern only (upload the CPU twin's G-buffer, or \
+             turn edge surfaces off)"
+                .into(),
+        ));
+    }
+    let pixels = scene.pixel_count() as u64;
     let slots = match config.edge_slots {
         Some(0) => {
             return Err(GpuError::Unsupported(
@@ -44,7 +54,13 @@ pub(super) fn edge_slots_for(
             ))
         }
         Some(n) => n,
-        None => initial_edge_capacity(scene.pixel_count() as u64),
+        // A raster's samples nominate more surfaces than the ray cast's
+        // first guess holds: `default` at 96×54 needed 1 231 slots for
+        // 5 184 pixels at 4× (one in eight, at least 1 024, overran).
+        None if matches!(config.gbuffer, GBufferInput::MultisampledVisibility { .. }) => {
+            (pixels / 2).max(initial_edge_capacity(pixels))
+        }
+        None => initial_edge_capacity(pixels),
     };
     Ok(Some(EdgeSlots {
         surfaces: slots,

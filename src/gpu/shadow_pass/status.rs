@@ -31,8 +31,9 @@ pub struct PassStatus {
     pub pixels_tested: u32,
     pub tests_spawned: u64,
     /// Pixels of the host's visibility buffer stored as misses because
-    /// their id named no triangle of the pass, or a triangle whose plane
-    /// their centre ray does not cross in front of the eye.
+    /// their id (with a multisampled buffer: any of their samples' ids)
+    /// named no triangle of the pass, or a triangle whose plane their
+    /// centre ray does not cross in front of the eye.
     pub visibility_rejected: u32,
     /// With a multisampled visibility buffer: pixels some of whose samples
     /// saw a triangle but whose centre ray meets none that the samples of
