@@ -14,13 +14,13 @@ use ash::vk;
 use common::gpu::assert_no_validation_messages;
 use common::shadow_pass::{assert_refused, pass_renderer, view_at, HostTestImage};
 use izb::cpu::{render_cpu_on, IzbSettings, SampleMode};
-use izb::gbuffer::{gbuffer_from_multisampled_visibility, NO_HIT};
+use izb::gbuffer::{gbuffer_from_multisampled_visibility, VisibilityGBuffer, NO_HIT};
 use izb::gpu::context::DeviceShared;
 use izb::gpu::host_images::{FrameImages, HostImage};
-use izb::gpu::shadow_pass::{FrameView, GBufferInput, ShadowPass, ShadowPassConfig};
+use izb::gpu::shadow_pass::{FrameView, GBufferInput, PassStatus, ShadowPass, ShadowPassConfig};
 use izb::gpu::shared::unpack_id_flags;
 use izb::gpu::{GBufferSource, GpuRenderer};
-use izb::scene;
+use izb::scene::{self, Scene};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -226,6 +226,65 @@ fn run_frame(
     unsafe { r.context.submit_and_wait(record) }.unwrap();
 }
 
+/// One 4× frame of `per_pixel` ids (every sample of a pixel holding its
+/// id) on a fresh pass, against the CPU twin fed the same samples.
+struct FrameAgainstTwin {
+    status: PassStatus,
+    gbuffer_words: Vec<u32>,
+    masks: Vec<u32>,
+    twin: VisibilityGBuffer,
+    /// The twin's shadow-tested pixels, and how many of them have the
+    /// twin's masks.
+    tested: Vec<usize>,
+    same: usize,
+}
+
+impl std::fmt::Debug for FrameAgainstTwin {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "{} of {} masks equal the twin's",
+            self.same,
+            self.tested.len()
+        )
+    }
+}
+
+fn frame_against_twin(
+    r: &GpuRenderer,
+    scene: &Scene,
+    settings: IzbSettings,
+    per_pixel: &[u32],
+) -> FrameAgainstTwin {
+    let ids: Vec<u32> = per_pixel
+        .iter()
+        .flat_map(|&id| [id; SAMPLES as usize])
+        .collect();
+    let mut pass = ShadowPass::new(r, scene.clone(), config(settings, SAMPLES)).unwrap();
+    let image = MultisampledIds::new(&r.context.shared, scene.resolution);
+    run_frame(r, &mut pass, &image, &view_at(scene, 0), per_pixel);
+    // SAFETY: the frame was waited for.
+    let (status, images) = unsafe { (pass.status(0).unwrap(), pass.read_back().unwrap()) };
+    let halves = settings.edge_halves(scene);
+    let twin = gbuffer_from_multisampled_visibility(scene, &ids, SAMPLES as usize, halves).unwrap();
+    let cpu = render_cpu_on(scene, twin.gbuffer.clone(), settings);
+    let tested: Vec<usize> = (0..per_pixel.len())
+        .filter(|&i| twin.gbuffer.flags[i] & izb::gbuffer::flags::SHADOW_TESTED != 0)
+        .collect();
+    let same = tested
+        .iter()
+        .filter(|&&i| cpu.masks[i] == images.masks[i])
+        .count();
+    FrameAgainstTwin {
+        status,
+        gbuffer_words: images.gbuffer_words,
+        masks: images.masks,
+        twin,
+        tested,
+        same,
+    }
+}
+
 fn config(settings: IzbSettings, samples: u32) -> ShadowPassConfig {
     ShadowPassConfig {
         settings,
@@ -263,51 +322,31 @@ fn a_multisampled_visibility_buffer_gives_the_twin_s_masks() {
         };
         let batch = r.render(&scene, settings, GBufferSource::Gpu).unwrap();
         let centre = &batch.gbuffer.triangle_id;
-        let ids: Vec<u32> = centre
-            .iter()
-            .flat_map(|&id| [id; SAMPLES as usize])
-            .collect();
-        let mut pass = ShadowPass::new(&r, scene.clone(), config(settings, SAMPLES)).unwrap();
-        let image = MultisampledIds::new(&r.context.shared, scene.resolution);
-        run_frame(&r, &mut pass, &image, &view_at(&scene, 0), centre);
-        // SAFETY: the frame was waited for.
-        let (status, images) = unsafe { (pass.status(0).unwrap(), pass.read_back().unwrap()) };
+        let f = frame_against_twin(&r, &scene, settings, centre);
+        let (status, twin) = (&f.status, &f.twin);
         assert_eq!(status.visibility_rejected, 0, "{status:?}");
         assert_eq!(status.centre_uncovered, 0, "{status:?}");
         assert!(!status.edge_slots_overrun, "{status:?}");
-        for (i, &word) in images.gbuffer_words.iter().enumerate() {
+        for (i, &word) in f.gbuffer_words.iter().enumerate() {
             assert_eq!(unpack_id_flags(word).0, centre[i], "{mode:?} pixel {i}");
         }
-        let halves = settings.edge_halves(&scene);
-        let twin =
-            gbuffer_from_multisampled_visibility(&scene, &ids, SAMPLES as usize, halves).unwrap();
         assert_eq!((twin.rejected, twin.centre_uncovered), (0, 0));
         assert_eq!(&twin.gbuffer.triangle_id, centre);
         let edge_pixels = twin.gbuffer.edges.as_ref().unwrap().stats.edge_pixels;
         assert!(edge_pixels > 100, "{edge_pixels} edge pixels");
-        let cpu = render_cpu_on(&scene, twin.gbuffer.clone(), settings);
-        let tested: Vec<usize> = (0..centre.len())
-            .filter(|&i| twin.gbuffer.flags[i] & izb::gbuffer::flags::SHADOW_TESTED != 0)
-            .collect();
-        let same = tested
+        let like_render = f
+            .tested
             .iter()
-            .filter(|&&i| cpu.masks[i] == images.masks[i])
-            .count();
-        let like_render = tested
-            .iter()
-            .filter(|&&i| batch.masks[i] == images.masks[i])
+            .filter(|&&i| batch.masks[i] == f.masks[i])
             .count();
         eprintln!(
-            "{mode:?}: {same} of {} shadow-tested masks equal the twin's, {like_render} \
+            "{mode:?}: {} of {} shadow-tested masks equal the twin's, {like_render} \
              render's (BVH sample rays); {edge_pixels} edge pixels",
-            tested.len()
+            f.same,
+            f.tested.len()
         );
-        assert!(tested.len() > 1000);
-        assert!(
-            same * 1000 >= tested.len() * 995,
-            "{same} of {}",
-            tested.len()
-        );
+        assert!(f.tested.len() > 1000);
+        assert!(f.same * 1000 >= f.tested.len() * 995, "{f:?}");
         assert!(centre.contains(&NO_HIT));
         assert_no_validation_messages(&r, "multisampled visibility input");
         checked += 1;
@@ -344,42 +383,25 @@ fn ids_past_the_triangles_are_rejected_as_the_twin_rejects_them() {
         per_pixel[i] = triangles + k as u32;
     }
     let bad = hits.iter().step_by(13).count();
-    let ids: Vec<u32> = per_pixel
-        .iter()
-        .flat_map(|&id| [id; SAMPLES as usize])
-        .collect();
-    let mut pass = ShadowPass::new(&r, scene.clone(), config(settings, SAMPLES)).unwrap();
-    let image = MultisampledIds::new(&r.context.shared, scene.resolution);
-    run_frame(&r, &mut pass, &image, &view_at(&scene, 0), &per_pixel);
-    // SAFETY: the frame was waited for.
-    let (status, images) = unsafe { (pass.status(0).unwrap(), pass.read_back().unwrap()) };
-    let halves = settings.edge_halves(&scene);
-    let twin =
-        gbuffer_from_multisampled_visibility(&scene, &ids, SAMPLES as usize, halves).unwrap();
+    let f = frame_against_twin(&r, &scene, settings, &per_pixel);
+    let (status, twin) = (&f.status, &f.twin);
     assert!(bad > 50, "{bad}");
     assert_eq!(twin.rejected, bad);
     assert_eq!(status.visibility_rejected as usize, bad, "{status:?}");
     assert_eq!(status.centre_uncovered as usize, twin.centre_uncovered);
-    for (i, &word) in images.gbuffer_words.iter().enumerate() {
+    for (i, &word) in f.gbuffer_words.iter().enumerate() {
         assert_eq!(
             unpack_id_flags(word).0,
             twin.gbuffer.triangle_id[i],
             "pixel {i}"
         );
     }
-    let cpu = render_cpu_on(&scene, twin.gbuffer.clone(), settings);
-    let tested: Vec<usize> = (0..per_pixel.len())
-        .filter(|&i| twin.gbuffer.flags[i] & izb::gbuffer::flags::SHADOW_TESTED != 0)
-        .collect();
-    let same = tested
-        .iter()
-        .filter(|&&i| cpu.masks[i] == images.masks[i])
-        .count();
     eprintln!(
-        "{bad} rejected pixels; {same} of {} masks equal the twin's",
-        tested.len()
+        "{bad} rejected pixels; {} of {} masks equal the twin's",
+        f.same,
+        f.tested.len()
     );
-    assert!(tested.len() > 500 && same * 1000 >= tested.len() * 995);
+    assert!(f.tested.len() > 500 && f.same * 1000 >= f.tested.len() * 995);
     assert_no_validation_messages(&r, "rejected multisampled ids");
 }
 
