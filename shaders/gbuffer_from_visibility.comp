@@ -64,14 +64,10 @@ void main() {
         count_add(C_VISIBILITY_REJECTED, 1u);
         return;
     }
-    add_pixel_candidates(ivec2(pixel), samples);
+    bool any_miss = add_pixel_candidates(ivec2(pixel), samples);
     if (candidate_count == 0u) {
         store_miss(i);
         return;
-    }
-    bool any_miss = false;
-    for (uint s = 0u; s < samples && CANDIDATE_TRIP(); ++s) {
-        any_miss = any_miss || texelFetch(visibility, ivec2(pixel), int(s)).x == NO_HIT;
     }
     float t = frame.far;
     uint id = candidate_count == 1u && !any_miss ? candidate_closest_hit(d, t) : NO_HIT;

@@ -45,10 +45,13 @@ bool pixel_ids_valid(ivec2 q, uint samples) {
 // (deduplicating only within each pixel, as a review suggested to spare
 // the loop budget, made `default`'s 4× G-buffer step at 96×54 slower on
 // lavapipe: 18.7 ms against 16.1, medians of 3 interleaved runs). The
-// scan counts against the budget.
-void add_pixel_candidates(ivec2 q, uint samples) {
+// scan counts against the budget. Returns whether a sample of q saw no
+// triangle.
+bool add_pixel_candidates(ivec2 q, uint samples) {
+    bool missed = false;
     for (uint s = 0u; s < samples && CANDIDATE_TRIP(); ++s) {
         uint id = texelFetch(visibility, q, int(s)).x;
+        missed = missed || id == NO_HIT;
         bool seen = id == NO_HIT;
         for (uint k = 0u; k < candidate_count && !seen && CANDIDATE_TRIP(); ++k) {
             seen = candidate_ids[k] == id;
@@ -58,6 +61,7 @@ void add_pixel_candidates(ivec2 q, uint samples) {
             candidate_count += 1u;
         }
     }
+    return missed;
 }
 
 // The candidates of pixel p and its neighbours inside the image, valid

@@ -31,10 +31,10 @@
 //! ray cast's hits; they differ only where no raster sample of the 3×3
 //! neighbourhood saw the triangle a ray meets first.
 
-use super::edge_surfaces::{self, PixelSamples};
+use super::edge_surfaces;
 use super::visibility::surface_of;
 use super::{facing_normal, GBuffer, PixelSurface, SurfaceHit, VisibilityGBuffer, NO_HIT};
-use crate::scene::{CameraFrame, Scene, Triangle, WatertightRay};
+use crate::scene::{Scene, Triangle, WatertightRay};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -154,21 +154,18 @@ pub fn gbuffer_from_multisampled_visibility_on(
         .chunks(w as usize)
         .map(|row| row.iter().map(|(s, _)| *s).collect())
         .collect();
-    let from_candidates = |pattern: &[[f32; 2]; 32], x: u32, y: u32, centre: &PixelSurface| {
+    let from_candidates = |pattern: &[[f32; 2]; 32],
+                           x: u32,
+                           y: u32,
+                           centre: &PixelSurface,
+                           _: &[Option<SurfaceHit>]| {
         let candidates = neighbourhood(x, y);
-        sample_surfaces(
-            triangles,
-            &frame,
-            (x, y),
-            centre,
-            &candidates,
-            pattern,
-            scene,
-        )
+        let points = edge_surfaces::sample_points(x, y, pattern);
+        let hits = points
+            .map(|(px, py)| candidates.closest_hit(triangles, frame.direction(px, py), near_far));
+        edge_surfaces::group_sample_hits(&frame, &light, (x, y), centre, &hits, pattern)
     };
-    edge_surfaces::add_edge_surfaces(&mut g, scene, &rows, edge_halves, |p, x, y, c, _| {
-        from_candidates(p, x, y, c)
-    });
+    edge_surfaces::add_edge_surfaces(&mut g, scene, &rows, edge_halves, from_candidates);
     Ok(VisibilityGBuffer {
         gbuffer: g,
         rejected,
@@ -243,25 +240,6 @@ impl Candidates {
             normal: facing_normal(&triangles[triangle as usize], d),
         })
     }
-}
-
-/// An edge pixel's samples from its candidates' closest hits, grouped by
-/// plane as the ray cast's sample rays are.
-fn sample_surfaces(
-    triangles: &[Triangle],
-    frame: &CameraFrame,
-    (x, y): (u32, u32),
-    centre: &PixelSurface,
-    candidates: &Candidates,
-    pattern: &[[f32; 2]; 32],
-    scene: &Scene,
-) -> PixelSamples {
-    let near_far = (scene.camera.near, scene.camera.far);
-    let points = edge_surfaces::sample_points(x, y, pattern);
-    let hits =
-        points.map(|(px, py)| candidates.closest_hit(triangles, frame.direction(px, py), near_far));
-    let light = scene.light.relative_to(scene.camera.eye);
-    edge_surfaces::group_sample_hits(frame, &light, (x, y), centre, &hits, pattern)
 }
 
 #[cfg(test)]
