@@ -8,15 +8,19 @@
 # (scripts/gpu_prepare.sh makes them on the build machine):
 #   .gl/*.deb      the Vulkan loader (the device image has none);
 #   .dev/izb       a stripped release binary;
-#   .dev/tests/*   stripped test executables (gpu_backend, gpu_heavy_step,
-#                  gpu_soft_shadows, baselines);
+#   .dev/embed_host  the worked host (examples/embed_host), stripped;
+#   .dev/tests/*   stripped test executables (scripts/gpu_prepare.sh says
+#                  which);
 #   .dev/scenes    a copy of ../shared/scenes.
+# or all of .dev packed as .devpack/dev.tar.xz, unpacked here first.
 # Writes logs and bench JSON under $OUT. Each step has its own time limit
 # so a slow step cannot cost the ones after it.
 # Knobs: IZB_MEASURE_RES (hard bench resolutions), IZB_MEASURE_REPEAT,
 # IZB_MEASURE_BASELINES_RES (the baselines step's resolution),
-# IZB_MEASURE_STEPS (which steps of hard, heavy, tests, soft, baselines;
-# default "hard tests soft").
+# IZB_MEASURE_STEPS (which steps of hard, heavy, tests, soft, baselines,
+# embed, edges; default "hard tests soft"), IZB_MEASURE_FRAMES (the worked
+# host's frames per run), IZB_MEASURE_TESTS and IZB_MEASURE_TEST_LIMIT
+# (the test executables to run, in order, and each one's limit in s).
 set -u
 OUT=${OUT:-/tmp/izb-gpu-out}
 mkdir -p "$OUT"
@@ -24,10 +28,15 @@ RES=${IZB_MEASURE_RES:-960x540,1920x1080}
 REPEAT=${IZB_MEASURE_REPEAT:-7}
 BASELINES_RES=${IZB_MEASURE_BASELINES_RES:-1920x1080}
 STEPS=${IZB_MEASURE_STEPS:-hard tests soft}
+FRAMES=${IZB_MEASURE_FRAMES:-60}
 LOG=$OUT/log.txt
 S=$PWD/.dev/scenes
 SHARED="$S/deckchair.scene.json $S/tablefan.scene.json $S/ficus.scene.json $S/engine.scene.json $S/courtyard.scene.json"
 PROCEDURAL="default wires hairball city grazing far analytic"
+
+if [ ! -d .dev ] && [ -f .devpack/dev.tar.xz ]; then
+    tar -xJf .devpack/dev.tar.xz
+fi
 
 # The loader and glvnd (the NVIDIA ICD's libGLX_nvidia needs libGLdispatch).
 if [ -d .gl ]; then
@@ -78,8 +87,10 @@ for s in $STEPS; do
         if [ ! -e /work/shared/scenes ]; then
             mkdir -p /work/shared && ln -s "$S" /work/shared/scenes
         fi
-        for t in .dev/tests/*; do
-            IZB_REQUIRE_GPU=1 IZB_REQUIRE_SCENES=1 step 60 "$(basename "$t")" "$t"
+        # IZB_MEASURE_TESTS: which of them, in that order (default all).
+        for t in ${IZB_MEASURE_TESTS:-$(ls .dev/tests)}; do
+            t=.dev/tests/$t
+            IZB_REQUIRE_GPU=1 IZB_REQUIRE_SCENES=1 step "${IZB_MEASURE_TEST_LIMIT:-60}" "$(basename "$t")" "$t"
         done
         ;;
     baselines)
@@ -94,6 +105,42 @@ for s in $STEPS; do
                 --methods izb1,izb32,volumes,sm-2048,pcf3-2048,pcf5-4096,csm4-pcf3-2048,vsm-2048,msm-2048,pcf3-2048+contact,sm-8192,msm-4096 \
                 --resolution "$BASELINES_RES" --repeat 3 --spp 4 --out "/tmp/izb-bench/baselines-$name.json"
             cp "/tmp/izb-bench/baselines-$name.json" "$OUT/" 2>/dev/null
+        done
+        ;;
+    embed)
+        # Issue 29: the worked host's steady-state 1080p frame, per pass
+        # (its --stats: gpu_ms medians from timestamps), on courtyard and
+        # deckchair, for each G-buffer input: the raster visibility buffer,
+        # D32 depth + normal, and the 4x multisampled visibility buffer.
+        mkdir -p /tmp/izb-embed
+        for scene in courtyard deckchair; do
+            for input in visibility d32 msaa4; do
+                case $input in
+                visibility) flags=() ;;
+                d32) flags=(--depth d32) ;;
+                msaa4) flags=(--msaa 4) ;;
+                esac
+                step 40 "embed-$scene-$input" .dev/embed_host "$S/$scene.scene.json" \
+                    --resolution 1920x1080 --frames "$FRAMES" "${flags[@]}" \
+                    --stats "/tmp/izb-embed/$scene-$input.json"
+                tar -C /tmp -czf "$OUT/embed.tar.gz" izb-embed
+            done
+        done
+        ;;
+    edges)
+        # Issue 27: izb32 with edge surfaces (the GPU's own ray-cast
+        # G-buffer, its edge_surfaces pass included) against izb32-flat,
+        # 1080p, every scene; one bench per scene so a slow one costs only
+        # itself. The JSON files are gathered into one tarball (the tool
+        # brings back 8 files at most), anew after each scene: a run stopped at
+        # its limit still brings back the scenes done.
+        mkdir -p /tmp/izb-bench/edges
+        for scene in $PROCEDURAL $SHARED; do
+            name=$(basename "$scene" .scene.json)
+            step 45 "edges-$name" .dev/izb bench "$scene" --backend vulkan \
+                --methods izb32,izb32-flat --resolution 1920x1080 --repeat 5 \
+                --spp 1 --out "/tmp/izb-bench/edges/$name.json"
+            tar -C /tmp/izb-bench -czf "$OUT/edges.tar.gz" edges
         done
         ;;
     soft)
