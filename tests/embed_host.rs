@@ -207,12 +207,18 @@ fn host_gpu() -> Option<host_device::HostGpu> {
 /// pass's last G-buffer read back and fed to the CPU twin gives the
 /// pass's masks bit for bit; and the masks equal `izb render`'s (its own
 /// ray cast) on ≥ 99.9 % of the shadow-tested pixels with reverse-Z
-/// `D32`, ≥ 99 % with standard Z or `D24`, whose depth error joins the
-/// depth test's tolerance far from the eye. Printed: where reverse and
-/// standard Z agree with each other.
+/// `D32` on a CPU device, ≥ 99 % with standard Z or `D24`, whose depth
+/// error joins the depth test's tolerance far from the eye, and on a GPU,
+/// whose raster interpolates depth its own way (Vulkan bounds it only
+/// loosely): on an NVIDIA H200 reverse-Z `D32` gave 1 591 of 1 597 (the
+/// twin still bit for bit). Printed: where reverse and standard Z agree
+/// with each other.
 #[test]
 fn the_host_s_depth_and_normal_feed_the_pass() {
     let Some(gpu) = host_gpu() else { return };
+    // SAFETY: `physical` is the live instance's own physical device.
+    let properties = unsafe { gpu.instance.get_physical_device_properties(gpu.physical) };
+    let on_cpu = properties.device_type == vk::PhysicalDeviceType::CPU;
     let scene = izb::scene::load("default")
         .unwrap()
         .with_resolution(RESOLUTION)
@@ -266,7 +272,7 @@ fn the_host_s_depth_and_normal_feed_the_pass() {
         assert_eq!(equal, pixels, "{what}: the CPU twin on the pass's G-buffer");
         assert_lit_as_izb_shades(&result, &what);
         let exact = depth.format != vk::Format::D24_UNORM_S8_UINT && depth.convention.reversed;
-        let per_mille = if exact { 1 } else { 10 };
+        let per_mille = if exact && on_cpu { 1 } else { 10 };
         assert!(
             a.tested > 1000 && (a.tested - a.equal) * 1000 <= a.tested * per_mille,
             "{what}: {a:?}"
