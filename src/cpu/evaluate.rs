@@ -228,6 +228,7 @@ impl<'a> MaskRule<'a> {
 /// Counters one pixel's triangle tests add to.
 #[derive(Default)]
 pub(super) struct TestCounters {
+    pub(super) tangent_passed: u64,
     pub(super) depth_passed: u64,
     pub(super) saturated_masks: u64,
     pub(super) masks_nonempty: u64,
@@ -259,17 +260,18 @@ fn triangle_mask(
     let t = tri.map(|v| v - px.p);
     // Most candidates are below the tangent plane: that check stays inline
     // in the candidate loop, the rest of the test is called.
-    match above_tangent_plane(&t, px.normal, px.microquad_part) {
-        None => 0,
-        Some(height) => match (&px.soft, &px.paired) {
-            (None, _) => occluded_samples(px, &t, height, rule, counters),
-            (Some(view), None) => {
-                occluded_light_samples(&t, height, px.microquad_part, view, rule, counters)
-            }
-            (Some(view), Some(rays)) => {
-                paired_occluded_samples(&t, height, px.microquad_part, view.finite, rays, counters)
-            }
-        },
+    let Some(height) = above_tangent_plane(&t, px.normal, px.microquad_part) else {
+        return 0;
+    };
+    counters.tangent_passed += 1;
+    match (&px.soft, &px.paired) {
+        (None, _) => occluded_samples(px, &t, height, rule, counters),
+        (Some(view), None) => {
+            occluded_light_samples(&t, height, px.microquad_part, view, rule, counters)
+        }
+        (Some(view), Some(rays)) => {
+            paired_occluded_samples(&t, height, px.microquad_part, view.finite, rays, counters)
+        }
     }
 }
 
@@ -440,6 +442,7 @@ fn evaluate_pixel(
         cells
     };
     stats.tests_spawned += tests;
+    stats.tangent_passed += counters.tangent_passed;
     stats.depth_passed += counters.depth_passed;
     stats.saturated_masks += counters.saturated_masks;
     stats.masks_nonempty += counters.masks_nonempty;

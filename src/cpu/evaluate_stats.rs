@@ -13,7 +13,11 @@ pub struct EvaluateStats {
     pub extra_surfaces_tested: usize,
     /// Frustum-triangle tests started (candidate triangles visited).
     pub tests_spawned: u64,
-    /// Of those, triangles that passed the depth test at P.
+    /// Of those, triangles with a vertex above the receiver's tangent
+    /// plane (the depth test's first condition; the rest end there).
+    pub tangent_passed: u64,
+    /// Of those, triangles that passed the depth test at P (P beyond the
+    /// triangle's plane from the light).
     pub depth_passed: u64,
     /// Pixels that stopped early because their mask was full.
     pub early_outs: usize,
@@ -56,6 +60,7 @@ impl EvaluateStats {
         self.pixels_tested += s.pixels_tested;
         self.extra_surfaces_tested += s.extra_surfaces_tested;
         self.tests_spawned += s.tests_spawned;
+        self.tangent_passed += s.tangent_passed;
         self.depth_passed += s.depth_passed;
         self.saturated_masks += s.saturated_masks;
         self.masks_nonempty += s.masks_nonempty;
@@ -81,6 +86,15 @@ impl EvaluateStats {
             tests: self.tests_spawned as f64 / px,
             depth_passed: self.depth_passed as f64 / px,
             masks_nonempty: self.masks_nonempty as f64 / px,
+            outcomes: TestOutcomes {
+                below_tangent_plane: self.tests_spawned.saturating_sub(self.tangent_passed) as f64
+                    / px,
+                not_beyond_triangle_plane: self.tangent_passed.saturating_sub(self.depth_passed)
+                    as f64
+                    / px,
+                outside_edges: self.depth_passed.saturating_sub(self.masks_nonempty) as f64 / px,
+                nonempty_mask: self.masks_nonempty as f64 / px,
+            },
             cells: self.cells_visited as f64 / px,
             levels: self.levels_visited as f64 / px,
             simd_efficiency: self.simd_efficiency(),
@@ -98,10 +112,29 @@ pub struct WorkPerPixel {
     pub depth_passed: f64,
     /// Tests whose mask was not empty.
     pub masks_nonempty: f64,
+    /// Where the tests ended.
+    pub outcomes: TestOutcomes,
     /// Grid cells visited, over all pyramid levels.
     pub cells: f64,
     /// Pyramid levels visited.
     pub levels: f64,
     /// [`EvaluateStats::simd_efficiency`].
     pub simd_efficiency: f64,
+}
+
+/// Where a tested pixel's tests ended, per tested pixel (the four add up
+/// to [`WorkPerPixel::tests`]): what the cheap first condition rejects and
+/// what reaches the edges tell where a faster test pays (issue 30).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TestOutcomes {
+    /// Every vertex at or below the receiver's tangent plane.
+    pub below_tangent_plane: f64,
+    /// Above the tangent plane, but P not beyond the triangle's plane
+    /// from the light.
+    pub not_beyond_triangle_plane: f64,
+    /// Through the depth test, no sample inside all three edges (or
+    /// edge-on from the light).
+    pub outside_edges: f64,
+    /// A non-empty mask.
+    pub nonempty_mask: f64,
 }
