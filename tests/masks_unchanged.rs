@@ -40,20 +40,27 @@ fn fnv1a(words: impl Iterator<Item = u32>) -> u64 {
 
 /// (case name, scene, settings) for every mode of `scene`.
 fn cases(name: &str, scene: &Scene) -> Vec<(String, Scene, IzbSettings)> {
-    let edges = |mode| IzbSettings {
-        mode,
-        edge_surfaces: true,
-        ..Default::default()
-    };
     let area = scene.clone().with_light_size(1.0).unwrap();
-    vec![
-        (format!("{name}/one"), scene.clone(), edges(SampleMode::One)),
-        (format!("{name}/lut32"), scene.clone(), edges(SampleMode::Lut32)),
-        (format!("{name}/exact32"), scene.clone(), edges(SampleMode::Exact32)),
-        (format!("{name}/soft-lut32"), area.clone(), edges(SampleMode::Lut32)),
-        (format!("{name}/paired32"), area.clone(), edges(SampleMode::Paired32)),
-        (format!("{name}/paired64"), area, edges(SampleMode::Paired64)),
-    ]
+    let modes = [
+        ("one", SampleMode::One, false),
+        ("lut32", SampleMode::Lut32, false),
+        ("exact32", SampleMode::Exact32, false),
+        ("soft-lut32", SampleMode::Lut32, true),
+        ("paired32", SampleMode::Paired32, true),
+        ("paired64", SampleMode::Paired64, true),
+    ];
+    modes
+        .into_iter()
+        .map(|(label, mode, area_light)| {
+            let settings = IzbSettings {
+                mode,
+                edge_surfaces: true,
+                ..Default::default()
+            };
+            let scene = if area_light { &area } else { scene };
+            (format!("{name}/{label}"), scene.clone(), settings)
+        })
+        .collect()
 }
 
 #[test]
