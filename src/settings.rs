@@ -70,6 +70,10 @@ pub struct IzbSettings {
     /// ([`crate::gbuffer::edge_surfaces`]), where the mode has per-sample
     /// rays ([`Self::uses_edge_surfaces`]).
     pub edge_surfaces: bool,
+    /// The CPU twin's instruction set for its batched tests (default: the
+    /// widest this processor has, capped by `IZB_SIMD`); masks and
+    /// counters do not depend on it.
+    pub simd: crate::cpu::simd::SimdPath,
 }
 
 impl IzbSettings {
@@ -134,6 +138,7 @@ impl Default for IzbSettings {
             split_lambda: 1.0,
             skips: Skips::ALL,
             edge_surfaces: false,
+            simd: crate::cpu::simd::SimdPath::detected(),
         }
     }
 }

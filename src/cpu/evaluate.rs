@@ -18,6 +18,8 @@ use super::light_samples::{
     below_horizon, occluded_light_samples, paired_occluded_samples, LightView, PairedRays,
 };
 use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
+use super::simd::SimdPath;
+use super::survivor_batch::{SurvivorBatch, WalkPoint};
 use super::{is_receiver, SampleMode, Skips};
 use crate::frustum::{
     above_tangent_plane, beyond_triangle_plane, edge_function, exact_edge_mask,
@@ -164,6 +166,10 @@ pub struct MaskRule<'a> {
     /// The samples are the light's (an area light, [`Self::for_light`]),
     /// not the µQuad's.
     pub light_samples: bool,
+    /// The instruction set of the batched tests
+    /// ([`super::survivor_batch`]): masks and counters are the same on
+    /// every path.
+    pub simd: SimdPath,
 }
 
 impl<'a> MaskRule<'a> {
@@ -184,6 +190,7 @@ impl<'a> MaskRule<'a> {
             skips,
             radius: crate::frustum::pattern_radius(pattern),
             light_samples: soft,
+            simd: SimdPath::detected(),
         }
     }
 
@@ -341,7 +348,7 @@ pub fn for_each_candidate(
     bins: &Bins,
     g: &GBuffer,
     i: usize,
-    visit: impl FnMut(u32) -> bool,
+    mut visit: impl FnMut(u32) -> bool,
 ) -> (u64, u64) {
     let ndc_box = setup.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i]);
     let hard = MaskRule::new(SampleMode::One, Skips::ALL);
@@ -349,19 +356,21 @@ pub fn for_each_candidate(
         setup,
         bins,
         &pixel_frustum(setup, g, i, ndc_box, &hard),
-        visit,
+        |id, _| visit(id),
     )
 }
 
+/// [`for_each_candidate`]'s walk; `visit` also gets the cells and levels
+/// visited so far (what the walk returns if it stops there).
 fn candidates_of(
     setup: &LightSetup,
     bins: &Bins,
     px: &PixelFrustum,
-    mut visit: impl FnMut(u32) -> bool,
+    mut visit: impl FnMut(u32, (u64, u64)) -> bool,
 ) -> (u64, u64) {
     let bit = 1u8 << px.cascade;
     for e in &bins.overflow {
-        if e.cascades & bit != 0 && visit(e.id) {
+        if e.cascades & bit != 0 && visit(e.id, (0, 0)) {
             return (0, 0);
         }
     }
@@ -382,7 +391,7 @@ fn candidates_of(
                 for e in bins.cell_at(level_cells.index(x, y)) {
                     // A triangle in several of the visited cells is tested
                     // in the first of them (see `CellEntry`).
-                    if e.tested_in(x, y, x0, y0) && visit(e.id) {
+                    if e.tested_in(x, y, x0, y0) && visit(e.id, (cells, levels)) {
                         return (cells, levels);
                     }
                 }
@@ -431,15 +440,61 @@ fn evaluate_pixel(
         (0, 0)
     } else {
         let stop_when_full = rule.skips.full_mask;
-        let cells = candidates_of(setup, bins, px, |id| {
-            if id != px.receiver && id != cover {
-                tests += 1;
-                mask |= triangle_mask(px, &triangles[id as usize], rule, &mut counters);
+        // Under a point-like light the candidates above the tangent plane
+        // wait in a batch for the rest of their test (`survivor_batch`);
+        // where the mask fills inside a batch, the counters go back to that
+        // candidate's, as if the walk had stopped there.
+        let batching = px.soft.is_none();
+        let mut batch = SurvivorBatch::default();
+        let mut stopped: Option<WalkPoint> = None;
+        let mut walked = candidates_of(setup, bins, px, |id, walked| {
+            if id == px.receiver || id == cover {
+                return false;
             }
-            stop_when_full && full(mask)
+            tests += 1;
+            if !batching {
+                mask |= triangle_mask(px, &triangles[id as usize], rule, &mut counters);
+                return stop_when_full && full(mask);
+            }
+            let t = triangles[id as usize].map(|v| v - px.p);
+            let Some(height) = above_tangent_plane(&t, px.normal, px.microquad_part) else {
+                return false;
+            };
+            counters.tangent_passed += 1;
+            let point = WalkPoint {
+                tests,
+                tangent_passed: counters.tangent_passed,
+                walked,
+            };
+            if batch.push(&t, height, point) {
+                stopped = test_batch(
+                    px,
+                    rule,
+                    &mut batch,
+                    &mut mask,
+                    &mut counters,
+                    stop_when_full,
+                );
+            }
+            stopped.is_some()
         });
+        if stopped.is_none() {
+            stopped = test_batch(
+                px,
+                rule,
+                &mut batch,
+                &mut mask,
+                &mut counters,
+                stop_when_full,
+            );
+        }
+        if let Some(point) = stopped {
+            tests = point.tests;
+            counters.tangent_passed = point.tangent_passed;
+            walked = point.walked;
+        }
         stats.early_outs += (stop_when_full && full(mask)) as usize;
-        cells
+        walked
     };
     stats.tests_spawned += tests;
     stats.tangent_passed += counters.tangent_passed;
@@ -449,6 +504,39 @@ fn evaluate_pixel(
     stats.cells_visited += cells;
     stats.levels_visited += levels;
     (mask, tests)
+}
+
+/// The masks of `batch`'s candidates, ORed into `mask` in their order as
+/// [`occluded_samples`] forms them; empties the batch. Returns the
+/// candidate at which the mask's wanted samples filled, when the walk is
+/// to stop there.
+fn test_batch(
+    px: &PixelFrustum,
+    rule: &MaskRule,
+    batch: &mut SurvivorBatch,
+    mask: &mut u32,
+    counters: &mut TestCounters,
+    stop_when_full: bool,
+) -> Option<WalkPoint> {
+    let len = std::mem::take(&mut batch.len);
+    if len == 0 {
+        return None;
+    }
+    let r = batch.test(rule.simd, px.microquad_part, px.light, px.ex, px.ey);
+    for l in 0..len {
+        if r.beyond[l] {
+            counters.depth_passed += 1;
+            // Edge-on from the light (or NaN): no shadow area.
+            if r.winding[l] != 0.0 {
+                let edges = &r.edges[l];
+                *mask |= and_of_edges(rule, 3, |k| edges[k], counters);
+            }
+        }
+        if stop_when_full && *mask & px.wanted == px.wanted {
+            return Some(batch.point[l]);
+        }
+    }
+    None
 }
 
 /// The occluded samples of triangle `id` for shadow-tested pixel `i`,

@@ -21,6 +21,8 @@ pub mod light_samples;
 pub mod light_setup;
 pub mod penumbra;
 pub mod receivers;
+pub mod simd;
+pub mod survivor_batch;
 pub mod translate_vertices;
 
 // The settings the CPU twins take, declared below both backends.
@@ -219,7 +221,10 @@ pub fn render_cpu_with(
     let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
     let bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
     seconds.bin = lap();
-    let rule = MaskRule::for_light(settings.mode, settings.skips, soft);
+    let rule = MaskRule {
+        simd: settings.simd.or_supported(),
+        ..MaskRule::for_light(settings.mode, settings.skips, soft)
+    };
     let mut eval_stats = evaluate::EvaluateStats::default();
     let masks = evaluate_half(
         (&setup, &bins, triangles),

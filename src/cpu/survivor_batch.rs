@@ -1,0 +1,203 @@
+//! The rest of the depth test and the edge functions, eight candidates at
+//! a time: a pixel's candidates that pass the tangent-plane condition (a
+//! third of courtyard's tests, two thirds of its evaluate time) wait in a
+//! batch, and the batch computes for every lane whether P lies beyond the
+//! triangle's plane ([`crate::frustum::beyond_triangle_plane`]), the
+//! winding and the three side planes' edge functions
+//! ([`crate::frustum::edge_function`]) in SIMD registers. The masks are
+//! then formed lane by lane, in the candidates' order, by the scalar code
+//! (the LUT's cell, or the exact sample loop), so a mask fills — and the
+//! walk stops — at the same candidate as one test at a time.
+//!
+//! Bit for bit the scalar test: each lane performs the scalar functions'
+//! operations in their order (`glam`'s dot as `(x·x' + y·y') + z·z'`, its
+//! cross product, the same `max3`, the power-of-two normalisation; no
+//! fused multiply-add, which Rust never contracts), with the scalar code's
+//! early returns as selects. The kernel is one Rust loop over the lanes,
+//! compiled three times: plain (x86-64's SSE2), with AVX2 and with
+//! AVX-512F enabled ([`SimdPath`]); LLVM vectorises each, and every path
+//! gives the same floats.
+
+use super::simd::SimdPath;
+use crate::frustum::{max3, LightRel, Vector, DEPTH_TOLERANCE_ROUNDING};
+use glam::Vec3;
+
+/// Candidates per batch.
+pub const LANES: usize = 8;
+
+/// What the walk had done when a candidate joined the batch: what the
+/// counters are if the pixel's mask fills at that candidate.
+#[derive(Clone, Copy, Default)]
+pub struct WalkPoint {
+    pub tests: u64,
+    pub tangent_passed: u64,
+    /// Cells and levels visited.
+    pub walked: (u64, u64),
+}
+
+/// Up to [`LANES`] candidates above one pixel's tangent plane.
+#[derive(Default)]
+pub struct SurvivorBatch {
+    pub len: usize,
+    /// `t[v][axis][lane]`: vertex `v` minus P.
+    t: [[[f32; LANES]; 3]; 3],
+    height: [f32; LANES],
+    pub point: [WalkPoint; LANES],
+}
+
+/// The batch's results, per lane.
+pub struct BatchTests {
+    /// P beyond the triangle's plane from the light (the depth test's
+    /// second condition).
+    pub beyond: [bool; LANES],
+    /// [`crate::frustum::winding`].
+    pub winding: [f32; LANES],
+    /// `edges[lane][k]`: edge function `k`, flipped by the winding.
+    pub edges: [[[f32; 3]; 3]; LANES],
+}
+
+impl SurvivorBatch {
+    /// Adds a candidate (vertices minus P, its height above the tangent
+    /// plane); returns whether the batch is now full.
+    #[inline]
+    pub fn push(&mut self, t: &[Vec3; 3], height: f32, point: WalkPoint) -> bool {
+        let l = self.len;
+        for (v, tv) in t.iter().enumerate() {
+            self.t[v][0][l] = tv.x;
+            self.t[v][1][l] = tv.y;
+            self.t[v][2][l] = tv.z;
+        }
+        self.height[l] = height;
+        self.point[l] = point;
+        self.len += 1;
+        self.len == LANES
+    }
+
+    /// Lane `l`'s vertices minus P.
+    #[inline(always)]
+    fn triangle(&self, l: usize) -> [Vec3; 3] {
+        let t = &self.t;
+        [0, 1, 2].map(|v| Vec3::new(t[v][0][l], t[v][1][l], t[v][2][l]))
+    }
+
+    /// The depth test's second condition, the winding and the edge
+    /// functions of every lane (lanes past `len` hold stale values).
+    pub fn test(
+        &self,
+        path: SimdPath,
+        microquad_part: f32,
+        light: LightRel<Vec3>,
+        ex: Vec3,
+        ey: Vec3,
+    ) -> BatchTests {
+        let mut out = BatchTests {
+            beyond: [false; LANES],
+            winding: [0.0; LANES],
+            edges: [[[0.0; 3]; 3]; LANES],
+        };
+        let frame = Frame {
+            microquad_part,
+            ex,
+            ey,
+        };
+        match (path, light) {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `path` is Avx512 only where the processor has
+            // AVX-512F (`SimdPath::or_supported`).
+            (SimdPath::Avx512, LightRel::Toward(w)) => unsafe {
+                kernel_avx512::<false>(self, &frame, w, &mut out)
+            },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above.
+            (SimdPath::Avx512, LightRel::At(l)) => unsafe {
+                kernel_avx512::<true>(self, &frame, l, &mut out)
+            },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `path` is Avx2 only where the processor has AVX2.
+            (SimdPath::Avx2, LightRel::Toward(w)) => unsafe {
+                kernel_avx2::<false>(self, &frame, w, &mut out)
+            },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above.
+            (SimdPath::Avx2, LightRel::At(l)) => unsafe {
+                kernel_avx2::<true>(self, &frame, l, &mut out)
+            },
+            (_, LightRel::Toward(w)) => kernel::<false>(self, &frame, w, &mut out),
+            (_, LightRel::At(l)) => kernel::<true>(self, &frame, l, &mut out),
+        }
+        out
+    }
+}
+
+/// The pixel's part of the test.
+struct Frame {
+    microquad_part: f32,
+    ex: Vec3,
+    ey: Vec3,
+}
+
+/// # Safety
+/// The processor has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn kernel_avx2<const POINT: bool>(
+    b: &SurvivorBatch,
+    f: &Frame,
+    light: Vec3,
+    out: &mut BatchTests,
+) {
+    kernel::<POINT>(b, f, light, out)
+}
+
+/// # Safety
+/// The processor has AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn kernel_avx512<const POINT: bool>(
+    b: &SurvivorBatch,
+    f: &Frame,
+    light: Vec3,
+    out: &mut BatchTests,
+) {
+    kernel::<POINT>(b, f, light, out)
+}
+
+/// Every lane's test; `POINT`: `light` is the point light's position
+/// minus P (`LightRel::At`), else the unit vector toward it.
+#[inline(always)]
+fn kernel<const POINT: bool>(b: &SurvivorBatch, f: &Frame, light: Vec3, out: &mut BatchTests) {
+    let rounding = <Vec3 as Vector>::from_f64(DEPTH_TOLERANCE_ROUNDING);
+    // `side_plane_normal`.
+    let side = |x: Vec3, y: Vec3| {
+        if POINT {
+            (x - light).cross(y - x)
+        } else {
+            (y - x).cross(light)
+        }
+    };
+    for l in 0..LANES {
+        let t = b.triangle(l);
+        // `above_full_tolerance`.
+        let reach = max3(t[0].length(), t[1].length(), t[2].length());
+        let tolerance = f.microquad_part + rounding * reach;
+        let above = b.height[l] > tolerance;
+        // `beyond_triangle_plane`'s plane, oriented toward the light.
+        let n = (t[1] - t[0]).cross(t[2] - t[0]).pow2_normalised();
+        let facing = if POINT {
+            n.dot(light - t[0])
+        } else {
+            n.dot(light)
+        };
+        let n = if facing > 0.0 { n } else { -n };
+        out.beyond[l] = above & (facing != 0.0) & (n.dot(t[0]) > tolerance * n.length());
+        // `winding` and `edge_function`.
+        let w = side(t[0], t[1]).dot(t[2] - t[0]);
+        out.winding[l] = w;
+        for k in 0..3 {
+            let (x, y) = (t[k], t[(k + 1) % 3]);
+            let n = side(x, y);
+            let n = if w < 0.0 { -n } else { n };
+            out.edges[l][k] = [-(n.dot(x)), n.dot(f.ex), n.dot(f.ey)];
+        }
+    }
+}

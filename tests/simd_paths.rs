@@ -1,0 +1,130 @@
+//! The CPU twin's batched tests (`izb::cpu::survivor_batch`) give the same
+//! masks and counters on every instruction-set path — scalar, AVX2,
+//! AVX-512 — on every procedural and shared scene, in every mode (1 spp,
+//! 32 LUT and 32 exact under the scene's light, the soft LUT masks,
+//! `Paired32` and `Paired64` under a 1° area light; edge surfaces on). A
+//! path this processor lacks is printed as skipped. And `IZB_SIMD=scalar`
+//! (a machine without AVX2) makes `izb render` write the same image. No
+//! shared scenes: they are skipped, unless `IZB_REQUIRE_SCENES=1`.
+
+mod common;
+
+use izb::bvh::SceneBvh;
+use izb::cpu::simd::SimdPath;
+use izb::cpu::{render_cpu, IzbSettings, SampleMode};
+use izb::scene::{self, Scene};
+
+const RESOLUTION: [u32; 2] = [64, 36];
+
+const MODES: [(SampleMode, bool); 6] = [
+    (SampleMode::One, false),
+    (SampleMode::Lut32, false),
+    (SampleMode::Exact32, false),
+    (SampleMode::Lut32, true),
+    (SampleMode::Paired32, true),
+    (SampleMode::Paired64, true),
+];
+
+fn scenes() -> Vec<(String, Scene)> {
+    let mut out: Vec<(String, Scene)> = scene::procedural::NAMES
+        .iter()
+        .map(|n| (n.to_string(), scene::load(n).unwrap()))
+        .collect();
+    if common::shared_scenes_dir().is_some() {
+        for n in common::SHARED_SCENES {
+            out.push((n.to_string(), common::shared_scene(n).unwrap()));
+        }
+    } else {
+        assert!(
+            std::env::var("IZB_REQUIRE_SCENES").as_deref() != Ok("1"),
+            "IZB_REQUIRE_SCENES=1 but ../shared/scenes is missing"
+        );
+        println!("skipped the shared scenes (no ../shared/scenes)");
+    }
+    out
+}
+
+#[test]
+fn every_simd_path_gives_the_scalar_masks_and_counters() {
+    let paths: Vec<SimdPath> = SimdPath::ALL
+        .into_iter()
+        .filter(|p| {
+            let ok = p.supported();
+            if !ok {
+                println!("skipped the {p:?} path: this processor lacks it");
+            }
+            ok
+        })
+        .collect();
+    let scenes = scenes();
+    let mut compared = 0;
+    for (name, scene) in &scenes {
+        let scene = scene.clone().with_resolution(RESOLUTION).unwrap();
+        let area = scene.clone().with_light_size(1.0).unwrap();
+        let bvh = SceneBvh::build(&scene);
+        for (mode, area_light) in MODES {
+            let scene = if area_light { &area } else { &scene };
+            let render = |simd| {
+                let settings = IzbSettings {
+                    mode,
+                    edge_surfaces: true,
+                    simd,
+                    ..Default::default()
+                };
+                let r = render_cpu(scene, &bvh, settings);
+                let counters = serde_json::to_value(&r.report.evaluate).unwrap();
+                (r.masks, r.masks_high, counters)
+            };
+            let scalar = render(SimdPath::Scalar);
+            for &path in &paths[1..] {
+                let other = render(path);
+                let what = format!("{name} {mode:?} area light {area_light}: {path:?}");
+                assert!(scalar.0 == other.0, "{what}: masks differ from scalar");
+                assert!(scalar.1 == other.1, "{what}: second halves differ");
+                assert_eq!(scalar.2, other.2, "{what}: counters differ");
+                compared += 1;
+            }
+        }
+    }
+    assert_eq!(compared, scenes.len() * MODES.len() * (paths.len() - 1));
+    println!(
+        "{compared} (scene, mode, path) renders equal to the scalar path's ({} paths)",
+        paths.len()
+    );
+}
+
+#[test]
+fn izb_simd_scalar_renders_the_same_image() {
+    let dir = std::env::temp_dir().join(format!("izb_simd_paths_{}", std::process::id()));
+    let render = |simd: Option<&str>, out: &str| {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_izb"));
+        cmd.args([
+            "render",
+            "default",
+            "--backend",
+            "cpu",
+            "--resolution",
+            "96x54",
+        ])
+        .arg("--out")
+        .arg(dir.join(out));
+        match simd {
+            Some(p) => cmd.env("IZB_SIMD", p),
+            None => cmd.env_remove("IZB_SIMD"),
+        };
+        let status = cmd.output().unwrap();
+        assert!(status.status.success(), "{status:?}");
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join(out).join("report.json")).unwrap())
+                .unwrap();
+        let image = std::fs::read(dir.join(out).join("visibility.exr")).unwrap();
+        (report["render"]["settings"]["simd"].clone(), image)
+    };
+    let (scalar_path, scalar) = render(Some("scalar"), "scalar");
+    let (widest_path, widest) = render(None, "widest");
+    assert_eq!(scalar_path, "scalar");
+    let widest_expected = SimdPath::Avx512.or_supported();
+    assert_eq!(widest_path, serde_json::to_value(widest_expected).unwrap());
+    assert!(scalar == widest, "IZB_SIMD=scalar changed visibility.exr");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
