@@ -19,7 +19,7 @@ use super::light_samples::{
 };
 use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
 use super::simd::SimdPath;
-use super::survivor_batch::{SurvivorBatch, WalkPoint};
+use super::survivor_batch::{BatchTests, SurvivorBatch, WalkPoint};
 use super::{is_receiver, SampleMode, Skips};
 use crate::frustum::{
     above_tangent_plane, beyond_triangle_plane, edge_function, exact_edge_mask,
@@ -409,6 +409,7 @@ fn evaluate_pixel(
     triangles: &[[Vec3; 3]],
     px: &PixelFrustum,
     rule: &MaskRule,
+    (batch, batch_tests): (&mut SurvivorBatch, &mut BatchTests),
     stats: &mut EvaluateStats,
 ) -> (u32, u64) {
     // An area light's samples below the receiver's horizon are hidden by
@@ -445,7 +446,7 @@ fn evaluate_pixel(
         // where the mask fills inside a batch, the counters go back to that
         // candidate's, as if the walk had stopped there.
         let batching = px.soft.is_none();
-        let mut batch = SurvivorBatch::default();
+        batch.len = 0;
         let mut stopped: Option<WalkPoint> = None;
         let mut walked = candidates_of(setup, bins, px, |id, walked| {
             if id == px.receiver || id == cover {
@@ -470,7 +471,7 @@ fn evaluate_pixel(
                 stopped = test_batch(
                     px,
                     rule,
-                    &mut batch,
+                    (&mut *batch, &mut *batch_tests),
                     &mut mask,
                     &mut counters,
                     stop_when_full,
@@ -482,7 +483,7 @@ fn evaluate_pixel(
             stopped = test_batch(
                 px,
                 rule,
-                &mut batch,
+                (&mut *batch, &mut *batch_tests),
                 &mut mask,
                 &mut counters,
                 stop_when_full,
@@ -513,7 +514,7 @@ fn evaluate_pixel(
 fn test_batch(
     px: &PixelFrustum,
     rule: &MaskRule,
-    batch: &mut SurvivorBatch,
+    (batch, r): (&mut SurvivorBatch, &mut BatchTests),
     mask: &mut u32,
     counters: &mut TestCounters,
     stop_when_full: bool,
@@ -522,7 +523,7 @@ fn test_batch(
     if len == 0 {
         return None;
     }
-    let r = batch.test(rule.simd, px.microquad_part, px.light, px.ex, px.ey);
+    batch.test(rule.simd, px.microquad_part, px.light, px.ex, px.ey, r);
     for l in 0..len {
         if r.beyond[l] {
             counters.depth_passed += 1;
@@ -616,6 +617,8 @@ pub fn evaluate_wanted(
             };
             let mut stats = EvaluateStats::default();
             let mut longest = vec![0u64; group_of(entries.end - 1) + 1];
+            // The batch and its results, reused pixel after pixel.
+            let mut batch = (SurvivorBatch::default(), BatchTests::default());
             let masks = entries
                 .map(|i| {
                     if !is_receiver(g.flags[i], rule.skips) {
@@ -626,8 +629,15 @@ pub fn evaluate_wanted(
                     if let Some(w) = wanted {
                         px.wanted = w[i];
                     }
-                    let (mask, tests) =
-                        evaluate_pixel(setup, bins, triangles, &px, rule, &mut stats);
+                    let (mask, tests) = evaluate_pixel(
+                        setup,
+                        bins,
+                        triangles,
+                        &px,
+                        rule,
+                        (&mut batch.0, &mut batch.1),
+                        &mut stats,
+                    );
                     stats.longest_pixel_tests = stats.longest_pixel_tests.max(tests);
                     let group = &mut longest[group_of(i)];
                     *group = (*group).max(tests);

@@ -46,6 +46,7 @@ pub struct SurvivorBatch {
 }
 
 /// The batch's results, per lane.
+#[derive(Default)]
 pub struct BatchTests {
     /// P beyond the triangle's plane from the light (the depth test's
     /// second condition).
@@ -81,7 +82,8 @@ impl SurvivorBatch {
     }
 
     /// The depth test's second condition, the winding and the edge
-    /// functions of every lane (lanes past `len` hold stale values).
+    /// functions of every lane, into `out` (lanes past `len` hold stale
+    /// values).
     pub fn test(
         &self,
         path: SimdPath,
@@ -89,12 +91,8 @@ impl SurvivorBatch {
         light: LightRel<Vec3>,
         ex: Vec3,
         ey: Vec3,
-    ) -> BatchTests {
-        let mut out = BatchTests {
-            beyond: [false; LANES],
-            winding: [0.0; LANES],
-            edges: [[[0.0; 3]; 3]; LANES],
-        };
+        out: &mut BatchTests,
+    ) {
         let frame = Frame {
             microquad_part,
             ex,
@@ -105,27 +103,26 @@ impl SurvivorBatch {
             // SAFETY: `path` is Avx512 only where the processor has
             // AVX-512F (`SimdPath::or_supported`).
             (SimdPath::Avx512, LightRel::Toward(w)) => unsafe {
-                kernel_avx512::<false>(self, &frame, w, &mut out)
+                kernel_avx512::<false>(self, &frame, w, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
             (SimdPath::Avx512, LightRel::At(l)) => unsafe {
-                kernel_avx512::<true>(self, &frame, l, &mut out)
+                kernel_avx512::<true>(self, &frame, l, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `path` is Avx2 only where the processor has AVX2.
             (SimdPath::Avx2, LightRel::Toward(w)) => unsafe {
-                kernel_avx2::<false>(self, &frame, w, &mut out)
+                kernel_avx2::<false>(self, &frame, w, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
             (SimdPath::Avx2, LightRel::At(l)) => unsafe {
-                kernel_avx2::<true>(self, &frame, l, &mut out)
+                kernel_avx2::<true>(self, &frame, l, out)
             },
-            (_, LightRel::Toward(w)) => kernel::<false>(self, &frame, w, &mut out),
-            (_, LightRel::At(l)) => kernel::<true>(self, &frame, l, &mut out),
+            (_, LightRel::Toward(w)) => kernel::<false>(self, &frame, w, out),
+            (_, LightRel::At(l)) => kernel::<true>(self, &frame, l, out),
         }
-        out
     }
 }
 
