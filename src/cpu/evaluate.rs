@@ -18,12 +18,11 @@ use super::light_samples::{
     below_horizon, occluded_light_samples, paired_occluded_samples, LightView, PairedRays,
 };
 use super::light_setup::{level_scale, LightSetup, MicroquadBoxes};
-use super::simd::SimdPath;
 use super::survivor_batch::{BatchTests, SurvivorBatch, WalkPoint};
 use super::{is_receiver, SampleMode, Skips};
 use crate::frustum::{
-    above_tangent_plane, beyond_triangle_plane, edge_function, exact_edge_mask,
-    microquad_tolerance, normalised_edge, saturated_edge, winding, LightRel,
+    above_tangent_plane, beyond_triangle_plane, edge_function, microquad_tolerance, winding,
+    LightRel,
 };
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
@@ -33,6 +32,7 @@ use rayon::prelude::*;
 pub const FULL: u32 = izb_contract::word::FULL_MASK;
 
 pub use super::evaluate_stats::{EvaluateStats, WorkPerPixel};
+pub use super::mask_rule::MaskRule;
 
 /// What evaluate needs of one pixel. The frustum test runs in eye space,
 /// relative to P (see [`triangle_mask`] for why not in light view): `p`,
@@ -148,88 +148,6 @@ fn cover_of(setup: &LightSetup, bins: &Bins, px: &PixelFrustum) -> u32 {
 /// The levels set in `mask`, finest first.
 fn levels_of(mask: u32) -> impl Iterator<Item = u32> {
     (0..32).filter(move |l| mask & (1 << l) != 0)
-}
-
-/// How `evaluate` forms masks: the mode, the sample pattern, the LUT, and
-/// the skips that shape the work.
-#[derive(Clone, Copy)]
-pub struct MaskRule<'a> {
-    pub mode: SampleMode,
-    pub pattern: &'a [[f32; 2]; 32],
-    /// Paired modes: the µQuad sample each of `pattern`'s light samples is
-    /// paired with (sample i with sample i).
-    pub pair_pattern: &'a [[f32; 2]; 32],
-    pub lut: &'a izb_lut::EdgeLut,
-    pub skips: Skips,
-    /// [`crate::frustum::pattern_radius`] of `pattern`.
-    pub radius: f32,
-    /// The samples are the light's (an area light, [`Self::for_light`]),
-    /// not the µQuad's.
-    pub light_samples: bool,
-    /// The instruction set of the batched tests
-    /// ([`super::survivor_batch`]): masks and counters are the same on
-    /// every path.
-    pub simd: SimdPath,
-}
-
-impl<'a> MaskRule<'a> {
-    /// The µQuad's 32 samples and their LUT.
-    pub fn new(mode: SampleMode, skips: Skips) -> MaskRule<'static> {
-        Self::for_light(mode, skips, false)
-    }
-
-    /// The light's 32 samples and their LUT (soft shadows), or the
-    /// µQuad's for a point-like light ([`crate::lut::tables_for`]).
-    pub fn for_light(mode: SampleMode, skips: Skips, soft: bool) -> MaskRule<'static> {
-        let (lut, pattern) = crate::lut::tables_for(soft);
-        MaskRule {
-            mode,
-            pattern,
-            pair_pattern: crate::lut::sample_pattern(),
-            lut,
-            skips,
-            radius: crate::frustum::pattern_radius(pattern),
-            light_samples: soft,
-            simd: SimdPath::detected(),
-        }
-    }
-
-    /// The rule of mask half `half` of a paired mode under an area light
-    /// ([`crate::lut::paired_patterns`]: half 0 the light and µQuad
-    /// patterns, as [`Self::for_light`] has them; half 1 `Paired64`'s
-    /// samples 32–63).
-    pub fn half(self, half: usize) -> MaskRule<'a> {
-        let (pattern, pair_pattern) = crate::lut::paired_patterns(half);
-        MaskRule {
-            pattern,
-            pair_pattern,
-            radius: crate::frustum::pattern_radius(pattern),
-            ..self
-        }
-    }
-
-    /// The samples edge `e` keeps inside (bit set = inside), and whether
-    /// the cheap path decided them: the line keeps every sample on one
-    /// side. For the LUT that is exactly its own saturation branch; for
-    /// exact evaluation [`saturated_edge`]; one sample is always cheap.
-    #[inline]
-    pub(super) fn edge_mask(&self, e: [f32; 3]) -> (u32, bool) {
-        let e = normalised_edge(e);
-        match self.mode {
-            SampleMode::One => (if e[0] >= 0.0 { FULL } else { 0 }, true),
-            SampleMode::Lut32 => {
-                let cell = self.lut.cell(e[0], e[1], e[2]);
-                let cheap = matches!(cell, izb_lut::LutCell::Constant(_));
-                (self.lut.cell_mask(cell), cheap)
-            }
-            SampleMode::Exact32 | SampleMode::Paired32 | SampleMode::Paired64 => {
-                match saturated_edge(e, self.radius) {
-                    Some(mask) => (mask, true),
-                    None => (exact_edge_mask(e, self.pattern), false),
-                }
-            }
-        }
-    }
 }
 
 /// Counters one pixel's triangle tests add to.

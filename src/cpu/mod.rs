@@ -19,6 +19,7 @@ pub mod footprint;
 pub mod gather_draws;
 pub mod light_samples;
 pub mod light_setup;
+mod mask_rule;
 pub mod penumbra;
 pub mod receivers;
 pub mod simd;
