@@ -83,6 +83,9 @@ fn a_resident_pass_records_frames_equal_to_render_allocating_nothing() {
             (0, 0),
             "{mode:?}: allocations inside frames"
         );
+        // The camera and light moved every frame: parameters only, so each
+        // slot recorded its fixed commands once and executed them since.
+        assert_eq!(pass.fixed_command_recordings(), 2, "{mode:?}");
         assert_no_validation_messages(&r, "shadow pass");
     }
     assert_eq!(compared, 2 * FRAMES / COMPARE_EVERY);
@@ -124,6 +127,8 @@ fn an_overrun_frame_is_exact_says_so_and_the_pass_grows() {
         assert_eq!(pass.retired_sets(), retired, "after frame {k}");
         frames += 1;
     }
+    // Slot 0 before and after the growth, slot 1 once (after it).
+    assert_eq!(pass.fixed_command_recordings(), 3);
     assert_eq!(pass.cell_capacity(), need + need / 2, "half again the need");
     assert_eq!(frames, 3);
     assert_no_validation_messages(&r, "shadow pass overrun");

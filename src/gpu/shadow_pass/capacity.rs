@@ -154,6 +154,7 @@ impl ShadowPass<'_> {
             let ring =
                 super::slot_uploads::SlotUploads::new(self.renderer.shared(), slots, max_draws)?;
             let old = std::mem::replace(&mut self.uploads, ring);
+            self.slot_commands.invalidate();
             self.retired.push(Retired {
                 _set: None,
                 _uploads: Some(old),
@@ -202,6 +203,7 @@ impl ShadowPass<'_> {
         let shared = self.renderer.shared();
         let set = DescriptorSet::new(shared, &self.renderer.layout, buffers.clone())?;
         let old = std::mem::replace(&mut self.set, set);
+        self.slot_commands.invalidate();
         self.retired.push(Retired {
             _set: Some(old),
             _uploads: None,

@@ -45,20 +45,24 @@
 //!   size, each releasing the old buffers once every frame slot has
 //!   recorded again (`capacity.rs`).
 //!
-//! Per frame the recording is: a barrier after the previous frame's work
-//! on the pass's buffers, the parameters, the light state's start and
-//! the draw table written into the slot's upload ring and copied into
-//! the pass's buffers (`slot_uploads.rs`), for one view the BVH copied
-//! in, the counters
-//! cleared, the host's images acquired (one barrier each, from the state
-//! the host declares: [`super::host_images`]), then `gbuffer` (or
-//! `gbuffer_from_visibility`, `gbuffer_from_depth`), `light_setup`, `bin`, `evaluate`,
-//! `resolve` and `export_images` (into the host's mask and lit-fraction
-//! images, when given), and the counters copied into the frame slot's
-//! status buffer. Afterwards the masks and the shaded image are also in
-//! the pass's storage buffers, written by compute shaders and made
-//! visible to later compute-shader and transfer reads; the output images
-//! are in `GENERAL`, written by compute shaders.
+//! Per frame `record` writes the parameters, the light state's start and
+//! the draw table through the slot's upload ring (`slot_uploads.rs`) and
+//! records (`record.rs`): the slot's *opening* (the barrier after the
+//! previous frame's work on the pass's buffers, the ring's copies, for
+//! one view the BVH copied in, the counters cleared), the host's images
+//! and buffers acquired (one barrier each, from the state the host
+//! declares: [`super::host_images`]) with `gather_draws` and `gbuffer`
+//! (or `gbuffer_from_visibility`, `gbuffer_from_depth`), the slot's
+//! *core* (`light_setup`, `bin`, `evaluate`, `resolve`, the counters
+//! copied into the slot's status buffer), then `export_images` into the
+//! host's mask and lit-fraction images, when given. The opening and the
+//! core name only the pass's objects: they are secondary command buffers
+//! recorded once per slot and executed again (`slot_commands.rs`).
+//! Afterwards the masks and the shaded image are also in the pass's
+//! storage buffers, written by compute shaders and made visible to later
+//! compute-shader and transfer reads; the output images are in
+//! `GENERAL`, written by compute shaders; no pipeline or descriptor set
+//! of the pass's is left bound that the host may rely on.
 
 mod batch;
 mod capacity;
@@ -69,6 +73,8 @@ mod host_geometry;
 mod layout;
 mod one_view;
 mod read_back;
+mod record;
+mod slot_commands;
 mod slot_uploads;
 mod status;
 mod uploaded_gbuffer;
@@ -81,20 +87,16 @@ pub use read_back::{PassFrame, PassImages};
 pub use status::PassStatus;
 
 use super::frame::GpuRenderer;
-use super::frame_inputs::{frame_params, loop_budget, SceneUpload};
-use super::frame_memory::{reset_pass_state, FrameSizes};
-use super::gather_draws::FrameGeometry;
-use super::host_images::{HostImageSets, ImageUse};
+use super::frame_inputs::{loop_budget, SceneUpload};
+use super::frame_memory::FrameSizes;
+use super::host_images::HostImageSets;
 use super::pass_copies::upload_into;
 use super::pipeline::DescriptorSet;
 use super::resources::{BufferDesc, BufferDomain, GpuBuffer};
-use super::shared::{binding, counter, LightState, BINDING_COUNT};
+use super::shared::{binding, counter, BINDING_COUNT};
 use super::translate_vertices::WorldVertices;
-use super::{GpuError, Recorder};
-use crate::cpu::gather_draws::eye_relative_bounds;
+use super::GpuError;
 use crate::scene::Scene;
-use ash::vk;
-use frame_view::unorm_depth_step;
 use glam::{DVec3, Vec3};
 use std::sync::Arc;
 
@@ -126,6 +128,9 @@ pub struct ShadowPass<'r> {
     status: Vec<GpuBuffer>,
     /// Per frame slot, its parameters' upload buffer, mapped once.
     uploads: slot_uploads::SlotUploads,
+    /// Per frame slot, its frames' commands that name only the pass's
+    /// objects, recorded once and executed again (`slot_commands.rs`).
+    slot_commands: slot_commands::SlotCommands,
     /// The read-backs' buffer, kept between them (tests and tools).
     readback: super::pass_copies::ReadbackBuffer,
     /// Per frame slot, its last frame's timestamps at the passes'
@@ -314,6 +319,7 @@ impl<'r> ShadowPass<'r> {
         upload_into(renderer, &buffers, &uploads)?;
         let max_draws = host.map_or(0, |h| h.max_draws);
         let uploads = slot_uploads::SlotUploads::new(shared, config.frames_in_flight, max_draws)?;
+        let slot_commands = slot_commands::SlotCommands::new(shared, config.frames_in_flight)?;
         Ok(ShadowPass {
             renderer,
             config,
@@ -329,6 +335,7 @@ impl<'r> ShadowPass<'r> {
             slot_edge_slots: vec![0; config.frames_in_flight],
             status,
             uploads,
+            slot_commands,
             timestamps,
             readback: Default::default(),
             retired: Vec::new(),
@@ -358,238 +365,21 @@ impl<'r> ShadowPass<'r> {
         self.sizes.cell_capacity
     }
 
+    /// How many times a frame slot recorded its fixed commands (those
+    /// naming only the pass's objects, `slot_commands.rs`): once per slot,
+    /// then again only after [`Self::grow`], [`Self::resize`],
+    /// [`Self::reserve_host_geometry`] or a frame of another shape (its
+    /// size, triangles drawn, draws or edge surfaces); other frames
+    /// execute them as recorded.
+    pub fn fixed_command_recordings(&self) -> u64 {
+        self.slot_commands.recordings()
+    }
+
     /// Bytes of the pass's buffers, its frame slots' status included.
     pub fn memory_bytes(&self) -> u64 {
         let buffers: u64 = self.distinct_buffers().iter().map(|b| b.size()).sum();
         let restaged = self.restaged_bvh.as_ref().map_or(0, |r| r.bytes());
         let status: u64 = self.status.iter().map(|b| b.size()).sum();
         buffers + restaged + status + self.uploads.memory_bytes()
-    }
-
-    /// Records frame `slot`'s shadow pass for `view` into `cmd`.
-    ///
-    /// # Safety
-    /// `cmd` is a command buffer of this pass's device in the recording
-    /// state, recorded on this thread, submitted to a queue of the device's
-    /// compute family after every earlier frame of this pass (frames
-    /// execute in submission order: a barrier at the start orders each
-    /// after the one before); slot `slot`'s previous frame has finished
-    /// executing, and the pass outlives this frame's execution. Each
-    /// image in `view.images` is a live image and view of this device,
-    /// declared truthfully ([`super::host_images::HostImage`]: its layout
-    /// and last access when the frame starts executing), alive until the
-    /// frame has executed.
-    pub unsafe fn record(
-        &mut self,
-        cmd: vk::CommandBuffer,
-        slot: usize,
-        view: &FrameView,
-    ) -> Result<(), GpuError> {
-        // SAFETY: the caller's promise.
-        unsafe { self.record_frame(cmd, slot, view, None) }
-    }
-
-    /// [`Self::record`] or [`Self::record_host_geometry`]: `geometry`
-    /// must be given exactly to a pass made for the host's geometry.
-    ///
-    /// # Safety
-    /// As [`Self::record_host_geometry`]'s.
-    unsafe fn record_frame(
-        &mut self,
-        cmd: vk::CommandBuffer,
-        slot: usize,
-        view: &FrameView,
-        geometry: Option<&FrameGeometry>,
-    ) -> Result<(), GpuError> {
-        if slot >= self.status.len() {
-            return Err(GpuError::Unsupported(format!(
-                "frame slot {slot}: the pass has {} frames in flight",
-                self.status.len()
-            )));
-        }
-        let images = view.images;
-        let halves = self.config.settings.mask_halves(&self.scene);
-        images.check(self.config.gbuffer.images(), self.scene.resolution, halves)?;
-        self.take_view(view)?;
-        let drawn = self.take_geometry(geometry)?;
-        // This slot's previous frame is done (the caller): what only it
-        // still held is released.
-        for retired in &mut self.retired {
-            retired.slots_pending &= !(1u64 << slot);
-        }
-        self.retired.retain(|r| r.slots_pending != 0);
-        let renderer = self.renderer;
-        let shared = renderer.shared();
-        let settings = self.config.settings;
-        let scene = &self.scene;
-        let [w, h] = scene.resolution;
-        let mut params = frame_params(
-            scene,
-            settings,
-            self.frame_triangles as usize,
-            self.sizes.max_cells,
-            self.sizes.cell_capacity,
-            self.loop_budget,
-            renderer.heavy_entries(),
-        );
-        // Nothing reruns a recorded frame (but the batch `render`'s
-        // first): an overrun stays exact.
-        params.overrun_exact = u32::from(self.overrun_exact);
-        if let Some(w) = &self.world {
-            [params.eye_hi, params.eye_lo] = w.eye(scene.camera.eye).map(|v| v.to_array());
-            params.world_vertex_count = w.pairs.len() as u32;
-            params.world_node_count = w.bvh_nodes;
-        }
-        if let GBufferInput::DepthNormal(c) = self.config.gbuffer {
-            params.depth_near = c.near as f32;
-            params.depth_near_over_far = c.near_over_far() as f32;
-            params.depth_span = (1.0 - c.near_over_far()) as f32;
-            params.depth_reversed = u32::from(c.reversed);
-            params.depth_step = images.depth.map_or(0.0, |d| unorm_depth_step(d.format));
-        }
-        self.edge_params(&mut params);
-        self.slot_edge_slots[slot] = self.edge_slots();
-        let traced_edges = self.traced_edge_slots().is_some();
-        let rows = [w, self.receiver_rows()];
-        if let Some(h) = &self.host_geometry {
-            params.draw_count = h.table.len() as u32;
-            let [lo, hi] = eye_relative_bounds(self.bounds, scene.camera.eye);
-            (params.bounds_lo, params.bounds_hi) = (lo.to_array(), hi.to_array());
-        }
-        let device = &shared.device;
-        let draws = self
-            .host_geometry
-            .as_ref()
-            .map_or(&[][..], |h| &h.table[..]);
-        let targets = slot_uploads::UploadTargets {
-            frame: self.buffers[binding::FRAME as usize].buffer,
-            light: self.buffers[binding::LIGHT as usize].buffer,
-            draws: self.buffers[binding::DRAWS as usize].buffer,
-        };
-        let light_start = LightState::reset();
-        let buffer = |b: u32| self.buffers[b as usize].buffer;
-        // SAFETY: the caller's promise covers `cmd`, and the set, layout
-        // and kernels live in the pass and its renderer.
-        let mut rec = unsafe { Recorder::new(shared, cmd, &renderer.layout, &self.set) };
-        rec.begin_label("izb_shadow_pass");
-        let timestamps = &self.timestamps[slot];
-        // The slot's previous frame, which wrote them, is done (the caller).
-        timestamps.reset(cmd);
-        // The previous frame's reads and writes of every buffer are done
-        // before this frame's.
-        rec.barrier();
-        // SAFETY: the caller's promise: `cmd` is recording outside a render
-        // pass and runs after the slot's previous frame; the targets are
-        // the pass's, sized for a frame's parameters and its draws.
-        unsafe {
-            let parts = (&params, &light_start, draws);
-            self.uploads.record(device, cmd, slot, parts, targets)
-        }?;
-        if let Some(bvh) = &self.restaged_bvh {
-            // SAFETY: as above; the BVH's buffers are the pass's, and the
-            // previous frame's bin, which overwrote them, is done (the
-            // barrier above).
-            unsafe { bvh.record(device, cmd, buffer) };
-        }
-        reset_pass_state(device, cmd, buffer, traced_edges);
-        rec.barrier();
-        timestamps.write(cmd, 0);
-        let steps = self
-            .step_marks
-            .as_ref()
-            .filter(|_| slot + 1 == self.status.len());
-        if let Some(steps) = steps {
-            steps.reset(cmd);
-            steps.mark(cmd, "start");
-            rec.time_steps(steps);
-        }
-        if let Some(w) = &self.world {
-            let threads = (w.pairs.len() as u32).max(w.bvh_nodes);
-            super::translate_vertices::translate_vertices(&rec, &renderer.kernels, threads);
-        }
-        let host = [
-            (images.visibility, ImageUse::Read),
-            (images.depth, ImageUse::Read),
-            (images.normal, ImageUse::Read),
-            (images.masks, ImageUse::Write),
-            (images.lit_fraction, ImageUse::Write),
-        ];
-        if let (Some(g), Some(h)) = (geometry, &mut self.host_geometry) {
-            // SAFETY: `cmd` is recording (the caller); the host declared
-            // the buffers (checked in `take_geometry`) and keeps them
-            // alive through the frame; the slot's previous frame is done.
-            unsafe {
-                super::gather_draws::acquire(device, cmd, g.buffers);
-                h.buffer_handles.clear();
-                h.buffer_handles.extend(g.buffers.iter().map(|b| b.buffer));
-                self.host_sets.write_geometry(slot, &h.buffer_handles);
-            }
-        }
-        let bind_host_set = self.host_geometry.is_some();
-        if bind_host_set || host.iter().any(|(image, _)| image.is_some()) {
-            // SAFETY: `cmd` is recording (the caller); the host declared
-            // the images (checked above) and keeps them alive through the
-            // frame (`record`'s contract); the slot's previous frame, the
-            // last user of its set, is done (the caller).
-            unsafe {
-                for (image, usage) in &host {
-                    if let Some(image) = image {
-                        super::host_images::acquire(device, cmd, image, *usage);
-                    }
-                }
-                self.host_sets.write(slot, &images);
-                rec.bind_host_images(self.host_sets.handle(slot));
-            }
-        }
-        if let Some(triangles) = drawn {
-            super::gather_draws::gather_draws(&rec, &renderer.kernels, triangles);
-        }
-        match self.config.gbuffer {
-            GBufferInput::RayCast => {
-                super::gbuffer::gbuffer(&rec, &renderer.kernels, [w, h], traced_edges);
-            }
-            GBufferInput::Visibility => {
-                super::gbuffer::gbuffer_from_visibility(&rec, &renderer.kernels, [w, h]);
-            }
-            GBufferInput::MultisampledVisibility { .. } => {
-                let k = &renderer.kernels;
-                super::gbuffer::gbuffer_from_multisampled_visibility(&rec, k, [w, h], traced_edges);
-            }
-            GBufferInput::DepthNormal(_) => {
-                super::gbuffer::gbuffer_from_depth(&rec, &renderer.kernels, [w, h]);
-            }
-            // Written when the pass was made.
-            GBufferInput::Uploaded => {}
-        }
-        timestamps.write(cmd, 1);
-        super::light_setup::light_setup(&rec, &renderer.kernels, rows);
-        timestamps.write(cmd, 2);
-        let gather = settings.skips.behind_receivers.then_some(rows[0] * rows[1]);
-        let kernels = &renderer.kernels;
-        super::bin::bin(
-            &rec,
-            kernels,
-            self.frame_triangles,
-            self.sizes.max_cells,
-            gather,
-        );
-        timestamps.write(cmd, 3);
-        let heavy = super::evaluate::heavy_step(&params, &shared.info);
-        let halves = settings.mask_halves(scene);
-        super::evaluate::evaluate(&rec, kernels, rows, heavy, halves);
-        timestamps.write(cmd, 4);
-        super::resolve::resolve(&rec, kernels, [w, h]);
-        super::export_images::export_images(&rec, kernels, [w, h], &images, halves);
-        timestamps.write(cmd, 5);
-        let status = &self.status[slot];
-        let region = [vk::BufferCopy::default().size(status.size())];
-        // SAFETY: `cmd` is recording; the status buffer is the counters'
-        // size and the slot's previous frame is done (the caller).
-        unsafe {
-            device.cmd_copy_buffer(cmd, buffer(binding::COUNTERS), status.buffer, &region);
-            super::transfers_visible_to_host(device, cmd);
-        }
-        rec.end_label();
-        Ok(())
     }
 }

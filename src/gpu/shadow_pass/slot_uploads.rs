@@ -1,8 +1,8 @@
 //! A frame's parameters on their way to the device: per frame slot one
 //! host-visible buffer, made and mapped once with the pass, which
 //! `record` writes through its mapping (the slot's previous frame, its
-//! last reader, is done) and copies from into the device buffers the
-//! shaders read (`B_FRAME`, `B_LIGHT`, `B_DRAWS`) — the ring mapped once
+//! last reader, is done) and the slot's opening commands copy into the
+//! device buffers the shaders read (`B_FRAME`, `B_LIGHT`, `B_DRAWS`) — the ring mapped once
 //! of issue 29's point 2, as Granite's and kajiya's per-frame upload
 //! rings.
 //!
@@ -79,23 +79,17 @@ impl SlotUploads {
     }
 
     /// Writes slot `slot`'s parameters, light state and draw table into
-    /// its mapped buffer and records their copies into `to`. The host's
-    /// writes reach the device with the submission (host-coherent memory,
-    /// written before `vkQueueSubmit`); the caller's next barrier orders
-    /// the copies before the shaders.
+    /// its mapped buffer, for [`Self::record_copies`]' commands to copy.
+    /// The host's writes reach the device with the submission
+    /// (host-coherent memory, written before `vkQueueSubmit`).
     ///
     /// # Safety
-    /// `cmd` is recording, outside a render pass, and is submitted (if at
-    /// all) after this slot's previous frame is done — that frame read the
-    /// buffer being overwritten; `to`'s buffers hold a `FrameParams`, a
-    /// `LightState` and the pass's `max_draws` draws.
-    pub(super) unsafe fn record(
+    /// This slot's previous frame, which read the buffer being
+    /// overwritten, is done.
+    pub(super) unsafe fn write(
         &mut self,
-        device: &ash::Device,
-        cmd: vk::CommandBuffer,
         slot: usize,
         (params, light, draws): (&FrameParams, &LightState, &[GpuDraw]),
-        to: UploadTargets,
     ) -> Result<(), GpuError> {
         if draws.len() > self.max_draws as usize {
             return Err(GpuError::Unsupported(format!(
@@ -115,23 +109,46 @@ impl SlotUploads {
             let start = offset as usize;
             bytes[start..start + part.len()].copy_from_slice(part);
         }
+        Ok(())
+    }
+
+    /// Records the copies of slot `slot`'s parameters, light state and
+    /// first `draws` draws into `to`; the caller's next barrier orders
+    /// them before the shaders. The commands name only the slot's buffer,
+    /// so a frame slot's recorded copies serve every frame that writes as
+    /// many draws ([`Self::write`]).
+    ///
+    /// # Safety
+    /// `cmd` is recording, outside a render pass, and executes after this
+    /// slot's previous frame and after the slot's [`Self::write`];
+    /// `draws` is at most the pass's `max_draws`; `to`'s buffers hold a
+    /// `FrameParams`, a `LightState` and `draws` draws.
+    pub(super) unsafe fn record_copies(
+        &self,
+        device: &ash::Device,
+        cmd: vk::CommandBuffer,
+        slot: usize,
+        draws: usize,
+        to: UploadTargets,
+    ) {
+        let o = &self.offsets;
         let copy = |offset: u64, size: usize| {
             [vk::BufferCopy::default()
                 .src_offset(offset)
                 .size(size as u64)]
         };
         let source = self.buffers[slot].buffer;
+        let (params, light) = (size_of::<FrameParams>(), size_of::<LightState>());
         // SAFETY: the caller's promise; each region lies within both
         // buffers (`offsets`, and `to`'s sizes).
         unsafe {
-            device.cmd_copy_buffer(cmd, source, to.frame, &copy(0, parts[0].1.len()));
-            device.cmd_copy_buffer(cmd, source, to.light, &copy(o.light, parts[1].1.len()));
-            if !draws.is_empty() {
-                let region = copy(o.draws, parts[2].1.len());
+            device.cmd_copy_buffer(cmd, source, to.frame, &copy(0, params));
+            device.cmd_copy_buffer(cmd, source, to.light, &copy(o.light, light));
+            if draws != 0 {
+                let region = copy(o.draws, draws * size_of::<GpuDraw>());
                 device.cmd_copy_buffer(cmd, source, to.draws, &region);
             }
         }
-        Ok(())
     }
 
     /// Bytes the slots' buffers hold.
