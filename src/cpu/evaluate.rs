@@ -238,11 +238,23 @@ pub(super) fn and_of_edges(
     edge: impl Fn(usize) -> [f32; 3],
     counters: &mut TestCounters,
 ) -> u32 {
+    and_of_edge_masks(rule, count, |k| rule.edge_mask(edge(k)), counters)
+}
+
+/// [`and_of_edges`] of the edges' masks and whether each was cheap
+/// (`edge_mask(k)`, [`MaskRule::edge_mask`]'s pair).
+#[inline]
+fn and_of_edge_masks(
+    rule: &MaskRule,
+    count: usize,
+    edge_mask: impl Fn(usize) -> (u32, bool),
+    counters: &mut TestCounters,
+) -> u32 {
     let saturate = rule.skips.saturated_edges;
     let mut mask = FULL;
     let mut all_cheap = true;
     for k in 0..count {
-        let (m, cheap) = rule.edge_mask(edge(k));
+        let (m, cheap) = edge_mask(k);
         mask &= m;
         all_cheap &= cheap;
         if mask == 0 && saturate {
@@ -442,13 +454,27 @@ fn test_batch(
         return None;
     }
     batch.test(rule.simd, px.microquad_part, px.light, px.ex, px.ey, r);
+    let lut = rule.mode == SampleMode::Lut32;
+    if lut {
+        super::lut_batch::lut_coordinates(rule.simd, rule.lut, &r.edges, &mut r.lut);
+    }
     for l in 0..len {
         if r.beyond[l] {
             counters.depth_passed += 1;
             // Edge-on from the light (or NaN): no shadow area.
             if r.winding[l] != 0.0 {
-                let edges = &r.edges[l];
-                *mask |= and_of_edges(rule, 3, |k| edges[k], counters);
+                let r = &*r;
+                *mask |= if lut {
+                    // The batch's masks, or the scalar one where its row
+                    // was too near a boundary to be sure.
+                    let edge_mask = |k: usize| {
+                        let known = r.lut.mask(rule.lut, k, l);
+                        known.unwrap_or_else(|| rule.edge_mask(r.edge(l, k)))
+                    };
+                    and_of_edge_masks(rule, 3, edge_mask, counters)
+                } else {
+                    and_of_edges(rule, 3, |k| r.edge(l, k), counters)
+                };
             }
         }
         if stop_when_full && *mask & px.wanted == px.wanted {

@@ -19,6 +19,7 @@ pub mod footprint;
 pub mod gather_draws;
 pub mod light_samples;
 pub mod light_setup;
+pub mod lut_batch;
 mod mask_rule;
 pub mod penumbra;
 pub mod receivers;

@@ -53,8 +53,20 @@ pub struct BatchTests {
     pub beyond: [bool; LANES],
     /// [`crate::frustum::winding`].
     pub winding: [f32; LANES],
-    /// `edges[lane][k]`: edge function `k`, flipped by the winding.
-    pub edges: [[[f32; 3]; 3]; LANES],
+    /// `edges[k][component][lane]`: edge function `k`'s (α, β, γ),
+    /// flipped by the winding.
+    pub edges: super::lut_batch::BatchEdges,
+    /// With the LUT: the edges' cell coordinates ([`super::lut_batch`]).
+    pub lut: super::lut_batch::LutCoordinates,
+}
+
+impl BatchTests {
+    /// Lane `l`'s edge `k`.
+    #[inline(always)]
+    pub fn edge(&self, l: usize, k: usize) -> [f32; 3] {
+        let e = &self.edges[k];
+        [e[0][l], e[1][l], e[2][l]]
+    }
 }
 
 impl SurvivorBatch {
@@ -194,7 +206,8 @@ fn kernel<const POINT: bool>(b: &SurvivorBatch, f: &Frame, light: Vec3, out: &mu
             let (x, y) = (t[k], t[(k + 1) % 3]);
             let n = side(x, y);
             let n = if w < 0.0 { -n } else { n };
-            out.edges[l][k] = [-(n.dot(x)), n.dot(f.ex), n.dot(f.ey)];
+            let e = &mut out.edges[k];
+            [e[0][l], e[1][l], e[2][l]] = [-(n.dot(x)), n.dot(f.ex), n.dot(f.ey)];
         }
     }
 }

@@ -1,0 +1,265 @@
+//! The LUT's cells of a survivor batch's edges, eight lanes × three edges
+//! at a time ([`super::survivor_batch`]): the normalisation, the
+//! saturation test, the distance column and the angle row of
+//! [`izb_lut::EdgeLut::cell`] computed in SIMD registers for every lane,
+//! then the floors and the table read only for the edges the scalar mask
+//! loop asks for ([`LutCoordinates::mask`]), in its order.
+//!
+//! All of it is the scalar operations bit for bit but the angle. The row
+//! is `floor((atan2f(γ, β) + π) · A/2π)` in `f32`, and libm's `atan2f`
+//! has no SIMD twin whose bits are guaranteed. Here the angle comes from
+//! a polynomial (Cephes' `atanf`, Moshier 1989: one range reduction to
+//! |x| ≤ tan π/8, then a degree-9 odd polynomial; relative error ≤
+//! 2·10⁻⁷), within about 10⁻⁶ rad of the true angle, as is libm's `f32`
+//! result; scaled by A/2π ≈ 20, both lie within about 10⁻⁴ rows of the
+//! exact row coordinate. Wherever the estimate lies farther than
+//! [`ROW_MARGIN`] (2⁻⁹ rows) from a whole number both floors are the same
+//! row; nearer (about half a percent of the edges, and every edge
+//! parallel to a µQuad axis or diagonal), the cell is left to the scalar
+//! [`super::mask_rule::MaskRule::edge_mask`]. So the masks equal the
+//! scalar path's on every input (`a_batch_s_lut_masks_equal_the_scalar_
+//! cells` below, and `tests/masks_unchanged.rs`).
+//!
+//! Measured (courtyard 960×540, 2 threads): evaluate 0.85 → 0.56 s, the
+//! LUT's `atan2f`, floors and cell code having been a third of it
+//! (`paper-notes/performance.md`).
+
+use super::simd::SimdPath;
+use super::survivor_batch::LANES;
+use izb_lut::EdgeLut;
+
+/// How far (in rows) the estimated row coordinate must lie from a whole
+/// number for its floor to be libm's: about 20 times the two angles'
+/// combined error at A = 128 rows (both ≲ 10⁻⁶ rad, × A/2π ≈ 20).
+const ROW_MARGIN: f32 = 1.0 / 512.0;
+
+/// Per edge and lane (`[k][lane]`), what the LUT's cell needs: whether
+/// the edge's line may cut the µQuad (else the mask is constant), which
+/// constant, and the estimated row and exact column coordinates
+/// ([`Self::mask`] finishes the cell where it is asked for).
+#[derive(Default)]
+pub struct LutCoordinates {
+    /// 1 where the line may cut the µQuad (a `u32`, not a `bool`: LLVM
+    /// vectorises the loop only so).
+    cuts: [[u32; LANES]; 3],
+    /// The saturated mask: every sample or none.
+    constant: [[u32; LANES]; 3],
+    row: [[f32; LANES]; 3],
+    column: [[f32; LANES]; 3],
+}
+
+impl LutCoordinates {
+    /// Edge `k` of lane `l`: its mask from `lut` and whether it was the
+    /// saturation branch's, as [`izb_lut::EdgeLut::cell`] and
+    /// [`izb_lut::EdgeLut::cell_mask`] give them; `None` where the row
+    /// estimate lies too near a row boundary to be sure.
+    #[inline]
+    pub fn mask(&self, lut: &EdgeLut, k: usize, l: usize) -> Option<(u32, bool)> {
+        if self.cuts[k][l] == 0 {
+            return Some((self.constant[k][l], true));
+        }
+        let row = self.row[k][l];
+        let floor = row.floor();
+        // False for NaN too.
+        let sure = (row - floor).min(floor + 1.0 - row) > ROW_MARGIN;
+        if !sure {
+            return None;
+        }
+        let (rows, columns) = (lut.angles as i32, lut.distances as i32);
+        let angle = floor as i32;
+        let angle = if angle >= rows {
+            angle - rows
+        } else {
+            angle.max(0)
+        };
+        let distance = (self.column[k][l].floor() as i32).clamp(0, columns - 1);
+        let index = (angle * columns + distance) as usize;
+        Some((lut.masks[index], false))
+    }
+}
+
+/// A batch's edges, `[k][component][lane]`
+/// ([`super::survivor_batch::BatchTests::edges`]).
+pub type BatchEdges = [[[f32; LANES]; 3]; 3];
+
+/// The LUT coordinates of `edges` into `out`.
+pub fn lut_coordinates(
+    path: SimdPath,
+    lut: &EdgeLut,
+    edges: &BatchEdges,
+    out: &mut LutCoordinates,
+) {
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `path` is Avx512 only where the processor has AVX-512F
+        // (`SimdPath::or_supported`).
+        SimdPath::Avx512 => unsafe { kernel_avx512(lut, edges, out) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `path` is Avx2 only where the processor has AVX2.
+        SimdPath::Avx2 => unsafe { kernel_avx2(lut, edges, out) },
+        _ => kernel(lut, edges, out),
+    }
+}
+
+/// # Safety
+/// The processor has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn kernel_avx2(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
+    kernel(lut, edges, out)
+}
+
+/// # Safety
+/// The processor has AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn kernel_avx512(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
+    kernel(lut, edges, out)
+}
+
+/// Every lane's coordinates: `EdgeLut::cell`'s operations up to the
+/// floors, with [`crate::frustum::normalised_edge`]'s branch as a factor
+/// of 1 (exact), so that each loop is straight-line code over lanes.
+#[inline(always)]
+fn kernel(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
+    const HALF_DIAGONAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
+    const EXPONENT: u32 = 0x7F80_0000;
+    let (angle_scale, distance_scale) = (lut.angle_scale_f32(), lut.distance_scale_f32());
+    for (k, [alphas, betas, gammas]) in edges.iter().enumerate() {
+        for l in 0..LANES {
+            let m = betas[l].abs().max(gammas[l].abs());
+            let exponent = m.to_bits() & EXPONENT;
+            let unscaled = m == 0.0 || exponent == EXPONENT;
+            let scale = f32::from_bits(0x7F00_0000 - exponent.min(0x7E80_0000));
+            let scale = if unscaled { 1.0 } else { scale };
+            let (alpha, beta, gamma) = (alphas[l] * scale, betas[l] * scale, gammas[l] * scale);
+            let r = (beta * beta + gamma * gamma).sqrt();
+            out.cuts[k][l] = u32::from(alpha.abs() < HALF_DIAGONAL * r);
+            let inside = (alpha >= 0.0) & (r >= 0.0);
+            out.constant[k][l] = 0u32.wrapping_sub(u32::from(inside));
+            out.column[k][l] = (alpha / r + HALF_DIAGONAL) * distance_scale;
+            out.row[k][l] = (angle_estimate(beta, gamma) + std::f32::consts::PI) * angle_scale;
+        }
+    }
+}
+
+/// atan2(y, x) within about 10⁻⁶ rad (Cephes' `atanf` on the octant's
+/// ratio); NaN where both are 0 or either is NaN, whose lanes the
+/// saturation branch decides.
+#[inline(always)]
+fn angle_estimate(x: f32, y: f32) -> f32 {
+    use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    const TAN_PI_8: f32 = 0.414_213_57;
+    let (ax, ay) = (x.abs(), y.abs());
+    let q = ax.min(ay) / ax.max(ay);
+    // q in [0, 1]: above tan π/8, atan q = π/4 + atan((q − 1)/(q + 1)).
+    let reduced = q > TAN_PI_8;
+    let z = if reduced { (q - 1.0) / (q + 1.0) } else { q };
+    let z2 = z * z;
+    let poly = ((8.053_744_5e-2 * z2 - 1.387_768_6e-1) * z2 + 1.997_771_1e-1) * z2 - 3.333_295e-1;
+    let octant = poly * z2 * z + z + if reduced { FRAC_PI_4 } else { 0.0 };
+    let first = if ay > ax { FRAC_PI_2 - octant } else { octant };
+    let half = if x < 0.0 { PI - first } else { first };
+    if y < 0.0 {
+        -half
+    } else {
+        half
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frustum::normalised_edge;
+    use izb_lut::LutCell;
+
+    fn scalar(lut: &EdgeLut, e: [f32; 3]) -> (u32, bool) {
+        let e = normalised_edge(e);
+        let cell = lut.cell(e[0], e[1], e[2]);
+        (lut.cell_mask(cell), matches!(cell, LutCell::Constant(_)))
+    }
+
+    /// Every known lane's mask and cheapness equal the scalar cell's, on
+    /// random edges, edges along the µQuad's axes and diagonals, near the
+    /// saturation boundary, tiny, huge, infinite and NaN; on every path
+    /// this processor has; few lanes unknown.
+    #[test]
+    fn a_batch_s_lut_masks_equal_the_scalar_cells() {
+        let lut = crate::lut::edge_lut();
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let special = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.5,
+            f32::MIN_POSITIVE,
+            1e-30,
+            3e38,
+            -3e38,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        let mut edges = Vec::new();
+        for _ in 0..400_000 {
+            let r = next();
+            let unit = |b: u64| (((r >> b) & 0xFFFF) as f32 / 32768.0) - 1.0;
+            let (beta, gamma) = (unit(0), unit(16));
+            let alpha = unit(32) * 0.8 * (beta * beta + gamma * gamma).sqrt();
+            let scale = 2f32.powi(((r >> 48) % 64) as i32 - 32);
+            edges.push([alpha * scale, beta * scale, gamma * scale]);
+        }
+        for a in special {
+            for b in special {
+                for c in special {
+                    edges.push([a, b, c]);
+                }
+            }
+        }
+        // Directions on and beside every row boundary.
+        for row in 0..=2 * lut.angles {
+            let theta = row as f64 * std::f64::consts::PI / f64::from(lut.angles);
+            for nudge in [-1e-6, 0.0, 1e-6] {
+                let (s, c) = (theta + nudge).sin_cos();
+                edges.push([0.1, c as f32, s as f32]);
+            }
+        }
+        let paths = [SimdPath::Scalar, SimdPath::Avx2, SimdPath::Avx512];
+        let mut checked = 0;
+        let mut unknown = 0;
+        for path in paths.map(SimdPath::or_supported) {
+            for chunk in edges.chunks(3 * LANES) {
+                let mut batch: BatchEdges = Default::default();
+                for (i, e) in chunk.iter().enumerate() {
+                    for c in 0..3 {
+                        batch[i % 3][c][i / 3] = e[c];
+                    }
+                }
+                let mut out = LutCoordinates::default();
+                lut_coordinates(path, lut, &batch, &mut out);
+                for (i, e) in chunk.iter().enumerate() {
+                    let (l, k) = (i / 3, i % 3);
+                    match out.mask(lut, k, l) {
+                        Some(got) => {
+                            assert_eq!(got, scalar(lut, *e), "{path:?}: edge {e:?}");
+                            checked += 1;
+                        }
+                        None => unknown += 1,
+                    }
+                }
+            }
+        }
+        println!("{checked} edges known and equal to the scalar cells, {unknown} left to it");
+        assert_eq!(checked + unknown, 3 * edges.len());
+        assert!(
+            unknown * 100 < checked,
+            "{unknown} unknown of {checked} known"
+        );
+    }
+}
