@@ -44,7 +44,11 @@ pub struct LutCoordinates {
     cuts: [[u32; LANES]; 3],
     /// The saturated mask: every sample or none.
     constant: [[u32; LANES]; 3],
+    /// The row's floor, and 0 where the estimate is too near a whole
+    /// number (or NaN) to be sure of it, else 1.
     row: [[f32; LANES]; 3],
+    row_sure: [[u32; LANES]; 3],
+    /// The column coordinate's floor (exact).
     column: [[f32; LANES]; 3],
 }
 
@@ -58,13 +62,10 @@ impl LutCoordinates {
         if self.cuts[k][l] == 0 {
             return Some((self.constant[k][l], true));
         }
-        let row = self.row[k][l];
-        let floor = row.floor();
-        // False for NaN too.
-        let sure = (row - floor).min(floor + 1.0 - row) > ROW_MARGIN;
-        if !sure {
+        if self.row_sure[k][l] == 0 {
             return None;
         }
+        let floor = self.row[k][l];
         let (rows, columns) = (lut.angles as i32, lut.distances as i32);
         let angle = floor as i32;
         let angle = if angle >= rows {
@@ -72,7 +73,7 @@ impl LutCoordinates {
         } else {
             angle.max(0)
         };
-        let distance = (self.column[k][l].floor() as i32).clamp(0, columns - 1);
+        let distance = (self.column[k][l] as i32).clamp(0, columns - 1);
         let index = (angle * columns + distance) as usize;
         Some((lut.masks[index], false))
     }
@@ -137,8 +138,13 @@ fn kernel(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
             out.cuts[k][l] = u32::from(alpha.abs() < HALF_DIAGONAL * r);
             let inside = (alpha >= 0.0) & (r >= 0.0);
             out.constant[k][l] = 0u32.wrapping_sub(u32::from(inside));
-            out.column[k][l] = (alpha / r + HALF_DIAGONAL) * distance_scale;
-            out.row[k][l] = (angle_estimate(beta, gamma) + std::f32::consts::PI) * angle_scale;
+            out.column[k][l] = ((alpha / r + HALF_DIAGONAL) * distance_scale).floor();
+            let row = (angle_estimate(beta, gamma) + std::f32::consts::PI) * angle_scale;
+            let floor = row.floor();
+            out.row[k][l] = floor;
+            // False for NaN too.
+            let sure = (row - floor).min(floor + 1.0 - row) > ROW_MARGIN;
+            out.row_sure[k][l] = u32::from(sure);
         }
     }
 }
