@@ -13,10 +13,10 @@
 //! 2·10⁻⁷), within about 10⁻⁶ rad of the true angle, as is libm's `f32`
 //! result; scaled by A/2π ≈ 20, both lie within about 10⁻⁴ rows of the
 //! exact row coordinate. Wherever the estimate lies farther than
-//! [`ROW_MARGIN`] (2⁻⁹ rows) from a whole number both floors are the same
+//! `ROW_MARGIN` (2⁻⁹ rows) from a whole number both floors are the same
 //! row; nearer (about half a percent of the edges, and every edge
 //! parallel to a µQuad axis or diagonal), the cell is left to the scalar
-//! [`super::mask_rule::MaskRule::edge_mask`]. So the masks equal the
+//! `MaskRule::edge_mask`. So the masks equal the
 //! scalar path's on every input (`a_batch_s_lut_masks_equal_the_scalar_
 //! cells` below, and `tests/masks_unchanged.rs`).
 //!
