@@ -33,6 +33,7 @@ pub const FULL: u32 = izb_contract::word::FULL_MASK;
 
 pub use super::evaluate_stats::{EvaluateStats, WorkPerPixel};
 pub use super::mask_rule::MaskRule;
+use super::mask_rule::{and_of_edge_masks, and_of_edges, TestCounters};
 
 /// What evaluate needs of one pixel. The frustum test runs in eye space,
 /// relative to P (see [`triangle_mask`] for why not in light view): `p`,
@@ -150,15 +151,6 @@ fn levels_of(mask: u32) -> impl Iterator<Item = u32> {
     (0..32).filter(move |l| mask & (1 << l) != 0)
 }
 
-/// Counters one pixel's triangle tests add to.
-#[derive(Default)]
-pub(super) struct TestCounters {
-    pub(super) tangent_passed: u64,
-    pub(super) depth_passed: u64,
-    pub(super) saturated_masks: u64,
-    pub(super) masks_nonempty: u64,
-}
-
 /// Occluded samples of `tri` (eye-relative, not yet relative to P) for
 /// one pixel, or 0 when it fails the depth test: the AND of its three edge
 /// masks. With the `saturated_edges` skip an edge that misses the whole
@@ -224,48 +216,6 @@ fn occluded_samples(
         |k| edge_function(t, k, px.ex, px.ey, light, w < 0.0),
         counters,
     )
-}
-
-/// The AND of the masks of `count` edges (`edge(k)`, k < `count`), with
-/// the counters: with the `saturated_edges` skip it stops at the first
-/// edge that leaves no sample and counts the triangles no LUT read or
-/// sample loop was needed for. Shared by the µQuad and the light-sample
-/// tests.
-#[inline]
-pub(super) fn and_of_edges(
-    rule: &MaskRule,
-    count: usize,
-    edge: impl Fn(usize) -> [f32; 3],
-    counters: &mut TestCounters,
-) -> u32 {
-    and_of_edge_masks(rule, count, |k| rule.edge_mask(edge(k)), counters)
-}
-
-/// [`and_of_edges`] of the edges' masks and whether each was cheap
-/// (`edge_mask(k)`, [`MaskRule::edge_mask`]'s pair).
-#[inline]
-fn and_of_edge_masks(
-    rule: &MaskRule,
-    count: usize,
-    edge_mask: impl Fn(usize) -> (u32, bool),
-    counters: &mut TestCounters,
-) -> u32 {
-    let saturate = rule.skips.saturated_edges;
-    let mut mask = FULL;
-    let mut all_cheap = true;
-    for k in 0..count {
-        let (m, cheap) = edge_mask(k);
-        mask &= m;
-        all_cheap &= cheap;
-        if mask == 0 && saturate {
-            break;
-        }
-    }
-    if saturate {
-        counters.saturated_masks += all_cheap as u64;
-    }
-    counters.masks_nonempty += (mask != 0) as u64;
-    mask
 }
 
 /// Calls `visit(id)` for every candidate triangle of shadow-tested pixel

@@ -4,7 +4,7 @@
 //! `evaluate` calls it in place of the µQuad test when the light has a
 //! size; the grid, the candidate walk and the skips are the same.
 
-use super::evaluate::{and_of_edges, MaskRule, TestCounters};
+use super::mask_rule::{and_of_edges, MaskRule, TestCounters};
 use crate::frustum::soft::{
     below_horizon_function, beyond_plane_function, cone_orientation, light_edge_function,
     off_triangle_plane,

@@ -1,5 +1,6 @@
 //! How `evaluate` forms a triangle's mask from its edges: the sample
-//! mode, the pattern, the LUT and the skips ([`MaskRule`]).
+//! mode, the pattern, the LUT and the skips ([`MaskRule`]), and the AND of
+//! a triangle's edge masks with its counters ([`and_of_edges`]).
 
 use super::evaluate::FULL;
 use super::simd::SimdPath;
@@ -86,4 +87,55 @@ impl<'a> MaskRule<'a> {
             }
         }
     }
+}
+
+/// Counters one pixel's triangle tests add to.
+#[derive(Default)]
+pub(super) struct TestCounters {
+    pub(super) tangent_passed: u64,
+    pub(super) depth_passed: u64,
+    pub(super) saturated_masks: u64,
+    pub(super) masks_nonempty: u64,
+}
+
+/// The AND of the masks of `count` edges (`edge(k)`, k < `count`), with
+/// the counters: with the `saturated_edges` skip it stops at the first
+/// edge that leaves no sample and counts the triangles no LUT read or
+/// sample loop was needed for. Shared by the µQuad and the light-sample
+/// tests.
+#[inline]
+pub(super) fn and_of_edges(
+    rule: &MaskRule,
+    count: usize,
+    edge: impl Fn(usize) -> [f32; 3],
+    counters: &mut TestCounters,
+) -> u32 {
+    and_of_edge_masks(rule, count, |k| rule.edge_mask(edge(k)), counters)
+}
+
+/// [`and_of_edges`] of the edges' masks and whether each was cheap
+/// (`edge_mask(k)`, [`MaskRule::edge_mask`]'s pair).
+#[inline]
+pub(super) fn and_of_edge_masks(
+    rule: &MaskRule,
+    count: usize,
+    edge_mask: impl Fn(usize) -> (u32, bool),
+    counters: &mut TestCounters,
+) -> u32 {
+    let saturate = rule.skips.saturated_edges;
+    let mut mask = FULL;
+    let mut all_cheap = true;
+    for k in 0..count {
+        let (m, cheap) = edge_mask(k);
+        mask &= m;
+        all_cheap &= cheap;
+        if mask == 0 && saturate {
+            break;
+        }
+    }
+    if saturate {
+        counters.saturated_masks += all_cheap as u64;
+    }
+    counters.masks_nonempty += (mask != 0) as u64;
+    mask
 }
