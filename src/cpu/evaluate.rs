@@ -382,6 +382,8 @@ fn evaluate_pixel(
     stats.depth_passed += counters.depth_passed;
     stats.saturated_masks += counters.saturated_masks;
     stats.masks_nonempty += counters.masks_nonempty;
+    stats.survivor_batches += counters.survivor_batches;
+    stats.survivor_lanes += counters.survivor_lanes;
     stats.cells_visited += cells;
     stats.levels_visited += levels;
     (mask, tests)
@@ -404,6 +406,8 @@ fn test_batch(
         return None;
     }
     batch.test(rule.simd, px.microquad_part, px.light, px.ex, px.ey, r);
+    counters.survivor_batches += 1;
+    counters.survivor_lanes += len as u64;
     let lut = rule.mode == SampleMode::Lut32;
     if lut {
         super::lut_batch::lut_coordinates(rule.simd, rule.lut, &r.edges, &mut r.lut);

@@ -42,6 +42,11 @@ pub struct EvaluateStats {
     /// Pixels whose cover triangle (the conservative shadow map) alone
     /// filled the mask: their triangle loop was skipped.
     pub shadow_map_early_outs: usize,
+    /// Survivor batches tested ([`super::survivor_batch`]: each runs the
+    /// vector kernels over all [`super::survivor_batch::LANES`] lanes).
+    pub survivor_batches: u64,
+    /// Of their lanes, those holding a candidate.
+    pub survivor_lanes: u64,
 }
 
 impl EvaluateStats {
@@ -70,6 +75,8 @@ impl EvaluateStats {
         self.group_longest_tests += s.group_longest_tests;
         self.longest_pixel_tests = self.longest_pixel_tests.max(s.longest_pixel_tests);
         self.shadow_map_early_outs += s.shadow_map_early_outs;
+        self.survivor_batches += s.survivor_batches;
+        self.survivor_lanes += s.survivor_lanes;
     }
 
     /// Tests over 32 × the longest pixel of each 8×4 group: the share of
@@ -98,6 +105,8 @@ impl EvaluateStats {
             cells: self.cells_visited as f64 / px,
             levels: self.levels_visited as f64 / px,
             simd_efficiency: self.simd_efficiency(),
+            batch_lanes_used: self.survivor_lanes as f64
+                / (self.survivor_batches as f64 * super::survivor_batch::LANES as f64).max(1.0),
         }
     }
 }
@@ -120,6 +129,10 @@ pub struct WorkPerPixel {
     pub levels: f64,
     /// [`EvaluateStats::simd_efficiency`].
     pub simd_efficiency: f64,
+    /// The CPU twin's vector lanes used over lanes issued: survivor
+    /// batches' lanes holding a candidate over all their lanes (partial
+    /// batches at the end of a pixel's walk leave the rest idle).
+    pub batch_lanes_used: f64,
 }
 
 /// Where a tested pixel's tests ended, per tested pixel (the four add up

@@ -96,6 +96,9 @@ pub(super) struct TestCounters {
     pub(super) depth_passed: u64,
     pub(super) saturated_masks: u64,
     pub(super) masks_nonempty: u64,
+    /// Survivor batches tested and their lanes holding a candidate.
+    pub(super) survivor_batches: u64,
+    pub(super) survivor_lanes: u64,
 }
 
 /// The AND of the masks of `count` edges (`edge(k)`, k < `count`), with
