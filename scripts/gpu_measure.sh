@@ -111,14 +111,18 @@ for s in $STEPS; do
         # Issue 29: the worked host's steady-state 1080p frame, per pass
         # (its --stats: gpu_ms medians from timestamps), on courtyard and
         # deckchair, for each G-buffer input: the raster visibility buffer,
-        # D32 depth + normal, and the 4x multisampled visibility buffer.
+        # D32 depth + normal, and the 4x multisampled visibility buffer;
+        # then the visibility buffer in exact mode, whose frame-0 twin check
+        # must find 0 mask mismatches. Each --stats has record_us (the
+        # loop's, alone warm and cold: the 50 us target).
         mkdir -p /tmp/izb-embed
         for scene in courtyard deckchair; do
-            for input in visibility d32 msaa4; do
+            for input in visibility d32 msaa4 exact; do
                 case $input in
                 visibility) flags=() ;;
                 d32) flags=(--depth d32) ;;
                 msaa4) flags=(--msaa 4) ;;
+                exact) flags=(--exact) ;;
                 esac
                 step 40 "embed-$scene-$input" .dev/embed_host "$S/$scene.scene.json" \
                     --resolution 1920x1080 --frames "$FRAMES" "${flags[@]}" \
