@@ -136,6 +136,8 @@ impl ShadowPass<'_> {
             // SAFETY: as above; both sets bound again (no state survives
             // a secondary's execution).
             let rec = unsafe { self.recorder(cmd, steps) };
+            // SAFETY: `host_set` was written for this frame and holds the
+            // output images, alive through the frame (the caller).
             unsafe { rec.bind_host_images(host_set) };
             let kernels = &self.renderer.kernels;
             crate::gpu::export_images::export_images(&rec, kernels, key.size, &images, halves);
