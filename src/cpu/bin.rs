@@ -12,7 +12,7 @@ use super::footprint::{footprint, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
 use super::receivers::upward_normal;
-pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
+pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers, TriangleCull};
 use super::Skips;
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -438,6 +438,10 @@ fn block_entries(
             stats.per_level[level as usize] += 1;
             let [x0, y0, x1, y1] = f.rect;
             let cells = grid.level(level);
+            let cull = receivers.map(|r| {
+                let t = TriangleCull::new(&light_view[id], setup.projection, setup.light_radius);
+                (r, t)
+            });
             let mut listed = false;
             for y in y0..=y1 {
                 for x in x0..=x1 {
@@ -446,18 +450,10 @@ fn block_entries(
                         continue;
                     }
                     let c = cells.index(x, y);
-                    if receivers.is_some_and(|r| {
-                        behind_receivers(
-                            grid,
-                            r,
-                            &light_view[id],
-                            level,
-                            c,
-                            x,
-                            y,
-                            setup.light_radius,
-                        )
-                    }) {
+                    if cull
+                        .as_ref()
+                        .is_some_and(|(r, t)| t.behind(grid, r, level, c, (x, y)))
+                    {
                         stats.entries_behind_receivers += 1;
                         continue;
                     }

@@ -9,11 +9,12 @@
 
 use crate::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
 use crate::frustum::LightRel;
-use crate::gbuffer::{flags, GBuffer};
+use crate::gbuffer::GBuffer;
 use crate::scene::{light_disk_f32, Light, LightDisk, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
 
 mod boxes;
+mod receiver_bounds;
 
 pub use boxes::{microquad_corners, MicroquadBoxes};
 
@@ -366,29 +367,13 @@ pub fn light_setup_for(
 ) -> LightSetup {
     let light = scene.light.relative_to(scene.camera.eye);
     let view_forward = scene.camera.frame(scene.resolution).forward.as_vec3();
-    // Every shadow-tested receiver: the pixels' centre surfaces and the
-    // edge pixels' extra surfaces, whose µQuads the grids must hold too.
-    let tested: Vec<[Vec3; 3]> = gbuffer
-        .layers()
-        .flat_map(|g| {
-            (0..g.flags.len())
-                .filter(|&i| g.flags[i] & flags::SHADOW_TESTED != 0)
-                .map(|i| [g.position[i], g.axis_x[i], g.axis_y[i]])
-        })
-        .collect();
     // Receivers' eye-relative bounds centre: the light-view origin of a
     // directional light, the aim of a point light. View depth range: the
     // cascade splits.
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    let (mut near, mut far) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &[p, _, _] in &tested {
-        lo = lo.min(p);
-        hi = hi.max(p);
-        let d = p.dot(view_forward);
-        near = near.min(d);
-        far = far.max(d);
-    }
-    let centre = if tested.is_empty() {
+    let bounds = receiver_bounds::view_bounds(gbuffer, view_forward);
+    let (lo, hi, near, far) = (bounds.lo, bounds.hi, bounds.near, bounds.far);
+    let tested = bounds.count;
+    let centre = if tested == 0 {
         Vec3::ZERO
     } else {
         (lo + hi) * 0.5
@@ -427,7 +412,7 @@ pub fn light_setup_for(
             ..Default::default()
         }],
         receiver_z: [0.0, 0.0],
-        receivers: tested.len(),
+        receivers: tested,
         grid_disabled: false,
         light_radius: 0.0,
         sun_disk: None,
@@ -443,7 +428,7 @@ pub fn light_setup_for(
             });
         }
     }
-    if tested.is_empty() {
+    if tested == 0 {
         return setup;
     }
     // The pixels' cascades.
@@ -455,26 +440,10 @@ pub fn light_setup_for(
         cascades::cascade_of_depth(&setup.split_depths, p.dot(view_forward)).min(count - 1)
     };
     // Per cascade: light-NDC bounds of its µQuads' corners.
-    let mut nmin = [Vec2::splat(f32::INFINITY); MAX_CASCADES];
-    let mut nmax = [Vec2::splat(f32::NEG_INFINITY); MAX_CASCADES];
-    let mut receivers = [0usize; MAX_CASCADES];
-    let (mut zmin, mut zmax) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &[p, ex, ey] in &tested {
-        let k = cascade_of(p);
-        receivers[k] += 1;
-        for corner in microquad_corners(p, ex, ey) {
-            let p = setup.to_light_view(corner);
-            zmin = zmin.min(p.z);
-            zmax = zmax.max(p.z);
-            match setup.ndc(p) {
-                Some(n) => {
-                    nmin[k] = nmin[k].min(n);
-                    nmax[k] = nmax[k].max(n);
-                }
-                None => setup.grid_disabled = true,
-            }
-        }
-    }
+    let bounds = receiver_bounds::light_bounds(gbuffer, &setup, cascade_of);
+    let (nmin, nmax, receivers) = (bounds.nmin, bounds.nmax, bounds.receivers);
+    let (zmin, zmax) = (bounds.zmin, bounds.zmax);
+    setup.grid_disabled |= bounds.no_ndc;
     if projection == Projection::Perspective && zmin <= MIN_PERSPECTIVE_DEPTH_RATIO * zmax {
         setup.grid_disabled = true;
     }
@@ -488,7 +457,7 @@ pub fn light_setup_for(
     }
     let side = request
         .cells
-        .unwrap_or_else(|| default_grid_side(tested.len(), triangles));
+        .unwrap_or_else(|| default_grid_side(tested, triangles));
     let mut offset = 0;
     setup.cascades = (0..count)
         .map(|k| {
@@ -509,7 +478,7 @@ pub fn light_setup_for(
             grid.cells = cascades::cascade_cells(
                 side,
                 receivers[k],
-                tested.len(),
+                tested,
                 count as u32,
                 grid.ndc_max - grid.ndc_min,
             );

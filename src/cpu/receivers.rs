@@ -5,7 +5,7 @@
 //! fails for all of them). Used by [`super::bin::bin`]; the GPU twin is
 //! `STEP_RECEIVERS` and `behind_receivers` in `shaders/bin.comp`.
 
-use super::footprint::{cell_range_at, CELL_PADDING};
+use super::footprint::{cell_range_in, CELL_PADDING};
 use super::light_setup::{
     level_scale, CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection,
 };
@@ -83,43 +83,99 @@ pub fn cell_receivers(
     // Every receiver of every layer: the pixels' centre surfaces, then the
     // edge pixels' extra surfaces (`GBuffer::layers`).
     let layers: Vec<(&GBuffer, &MicroquadBoxes)> = g.layers().zip(boxes.layers()).collect();
-    let list: Vec<(usize, usize)> = layers
+    // Blocks of entries with their receiver counts, then runs of blocks
+    // holding equal shares of the receivers, one per thread.
+    let blocks: Vec<(usize, std::ops::Range<usize>, usize)> = layers
         .iter()
         .enumerate()
         .flat_map(|(l, (g, _))| {
-            (0..g.flags.len())
+            let n = g.flags.len();
+            (0..n.div_ceil(RECEIVER_BLOCK))
                 .into_par_iter()
-                .with_min_len(4096)
-                .filter(|&i| is_receiver(g.flags[i], skips))
-                .map(move |i| (l, i))
+                .map(move |b| {
+                    let range = b * RECEIVER_BLOCK..((b + 1) * RECEIVER_BLOCK).min(n);
+                    let count = g.flags[range.clone()]
+                        .iter()
+                        .filter(|&&f| is_receiver(f, skips))
+                        .count();
+                    (l, range, count)
+                })
                 .collect::<Vec<_>>()
         })
         .collect();
-    let per_thread = list.len().div_ceil(rayon::current_num_threads()).max(1);
-    let receivers = list
-        .par_chunks(per_thread)
-        .map(|chunk| {
+    let total: usize = blocks.iter().map(|b| b.2).sum();
+    let per_thread = total.div_ceil(rayon::current_num_threads()).max(1);
+    let mut shares: Vec<&[(usize, std::ops::Range<usize>, usize)]> = Vec::new();
+    let (mut first, mut sum) = (0, 0);
+    for (b, block) in blocks.iter().enumerate() {
+        sum += block.2;
+        if sum >= per_thread || b + 1 == blocks.len() {
+            shares.push(&blocks[first..=b]);
+            (first, sum) = (b + 1, 0);
+        }
+    }
+    // Per cascade, the levels to register on, finest first, with their
+    // scale and sides.
+    let wanted_levels: Vec<Vec<(u32, f32, [u32; 2])>> = setup
+        .cascades
+        .iter()
+        .zip(levels)
+        .map(|(grid, wanted)| {
+            (0..grid.levels)
+                .filter(|l| wanted & (1 << l) != 0)
+                .map(|l| (l, level_scale(l), grid.level_dims(l)))
+                .collect()
+        })
+        .collect();
+    let receivers = shares
+        .into_par_iter()
+        .map(|share| {
             let mut out = CellReceivers::empty(cells, projection);
-            for &(l, i) in chunk {
+            // Consecutive receivers (neighbouring pixels) mostly register
+            // in the same cells, on the coarse levels all the time: each
+            // (cascade, level) keeps the last range with the lowest key
+            // and largest reach of the receivers in it, and writes them
+            // when the range changes. Minimum and maximum do not depend on
+            // the grouping, so the arrays end as with one write per cell.
+            let mut runs: Vec<[RangeRun; 32]> = vec![[RangeRun::NONE; 32]; setup.cascades.len()];
+            let receivers = share.iter().flat_map(|(l, range, _)| {
+                range
+                    .clone()
+                    .filter(|&i| is_receiver(layers[*l].0.flags[i], skips))
+                    .map(|i| (*l, i))
+            });
+            for (l, i) in receivers {
                 let (g, boxes) = layers[l];
                 let k = setup.cascade_of(g.position[i]);
                 let grid = &setup.cascades[k];
-                let wanted = levels[k];
                 let (lo, hi) = boxes.grid_box(grid, i);
                 let z = receiver_key(projection, setup.to_light_view(g.position[i]));
-                for level in (0..grid.levels).filter(|l| wanted & (1 << l) != 0) {
-                    let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
+                for &(level, s, dims) in &wanted_levels[k] {
+                    let (lo, hi) = (lo * s, hi * s);
+                    // `cell_range_at`, its level's scale and sides read
+                    // from the table.
+                    let Some(range) = cell_range_in(dims, lo, hi) else {
                         break;
                     };
-                    let s = level_scale(level);
-                    let reach = receiver_reach(lo * s, hi * s);
-                    let cells = level_cells[k][level as usize];
-                    for y in y0..=y1 {
-                        for x in x0..=x1 {
-                            let c = cells.index(x, y);
-                            out.z_min[c] = out.z_min[c].min(z);
-                            out.reach[c] = out.reach[c].max(reach);
-                        }
+                    let reach = receiver_reach(lo, hi);
+                    let run = &mut runs[k][level as usize];
+                    if run.range == Some(range) {
+                        run.z_min = run.z_min.min(z);
+                        run.reach = run.reach.max(reach);
+                    } else {
+                        run.write(&mut out, level_cells[k][level as usize]);
+                        *run = RangeRun {
+                            range: Some(range),
+                            z_min: z,
+                            reach,
+                        };
+                    }
+                }
+            }
+            for (k, runs) in runs.iter().enumerate() {
+                for (level, run) in runs.iter().enumerate() {
+                    if run.range.is_some() {
+                        run.write(&mut out, level_cells[k][level]);
                     }
                 }
             }
@@ -130,6 +186,41 @@ pub fn cell_receivers(
             CellReceivers::merge,
         );
     Some(receivers)
+}
+
+/// Entries per block when the receivers are shared out between threads.
+const RECEIVER_BLOCK: usize = 4096;
+
+/// Receivers in a row that register in one cell range of one level: the
+/// range, their lowest key and their largest reach.
+#[derive(Clone, Copy)]
+struct RangeRun {
+    range: Option<[u32; 4]>,
+    z_min: f32,
+    reach: u32,
+}
+
+impl RangeRun {
+    const NONE: RangeRun = RangeRun {
+        range: None,
+        z_min: f32::INFINITY,
+        reach: 0,
+    };
+
+    /// Registers the run in the cells of its range (`cells`: its level).
+    #[inline]
+    fn write(&self, out: &mut CellReceivers, cells: LevelCells) {
+        let Some([x0, y0, x1, y1]) = self.range else {
+            return;
+        };
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let c = cells.index(x, y);
+                out.z_min[c] = out.z_min[c].min(self.z_min);
+                out.reach[c] = out.reach[c].max(self.reach);
+            }
+        }
+    }
 }
 
 /// How many cells the µQuad centre may lie from a cell its grid box
@@ -160,35 +251,146 @@ pub const BEHIND_MARGIN: f32 = izb_contract::tolerance::BEHIND_MARGIN;
 ///   through the grown cell down to the largest depth; the light is on its
 ///   own side of the plane, so the pyramid is when its four base corners
 ///   are.
-#[allow(clippy::too_many_arguments)]
 pub fn behind_receivers(
     grid: &CascadeGrid,
     receivers: &CellReceivers,
     tri: &[Vec3; 3],
     level: u32,
     c: usize,
-    x: u32,
-    y: u32,
+    (x, y): (u32, u32),
     light_radius: f32,
 ) -> bool {
-    let z_min = receivers.z_min[c];
-    if z_min == f32::INFINITY {
-        return true;
+    TriangleCull::new(tri, receivers.projection, light_radius).behind(
+        grid,
+        receivers,
+        level,
+        c,
+        (x, y),
+    )
+}
+
+/// What [`behind_receivers`] computes of the triangle alone, once for
+/// every cell of its rectangle (the same values, so the same verdicts).
+pub struct TriangleCull<'a> {
+    tri: &'a [Vec3; 3],
+    projection: Projection,
+    /// Under an area light: every light sample on the receivers' side of
+    /// the plane ([`beyond_every_light_sample`]); else `true`.
+    light_side: bool,
+    plane: PlaneParts,
+}
+
+/// The plane's parts of [`plane_below_box`] and [`plane_beyond_pyramid`].
+enum PlaneParts {
+    /// Directional; `None`: seen edge-on.
+    Below(Option<UpwardPlane>),
+    /// Point light.
+    Beyond(PointPlane),
+}
+
+/// A directional light's triangle: its upward normal, |n| / n_z, and its
+/// xy and z bounds.
+#[derive(Clone, Copy)]
+struct UpwardPlane {
+    n: Vec3,
+    slope: f32,
+    xy: (Vec2, Vec2),
+    z: (f32, f32),
+}
+
+/// A point light's triangle: its normal, the light's side (`None`: the
+/// light in the plane, or NaN), |n|, and the bounds of the triangle and
+/// the light (the origin).
+#[derive(Clone, Copy)]
+struct PointPlane {
+    n: Vec3,
+    side: Option<f32>,
+    length: f32,
+    bounds: (Vec3, Vec3),
+}
+
+impl<'a> TriangleCull<'a> {
+    /// The triangle's parts of the test, under a light of `light_radius`.
+    pub fn new(tri: &'a [Vec3; 3], projection: Projection, light_radius: f32) -> Self {
+        let light_side = if light_radius > 0.0 {
+            beyond_every_light_sample(tri, projection, light_radius)
+        } else {
+            true // a point-like light (or NaN, as before: not checked)
+        };
+        let plane = match projection {
+            Projection::Orthographic => PlaneParts::Below(upward_normal(tri).map(|n| {
+                let xy = [tri[1], tri[2]]
+                    .iter()
+                    .fold((tri[0].truncate(), tri[0].truncate()), |(lo, hi), v| {
+                        (lo.min(v.truncate()), hi.max(v.truncate()))
+                    });
+                let z = (
+                    tri[0].z.min(tri[1].z).min(tri[2].z),
+                    tri[0].z.max(tri[1].z).max(tri[2].z),
+                );
+                UpwardPlane {
+                    n,
+                    slope: n.length() / n.z,
+                    xy,
+                    z,
+                }
+            })),
+            Projection::Perspective => {
+                let a = tri[0];
+                let n = (tri[1] - a).cross(tri[2] - a);
+                // The light's side: sign of n · (light − a), the light at
+                // the origin.
+                let light_side = -n.dot(a);
+                let side = (light_side != 0.0).then(|| light_side.signum());
+                let bounds = tri.iter().fold((Vec3::ZERO, Vec3::ZERO), |(lo, hi), p| {
+                    (lo.min(*p), hi.max(*p))
+                });
+                PlaneParts::Beyond(PointPlane {
+                    n,
+                    side,
+                    length: n.length(),
+                    bounds,
+                })
+            }
+        };
+        TriangleCull {
+            tri,
+            projection,
+            light_side,
+            plane,
+        }
     }
-    if light_radius > 0.0 && !beyond_every_light_sample(tri, receivers.projection, light_radius) {
-        return false;
-    }
-    let r = receivers.reach[c] as f32 + CELL_PADDING;
-    // Level-l grid coordinates to level 0: times 2^l, exact.
-    let up = (1u32 << level) as f32;
-    let (g_lo, g_hi) = (
-        Vec2::new(x as f32 - r, y as f32 - r) * up,
-        Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r) * up,
-    );
-    let (lo, hi) = (grid.ndc_of_grid(g_lo), grid.ndc_of_grid(g_hi));
-    match receivers.projection {
-        Projection::Orthographic => plane_below_box(tri, lo, hi, z_min),
-        Projection::Perspective => plane_beyond_pyramid(tri, lo, hi, -z_min),
+
+    /// [`behind_receivers`] in cell (`x`, `y`) of level `level` (index `c`).
+    #[inline]
+    pub fn behind(
+        &self,
+        grid: &CascadeGrid,
+        receivers: &CellReceivers,
+        level: u32,
+        c: usize,
+        (x, y): (u32, u32),
+    ) -> bool {
+        let z_min = receivers.z_min[c];
+        if z_min == f32::INFINITY {
+            return true;
+        }
+        if !self.light_side {
+            return false;
+        }
+        let r = receivers.reach[c] as f32 + CELL_PADDING;
+        // Level-l grid coordinates to level 0: times 2^l, exact.
+        let up = (1u32 << level) as f32;
+        let (g_lo, g_hi) = (
+            Vec2::new(x as f32 - r, y as f32 - r) * up,
+            Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r) * up,
+        );
+        let (lo, hi) = (grid.ndc_of_grid(g_lo), grid.ndc_of_grid(g_hi));
+        debug_assert_eq!(self.projection, receivers.projection);
+        match &self.plane {
+            PlaneParts::Below(parts) => plane_below_box(self.tri, parts, lo, hi, z_min),
+            PlaneParts::Beyond(parts) => plane_beyond_pyramid(self.tri, parts, lo, hi, -z_min),
+        }
     }
 }
 
@@ -220,8 +422,20 @@ fn beyond_every_light_sample(tri: &[Vec3; 3], projection: Projection, light_radi
 
 /// Directional [`behind_receivers`]: the plane of `tri` below the box
 /// `[lo, hi]` × [`z_min`, ∞) by a margin.
-fn plane_below_box(tri: &[Vec3; 3], lo: Vec2, hi: Vec2, z_min: f32) -> bool {
-    let Some(n) = upward_normal(tri) else {
+fn plane_below_box(
+    tri: &[Vec3; 3],
+    parts: &Option<UpwardPlane>,
+    lo: Vec2,
+    hi: Vec2,
+    z_min: f32,
+) -> bool {
+    let Some(UpwardPlane {
+        n,
+        slope,
+        xy: (xy_lo, xy_hi),
+        z: (tri_z_lo, tri_z_hi),
+    }) = *parts
+    else {
         return false;
     };
     let a = tri[0];
@@ -231,33 +445,33 @@ fn plane_below_box(tri: &[Vec3; 3], lo: Vec2, hi: Vec2, z_min: f32) -> bool {
         .max(height(hi))
         .max(height(Vec2::new(lo.x, hi.y)));
     // Size of the whole configuration, for the margin.
-    let box_lo = lo
-        .min(a.truncate())
-        .min(tri[1].truncate())
-        .min(tri[2].truncate());
-    let box_hi = hi
-        .max(a.truncate())
-        .max(tri[1].truncate())
-        .max(tri[2].truncate());
-    let z_lo = z_min.min(a.z).min(tri[1].z).min(tri[2].z);
-    let z_hi = z_min.max(a.z).max(tri[1].z).max(tri[2].z);
+    let (box_lo, box_hi) = (lo.min(xy_lo), hi.max(xy_hi));
+    let (z_lo, z_hi) = (z_min.min(tri_z_lo), z_min.max(tri_z_hi));
     let size = (box_hi - box_lo).length() + (z_hi - z_lo);
-    let margin = BEHIND_MARGIN * size * (n.length() / n.z);
+    let margin = BEHIND_MARGIN * size * slope;
     plane_max < z_min - margin
 }
 
 /// Point-light [`behind_receivers`]: the four corners at depth `depth` of
 /// the pyramid from the light (the origin) through the NDC rectangle
 /// `[lo, hi]` lie on the light's side of `tri`'s plane by a margin.
-fn plane_beyond_pyramid(tri: &[Vec3; 3], lo: Vec2, hi: Vec2, depth: f32) -> bool {
-    let a = tri[0];
-    let n = (tri[1] - a).cross(tri[2] - a);
-    // The light's side: sign of n · (light − a), the light at the origin.
-    let light_side = -n.dot(a);
-    if !(light_side != 0.0) {
+fn plane_beyond_pyramid(
+    tri: &[Vec3; 3],
+    parts: &PointPlane,
+    lo: Vec2,
+    hi: Vec2,
+    depth: f32,
+) -> bool {
+    let PointPlane {
+        n,
+        side,
+        length,
+        bounds: (tri_lo, tri_hi),
+    } = *parts;
+    let Some(side) = side else {
         return false; // the light in the plane (or NaN): no side to keep
-    }
-    let side = light_side.signum();
+    };
+    let a = tri[0];
     let corners = [
         Vec3::new(lo.x * depth, lo.y * depth, depth),
         Vec3::new(hi.x * depth, lo.y * depth, depth),
@@ -265,12 +479,12 @@ fn plane_beyond_pyramid(tri: &[Vec3; 3], lo: Vec2, hi: Vec2, depth: f32) -> bool
         Vec3::new(lo.x * depth, hi.y * depth, depth),
     ];
     // Size of the whole configuration (light, corners, triangle).
-    let (mut box_lo, mut box_hi) = (Vec3::ZERO, Vec3::ZERO);
-    for p in corners.iter().chain(tri) {
+    let (mut box_lo, mut box_hi) = (tri_lo, tri_hi);
+    for p in &corners {
         box_lo = box_lo.min(*p);
         box_hi = box_hi.max(*p);
     }
-    let margin = BEHIND_MARGIN * (box_hi - box_lo).length() * n.length();
+    let margin = BEHIND_MARGIN * (box_hi - box_lo).length() * length;
     corners.iter().all(|&q| side * n.dot(q - a) > margin)
 }
 
