@@ -33,14 +33,14 @@ impl ViewBounds {
         count: 0,
     };
 
-    fn add(mut self, p: Vec3, view_forward: Vec3) -> ViewBounds {
+    #[inline]
+    fn add(&mut self, p: Vec3, view_forward: Vec3) {
         self.lo = self.lo.min(p);
         self.hi = self.hi.max(p);
         let d = p.dot(view_forward);
         self.near = self.near.min(d);
         self.far = self.far.max(d);
         self.count += 1;
-        self
     }
 
     fn merge(self, o: ViewBounds) -> ViewBounds {
@@ -54,6 +54,34 @@ impl ViewBounds {
     }
 }
 
+/// Folds `add` over the shadow-tested entries of every layer of `g` in
+/// parallel, in blocks of [`MIN_JOB`] entries, each block into its own
+/// accumulator (a plain loop on a local value: the accumulators are too
+/// large to pass by value per receiver), merged with `merge`.
+fn fold_tested<B: Copy + Send + Sync>(
+    g: &GBuffer,
+    empty: B,
+    add: impl Fn(&mut B, &GBuffer, usize) + Sync,
+    merge: impl Fn(B, B) -> B + Sync,
+) -> B {
+    tested(g)
+        .map(|(g, range)| {
+            (0..range.end.div_ceil(MIN_JOB))
+                .into_par_iter()
+                .map(|block| {
+                    let mut b = empty;
+                    for i in block * MIN_JOB..((block + 1) * MIN_JOB).min(range.end) {
+                        if g.flags[i] & flags::SHADOW_TESTED != 0 {
+                            add(&mut b, g, i);
+                        }
+                    }
+                    b
+                })
+                .reduce(|| empty, &merge)
+        })
+        .fold(empty, &merge)
+}
+
 /// The layers of `g` whose shadow-tested entries are the receivers (the
 /// pixels' centre surfaces and the edge pixels' extra surfaces, whose
 /// µQuads the grids must hold too), with their entries' range.
@@ -63,19 +91,12 @@ fn tested(g: &GBuffer) -> impl Iterator<Item = (&GBuffer, std::ops::Range<usize>
 
 /// [`ViewBounds`] of the shadow-tested receivers of `g`.
 pub(super) fn view_bounds(g: &GBuffer, view_forward: Vec3) -> ViewBounds {
-    tested(g)
-        .map(|(g, range)| {
-            range
-                .into_par_iter()
-                .with_min_len(MIN_JOB)
-                .filter(|&i| g.flags[i] & flags::SHADOW_TESTED != 0)
-                .fold(
-                    || ViewBounds::EMPTY,
-                    |b, i| b.add(g.position[i], view_forward),
-                )
-                .reduce(|| ViewBounds::EMPTY, ViewBounds::merge)
-        })
-        .fold(ViewBounds::EMPTY, ViewBounds::merge)
+    fold_tested(
+        g,
+        ViewBounds::EMPTY,
+        |b, g, i| b.add(g.position[i], view_forward),
+        ViewBounds::merge,
+    )
 }
 
 /// Per cascade, the light-NDC bounds of its receivers' µQuad corners and
@@ -121,10 +142,11 @@ pub(super) fn light_bounds(
     setup: &LightSetup,
     cascade_of: impl Fn(Vec3) -> usize + Sync,
 ) -> LightBounds {
-    let add = |mut b: LightBounds, (p, ex, ey): (Vec3, Vec3, Vec3)| {
+    let add = |b: &mut LightBounds, g: &GBuffer, i: usize| {
+        let p = g.position[i];
         let k = cascade_of(p);
         b.receivers[k] += 1;
-        for corner in microquad_corners(p, ex, ey) {
+        for corner in microquad_corners(p, g.axis_x[i], g.axis_y[i]) {
             let p = setup.to_light_view(corner);
             b.zmin = b.zmin.min(p.z);
             b.zmax = b.zmax.max(p.z);
@@ -136,19 +158,6 @@ pub(super) fn light_bounds(
                 None => b.no_ndc = true,
             }
         }
-        b
     };
-    tested(g)
-        .map(|(g, range)| {
-            range
-                .into_par_iter()
-                .with_min_len(MIN_JOB)
-                .filter(|&i| g.flags[i] & flags::SHADOW_TESTED != 0)
-                .fold(
-                    || LightBounds::EMPTY,
-                    |b, i| add(b, (g.position[i], g.axis_x[i], g.axis_y[i])),
-                )
-                .reduce(|| LightBounds::EMPTY, LightBounds::merge)
-        })
-        .fold(LightBounds::EMPTY, LightBounds::merge)
+    fold_tested(g, LightBounds::EMPTY, add, LightBounds::merge)
 }
