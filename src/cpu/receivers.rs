@@ -131,13 +131,6 @@ pub fn cell_receivers(
         .into_par_iter()
         .map(|share| {
             let mut out = CellReceivers::empty(cells, projection);
-            // Consecutive receivers (neighbouring pixels) mostly register
-            // in the same cells, on the coarse levels all the time: each
-            // (cascade, level) keeps the last range with the lowest key
-            // and largest reach of the receivers in it, and writes them
-            // when the range changes. Minimum and maximum do not depend on
-            // the grouping, so the arrays end as with one write per cell.
-            let mut runs: Vec<[RangeRun; 32]> = vec![[RangeRun::NONE; 32]; setup.cascades.len()];
             let receivers = share.iter().flat_map(|(l, range, _)| {
                 range
                     .clone()
@@ -158,24 +151,14 @@ pub fn cell_receivers(
                         break;
                     };
                     let reach = receiver_reach(lo, hi);
-                    let run = &mut runs[k][level as usize];
-                    if run.range == Some(range) {
-                        run.z_min = run.z_min.min(z);
-                        run.reach = run.reach.max(reach);
-                    } else {
-                        run.write(&mut out, level_cells[k][level as usize]);
-                        *run = RangeRun {
-                            range: Some(range),
-                            z_min: z,
-                            reach,
-                        };
-                    }
-                }
-            }
-            for (k, runs) in runs.iter().enumerate() {
-                for (level, run) in runs.iter().enumerate() {
-                    if run.range.is_some() {
-                        run.write(&mut out, level_cells[k][level]);
+                    let [x0, y0, x1, y1] = range;
+                    let cells = level_cells[k][level as usize];
+                    for y in y0..=y1 {
+                        for x in x0..=x1 {
+                            let c = cells.index(x, y);
+                            out.z_min[c] = out.z_min[c].min(z);
+                            out.reach[c] = out.reach[c].max(reach);
+                        }
                     }
                 }
             }
@@ -190,38 +173,6 @@ pub fn cell_receivers(
 
 /// Entries per block when the receivers are shared out between threads.
 const RECEIVER_BLOCK: usize = 4096;
-
-/// Receivers in a row that register in one cell range of one level: the
-/// range, their lowest key and their largest reach.
-#[derive(Clone, Copy)]
-struct RangeRun {
-    range: Option<[u32; 4]>,
-    z_min: f32,
-    reach: u32,
-}
-
-impl RangeRun {
-    const NONE: RangeRun = RangeRun {
-        range: None,
-        z_min: f32::INFINITY,
-        reach: 0,
-    };
-
-    /// Registers the run in the cells of its range (`cells`: its level).
-    #[inline]
-    fn write(&self, out: &mut CellReceivers, cells: LevelCells) {
-        let Some([x0, y0, x1, y1]) = self.range else {
-            return;
-        };
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let c = cells.index(x, y);
-                out.z_min[c] = out.z_min[c].min(self.z_min);
-                out.reach[c] = out.reach[c].max(self.reach);
-            }
-        }
-    }
-}
 
 /// How many cells the µQuad centre may lie from a cell its grid box
 /// `[lo, hi]` touches: the box's larger side, rounded up, plus one for
