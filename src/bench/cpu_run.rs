@@ -57,6 +57,8 @@ pub(super) fn run_once(
                 "evaluate": out.report.evaluate,
                 "work_per_pixel": out.report.work_per_pixel,
                 "evaluate_ns_per_test_per_thread": out.report.evaluate_ns_per_test_per_thread,
+                "ns_per_receiver_outside_evaluate_per_thread":
+                    out.report.ns_per_receiver_outside_evaluate_per_thread,
                 "cascades": out.report.light.cascade_choice,
                 "grids": out.report.light.cascades,
             });

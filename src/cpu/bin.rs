@@ -416,6 +416,7 @@ fn block_entries(
         stats: BinStats::default(),
     };
     let stats = &mut out.stats;
+    let mut touched_above = Vec::new();
     for id in ids {
         let mut overflows = 0u8;
         let mut placed_anywhere = false;
@@ -443,9 +444,18 @@ fn block_entries(
                 (r, t)
             });
             let mut listed = false;
+            // Whether the cells left of and above each cell are touched
+            // (`CellEntry::new`'s two questions), carried along the rows
+            // rather than asked again: false outside the rectangle.
+            touched_above.clear();
+            touched_above.resize((x1 - x0 + 1) as usize, false);
             for y in y0..=y1 {
-                for x in x0..=x1 {
-                    if !f.touches(i64::from(x), i64::from(y)) {
+                let mut touched_left = false;
+                for (x, above) in (x0..=x1).zip(touched_above.iter_mut()) {
+                    let touched = f.touches(i64::from(x), i64::from(y));
+                    let first = (!touched_left, !*above);
+                    (touched_left, *above) = (touched, touched);
+                    if !touched {
                         stats.cells_untouched += 1;
                         continue;
                     }
@@ -468,8 +478,13 @@ fn block_entries(
                         .then(|| cover_floor(grid, &light_view[id], level, x, y))
                         .flatten()
                         .unwrap_or(f32::NEG_INFINITY);
-                    out.entries
-                        .push((c as u32, CellEntry::new(id as u32, &f, x, y), floor));
+                    let entry = CellEntry {
+                        id: id as u32,
+                        first_column: first.0,
+                        first_row: first.1,
+                    };
+                    debug_assert_eq!(entry, CellEntry::new(id as u32, &f, x, y));
+                    out.entries.push((c as u32, entry, floor));
                 }
             }
             stats.triangles_behind_receivers += !listed as usize;

@@ -72,6 +72,11 @@ pub struct RenderReport {
     /// `evaluate` per tested pixel, and its seconds × threads per test.
     pub work_per_pixel: evaluate::WorkPerPixel,
     pub evaluate_ns_per_test_per_thread: f64,
+    /// The other passes' time (light setup, bin, resolve) × threads per
+    /// receiver (tested pixel or edge pixel's extra surface): the
+    /// per-pixel floor outside evaluate, which its ns per test leaves out
+    /// (issue 30).
+    pub ns_per_receiver_outside_evaluate_per_thread: f64,
 }
 
 /// A rendered shadow mask.
@@ -257,6 +262,12 @@ pub fn render_cpu_with(
     let evaluate_ns_per_test_per_thread =
         seconds.evaluate * rayon::current_num_threads() as f64 * 1e9
             / eval_stats.tests_spawned.max(1) as f64;
+    let receivers = eval_stats.pixels_tested + eval_stats.extra_surfaces_tested;
+    let ns_per_receiver_outside_evaluate_per_thread =
+        (seconds.light_setup + seconds.bin + seconds.resolve)
+            * rayon::current_num_threads() as f64
+            * 1e9
+            / receivers.max(1) as f64;
     ShadowRender {
         report: RenderReport {
             settings,
@@ -268,6 +279,7 @@ pub fn render_cpu_with(
             bin: bins.stats,
             work_per_pixel: eval_stats.per_pixel(),
             evaluate_ns_per_test_per_thread,
+            ns_per_receiver_outside_evaluate_per_thread,
             evaluate: eval_stats,
         },
         gbuffer: g,
