@@ -67,13 +67,16 @@ fn fold_tested<B: Copy + Send + Sync>(
     add: impl Fn(&mut B, &GBuffer, usize) + Sync,
     merge: impl Fn(B, B) -> B + Sync,
 ) -> B {
-    tested(g)
-        .map(|(g, range)| {
-            (0..range.end.div_ceil(MIN_JOB))
+    // The pixels' centre surfaces and the edge pixels' extra surfaces,
+    // whose µQuads the grids must hold too.
+    g.layers()
+        .map(|g| {
+            let n = g.flags.len();
+            (0..n.div_ceil(MIN_JOB))
                 .into_par_iter()
                 .map(|block| {
                     let mut b = empty;
-                    for i in block * MIN_JOB..((block + 1) * MIN_JOB).min(range.end) {
+                    for i in block * MIN_JOB..((block + 1) * MIN_JOB).min(n) {
                         if g.flags[i] & flags::SHADOW_TESTED != 0 {
                             add(&mut b, g, i);
                         }
@@ -83,13 +86,6 @@ fn fold_tested<B: Copy + Send + Sync>(
                 .reduce(|| empty, &merge)
         })
         .fold(empty, &merge)
-}
-
-/// The layers of `g` whose shadow-tested entries are the receivers (the
-/// pixels' centre surfaces and the edge pixels' extra surfaces, whose
-/// µQuads the grids must hold too), with their entries' range.
-fn tested(g: &GBuffer) -> impl Iterator<Item = (&GBuffer, std::ops::Range<usize>)> {
-    g.layers().map(|g| (g, 0..g.flags.len()))
 }
 
 /// [`ViewBounds`] of the shadow-tested receivers of `g`.
