@@ -12,7 +12,6 @@ use crate::frustum::LightRel;
 use crate::gbuffer::GBuffer;
 use crate::scene::{light_disk_f32, Light, LightDisk, Scene};
 use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
-use rayon::prelude::*;
 
 mod boxes;
 mod receiver_bounds;
@@ -366,29 +365,6 @@ pub fn light_setup_for(
     request: GridRequest,
     triangles: usize,
 ) -> LightSetup {
-    fit_light(scene, gbuffer, request, triangles, false).0
-}
-
-/// [`light_setup_for`], keeping the light-NDC box of each shadow-tested
-/// receiver's µQuad that the fit projects anyway: the start of
-/// [`LightSetup::receiver_boxes`] (`None` where no receiver is shadow
-/// tested).
-pub fn light_setup_keeping_boxes(
-    scene: &Scene,
-    gbuffer: &GBuffer,
-    request: GridRequest,
-    triangles: usize,
-) -> (LightSetup, Option<MicroquadBoxes>) {
-    fit_light(scene, gbuffer, request, triangles, true)
-}
-
-fn fit_light(
-    scene: &Scene,
-    gbuffer: &GBuffer,
-    request: GridRequest,
-    triangles: usize,
-    keep_boxes: bool,
-) -> (LightSetup, Option<MicroquadBoxes>) {
     let light = scene.light.relative_to(scene.camera.eye);
     let view_forward = scene.camera.frame(scene.resolution).forward.as_vec3();
     // Receivers' eye-relative bounds centre: the light-view origin of a
@@ -453,7 +429,7 @@ fn fit_light(
         }
     }
     if tested == 0 {
-        return (setup, None);
+        return setup;
     }
     // The pixels' cascades.
     let choice = CascadeChoice::new(request.cascades, near, far, request.split_lambda);
@@ -464,18 +440,7 @@ fn fit_light(
         cascades::cascade_of_depth(&setup.split_depths, p.dot(view_forward)).min(count - 1)
     };
     // Per cascade: light-NDC bounds of its µQuads' corners.
-    let mut kept: Option<Vec<Vec<(Vec2, Vec2)>>> = keep_boxes.then(|| {
-        let none = (Vec2::NAN, Vec2::NAN);
-        // Filled in parallel: the pages are first touched by both threads.
-        let filled = |n: usize| {
-            let mut v = Vec::with_capacity(n);
-            v.par_extend(rayon::iter::repeat_n(none, n));
-            v
-        };
-        gbuffer.layers().map(|g| filled(g.flags.len())).collect()
-    });
-    let bounds = receiver_bounds::light_bounds(gbuffer, &setup, cascade_of, kept.as_deref_mut());
-    let boxes = kept.map(|kept| MicroquadBoxes::from_layers(gbuffer, kept));
+    let bounds = receiver_bounds::light_bounds(gbuffer, &setup, cascade_of);
     let (nmin, nmax, receivers) = (bounds.nmin, bounds.nmax, bounds.receivers);
     let (zmin, zmax) = (bounds.zmin, bounds.zmax);
     setup.grid_disabled |= bounds.no_ndc;
@@ -488,7 +453,7 @@ fn fit_light(
         setup.cascade_choice.count = 1;
         setup.cascade_choice.reason =
             "no grid: the receivers surround the point light, every triangle overflows".into();
-        return (setup, boxes);
+        return setup;
     }
     let side = request
         .cells
@@ -523,7 +488,7 @@ fn fit_light(
             grid
         })
         .collect();
-    (setup, boxes)
+    setup
 }
 
 #[cfg(test)]

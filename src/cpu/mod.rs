@@ -217,15 +217,14 @@ pub fn render_cpu_with(
         }
     };
     let request = GridRequest::from(&settings);
-    let (setup, projected) =
-        light_setup::light_setup_keeping_boxes(scene, &g, request, triangles.len());
+    let setup = light_setup::light_setup_for(scene, &g, request, triangles.len());
     seconds.light_setup = lap();
     // With edge surfaces every bit is one of the pixel's own samples (a
     // µQuad sample's line toward the light, or a paired ray), so a
     // surface's mask is full once its own samples are set; under a
     // point-like light a surface needs only the part of its µQuad its
     // samples span.
-    let boxes = setup.receiver_boxes_from(&g, settings.skips, !soft, projected);
+    let boxes = setup.receiver_boxes(&g, settings.skips, !soft);
     let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
     let bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
     seconds.bin = lap();

@@ -60,48 +60,32 @@ impl ViewBounds {
 /// Folds `add` over the shadow-tested entries of every layer of `g` in
 /// parallel, in blocks of [`MIN_JOB`] entries, each block into its own
 /// accumulator (a plain loop on a local value: the accumulators are too
-/// large to pass by value per receiver), merged with `merge`. With `kept`,
-/// what `add` returns for entry `i` of layer `l` is written to
-/// `kept[l][i]` (the other entries keep what they hold).
-fn fold_tested<B: Copy + Send + Sync, O: Send>(
+/// large to pass by value per receiver), merged with `merge`.
+fn fold_tested<B: Copy + Send + Sync>(
     g: &GBuffer,
     empty: B,
-    add: impl Fn(&mut B, &GBuffer, usize) -> O + Sync,
+    add: impl Fn(&mut B, &GBuffer, usize) + Sync,
     merge: impl Fn(B, B) -> B + Sync,
-    mut kept: Option<&mut [Vec<O>]>,
 ) -> B {
     // The pixels' centre surfaces and the edge pixels' extra surfaces,
     // whose µQuads the grids must hold too.
-    let mut total = empty;
-    for (l, g) in g.layers().enumerate() {
-        let n = g.flags.len();
-        let block = |block: usize, mut out: Option<&mut [O]>| {
-            let mut b = empty;
-            let start = block * MIN_JOB;
-            for i in start..(start + MIN_JOB).min(n) {
-                if g.flags[i] & flags::SHADOW_TESTED != 0 {
-                    let o = add(&mut b, g, i);
-                    if let Some(out) = out.as_deref_mut() {
-                        out[i - start] = o;
-                    }
-                }
-            }
-            b
-        };
-        let layer = match kept.as_deref_mut() {
-            Some(kept) => kept[l]
-                .par_chunks_mut(MIN_JOB)
-                .enumerate()
-                .map(|(i, out)| block(i, Some(out)))
-                .reduce(|| empty, &merge),
-            None => (0..n.div_ceil(MIN_JOB))
+    g.layers()
+        .map(|g| {
+            let n = g.flags.len();
+            (0..n.div_ceil(MIN_JOB))
                 .into_par_iter()
-                .map(|i| block(i, None))
-                .reduce(|| empty, &merge),
-        };
-        total = merge(total, layer);
-    }
-    total
+                .map(|block| {
+                    let mut b = empty;
+                    for i in block * MIN_JOB..((block + 1) * MIN_JOB).min(n) {
+                        if g.flags[i] & flags::SHADOW_TESTED != 0 {
+                            add(&mut b, g, i);
+                        }
+                    }
+                    b
+                })
+                .reduce(|| empty, &merge)
+        })
+        .fold(empty, &merge)
 }
 
 /// [`ViewBounds`] of the shadow-tested receivers of `g`.
@@ -111,7 +95,6 @@ pub(super) fn view_bounds(g: &GBuffer, view_forward: Vec3) -> ViewBounds {
         ViewBounds::EMPTY,
         |b, g, i| b.add(g.position[i], view_forward),
         ViewBounds::merge,
-        None::<&mut [Vec<()>]>,
     )
 }
 
@@ -152,39 +135,28 @@ impl LightBounds {
 }
 
 /// [`LightBounds`] of the shadow-tested receivers of `g` in `setup`'s
-/// light view, `cascade_of` their P's cascade. With `kept` (one array per
-/// layer of `g`, as long as the layer), each shadow-tested receiver's
-/// light-NDC µQuad box is kept there, the box
-/// [`LightSetup::microquad_ndc_box`] computes from the same corners, so
-/// the bin and evaluate need not project them again.
+/// light view, `cascade_of` their P's cascade.
 pub(super) fn light_bounds(
     g: &GBuffer,
     setup: &LightSetup,
     cascade_of: impl Fn(Vec3) -> usize + Sync,
-    kept: Option<&mut [Vec<(Vec2, Vec2)>]>,
 ) -> LightBounds {
     let add = |b: &mut LightBounds, g: &GBuffer, i: usize| {
         let p = g.position[i];
         let k = cascade_of(p);
         b.receivers[k] += 1;
-        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for corner in microquad_corners(p, g.axis_x[i], g.axis_y[i]) {
             let p = setup.to_light_view(corner);
             b.zmin = b.zmin.min(p.z);
             b.zmax = b.zmax.max(p.z);
             match setup.ndc(p) {
                 Some(n) => {
-                    lo = lo.min(n);
-                    hi = hi.max(n);
+                    b.nmin[k] = b.nmin[k].min(n);
+                    b.nmax[k] = b.nmax[k].max(n);
                 }
                 None => b.no_ndc = true,
             }
         }
-        // The minimum over the corners, taken in another grouping: the
-        // same value (only a zero's sign could differ, see the module).
-        b.nmin[k] = b.nmin[k].min(lo);
-        b.nmax[k] = b.nmax[k].max(hi);
-        (lo, hi)
     };
-    fold_tested(g, LightBounds::EMPTY, add, LightBounds::merge, kept)
+    fold_tested(g, LightBounds::EMPTY, add, LightBounds::merge)
 }
