@@ -77,9 +77,9 @@ impl CellEntry {
 /// An overflow-list entry: a triangle and the cascades (bit k = cascade k)
 /// whose pixels must all test it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct OverflowEntry {
-    pub id: u32,
-    pub cascades: u8,
+struct OverflowEntry {
+    id: u32,
+    cascades: u8,
 }
 
 /// Counters of the bin pass. With several cascades a triangle is placed
@@ -123,7 +123,10 @@ pub struct Bins {
     pub cell_start: Vec<u32>,
     /// Cell entries, cell after cell.
     pub cell_triangles: Vec<CellEntry>,
-    pub overflow: Vec<OverflowEntry>,
+    /// Per cascade, its overflow list: the triangles every pixel of the
+    /// cascade tests, as the entries of one more cell that is tested whole
+    /// (both `first_` flags set), so evaluate walks it like the others.
+    pub overflow: Vec<Vec<CellEntry>>,
     /// Per cascade, bit l set when pyramid level l holds a placement: the
     /// levels a pixel visits.
     pub levels: Vec<u32>,
@@ -353,6 +356,20 @@ pub fn bin(
             cursor[c as usize] += 1;
         }
     }
+    let overflow = (0..setup.cascades.len())
+        .map(|k| {
+            let listed = overflow
+                .iter()
+                .filter(|e: &&OverflowEntry| e.cascades & (1 << k) != 0);
+            listed
+                .map(|e| CellEntry {
+                    id: e.id,
+                    first_column: true,
+                    first_row: true,
+                })
+                .collect()
+        })
+        .collect();
     Bins {
         placement: placed,
         cell_start,

@@ -192,6 +192,19 @@ fn triangle_mask(
     }
 }
 
+/// [`triangle_mask`] outside the entry loop: the walk's step for a
+/// candidate tested alone (an area light's), kept out so that the step the
+/// batched walk takes stays small enough to inline.
+#[inline(never)]
+fn unbatched_mask(
+    px: &PixelFrustum,
+    tri: &[Vec3; 3],
+    rule: &MaskRule,
+    counters: &mut TestCounters,
+) -> u32 {
+    triangle_mask(px, tri, rule, counters)
+}
+
 /// [`triangle_mask`] for a triangle above the tangent plane by `height`.
 #[inline(never)]
 fn occluded_samples(
@@ -242,33 +255,45 @@ pub fn for_each_candidate(
 
 /// [`for_each_candidate`]'s walk; `visit` also gets the cells and levels
 /// visited so far (what the walk returns if it stops there).
+///
+/// The overflow list is walked first as one more cell, tested whole, so
+/// that the walk calls `visit` in one place: inlined there with the walk
+/// into the caller, the per-candidate step is not a call (courtyard 1080p
+/// evaluate 0.718 → 0.681 s; with two calls LLVM kept it out of line).
+#[inline(always)]
 fn candidates_of(
     setup: &LightSetup,
     bins: &Bins,
     px: &PixelFrustum,
     mut visit: impl FnMut(u32, (u64, u64)) -> bool,
 ) -> (u64, u64) {
-    let bit = 1u8 << px.cascade;
-    for e in &bins.overflow {
-        if e.cascades & bit != 0 && visit(e.id, (0, 0)) {
-            return (0, 0);
-        }
-    }
     let (mut cells, mut levels) = (0, 0);
-    let Some((lo, hi)) = px.grid_box else {
-        return (cells, levels);
-    };
     let grid = &setup.cascades[px.cascade];
-    for level in levels_of(bins.levels[px.cascade]) {
-        let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
-            continue;
+    let (lo, hi) = px.grid_box.unwrap_or_default();
+    let grid_levels = px.grid_box.map_or(0, |_| bins.levels[px.cascade]);
+    // `None`: the overflow list.
+    for level in std::iter::once(None).chain(levels_of(grid_levels).map(Some)) {
+        let (range, level_cells) = match level {
+            None => ([0; 4], None),
+            Some(level) => {
+                let Some(range) = cell_range_at(grid, level, lo, hi) else {
+                    continue;
+                };
+                levels += 1;
+                (range, Some(bins.level_cells[px.cascade][level as usize]))
+            }
         };
-        levels += 1;
-        let level_cells = bins.level_cells[px.cascade][level as usize];
+        let [x0, y0, x1, y1] = range;
         for y in y0..=y1 {
             for x in x0..=x1 {
-                cells += 1;
-                for e in bins.cell_at(level_cells.index(x, y)) {
+                let list = match level_cells {
+                    None => &bins.overflow[px.cascade][..],
+                    Some(level_cells) => {
+                        cells += 1;
+                        bins.cell_at(level_cells.index(x, y))
+                    }
+                };
+                for e in list {
                     // A triangle in several of the visited cells is tested
                     // in the first of them (see `CellEntry`).
                     if e.tested_in(x, y, x0, y0) && visit(e.id, (cells, levels)) {
@@ -334,7 +359,7 @@ fn evaluate_pixel(
             }
             tests += 1;
             if !batching {
-                mask |= triangle_mask(px, &triangles[id as usize], rule, &mut counters);
+                mask |= unbatched_mask(px, &triangles[id as usize], rule, &mut counters);
                 return stop_when_full && full(mask);
             }
             let t = triangles[id as usize].map(|v| v - px.p);
@@ -392,7 +417,8 @@ fn evaluate_pixel(
 /// The masks of `batch`'s candidates, ORed into `mask` in their order as
 /// [`occluded_samples`] forms them; empties the batch. Returns the
 /// candidate at which the mask's wanted samples filled, when the walk is
-/// to stop there.
+/// to stop there. Called once per batch: kept out of the entry loop.
+#[inline(never)]
 fn test_batch(
     px: &PixelFrustum,
     rule: &MaskRule,
