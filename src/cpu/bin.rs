@@ -356,12 +356,13 @@ pub fn bin(
             cursor[c as usize] += 1;
         }
     }
+    // Each cascade's overflow list, as the entries of a cell that every
+    // pixel of the cascade tests whole.
     let overflow = (0..setup.cascades.len())
         .map(|k| {
-            let listed = overflow
+            overflow
                 .iter()
-                .filter(|e: &&OverflowEntry| e.cascades & (1 << k) != 0);
-            listed
+                .filter(|e| e.cascades & (1 << k) != 0)
                 .map(|e| CellEntry {
                     id: e.id,
                     first_column: true,
