@@ -269,6 +269,8 @@ fn candidates_of(
 ) -> (u64, u64) {
     let (mut cells, mut levels) = (0, 0);
     let grid = &setup.cascades[px.cascade];
+    // Without a grid box the walk has no grid levels, only the overflow
+    // list, so the default box is never read.
     let (lo, hi) = px.grid_box.unwrap_or_default();
     let grid_levels = px.grid_box.map_or(0, |_| bins.levels[px.cascade]);
     // `None`: the overflow list.
