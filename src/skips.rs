@@ -25,7 +25,9 @@ pub struct Skips {
     /// An occluder whose shadow prism contains or misses the whole µQuad
     /// takes the cheap path: one comparison per edge instead of a LUT read
     /// or 32 sample evaluations, and the remaining edges are not computed
-    /// once one edge misses the µQuad.
+    /// once one edge misses the µQuad. On the CPU a batched occluder whose
+    /// edges, alone or two by two, provably leave no sample inside takes
+    /// it too (`cpu::empty_certificate`).
     pub saturated_edges: bool,
     /// A cell does not list a triangle that lies behind (farther from the
     /// light than) every receiver that can test it there, nor anything at

@@ -433,18 +433,25 @@ fn test_batch(
     if len == 0 {
         return None;
     }
-    batch.test(rule.simd, px.microquad_part, px.light, px.ex, px.ey, r);
+    batch.test(rule, px.microquad_part, px.light, px.ex, px.ey, r);
     counters.survivor_batches += 1;
     counters.survivor_lanes += len as u64;
+    // With the `saturated_edges` skip a lane whose edges provably leave
+    // no sample inside takes mask 0 without the LUT, counted as a
+    // saturated mask (`empty_certificate`).
+    let certify = rule.skips.saturated_edges;
+    let needs_mask =
+        |l: usize| r.beyond[l] && r.winding[l] != 0.0 && !(certify && r.no_sample_inside[l] != 0);
     let lut = rule.mode == SampleMode::Lut32;
     if lut {
-        super::lut_batch::lut_coordinates(rule.simd, rule.lut, &r.edges, &mut r.lut);
+        let wanted = |l: usize| l < len && needs_mask(l);
+        super::lut_batch::lut_coordinates(rule.simd, rule.lut, &r.edges, wanted, &mut r.lut);
     }
     for l in 0..len {
         if r.beyond[l] {
             counters.depth_passed += 1;
             // Edge-on from the light (or NaN): no shadow area.
-            if r.winding[l] != 0.0 {
+            if needs_mask(l) {
                 let r = &*r;
                 *mask |= if lut {
                     // The batch's masks, or the scalar one where its row
@@ -457,6 +464,8 @@ fn test_batch(
                 } else {
                     and_of_edges(rule, 3, |k| r.edge(l, k), counters)
                 };
+            } else if r.winding[l] != 0.0 {
+                counters.saturated_masks += 1;
             }
         }
         if stop_when_full && *mask & px.wanted == px.wanted {

@@ -23,7 +23,10 @@ pub struct EvaluateStats {
     pub early_outs: usize,
     /// Depth-passing triangles whose mask the cheap path decided (shadow
     /// prism containing or missing the whole µQuad: no LUT read, no sample
-    /// loop, later edges not computed).
+    /// loop, later edges not computed). On the CPU this includes the
+    /// batched triangles certified to leave no sample inside
+    /// ([`super::empty_certificate`]), which the GPU evaluates through
+    /// the LUT, so the two backends' counts differ.
     pub saturated_masks: u64,
     /// Grid cells visited over all pixels.
     pub cells_visited: u64,

@@ -1,9 +1,10 @@
-//! The LUT's cells of a survivor batch's edges, eight lanes × three edges
-//! at a time ([`super::survivor_batch`]): the normalisation, the
-//! saturation test, the distance column and the angle row of
-//! [`izb_lut::EdgeLut::cell`] computed in SIMD registers for every lane,
-//! then the floors and the table read only for the edges the scalar mask
-//! loop asks for ([`LutCoordinates::mask`]), in its order.
+//! The LUT's cells of the edges a survivor batch's masks need
+//! ([`super::survivor_batch`]; lanes whose edges are certified to leave no
+//! sample inside need none, [`super::empty_certificate`]), packed eight to
+//! a vector: the normalisation, the saturation test, the distance column
+//! and the angle row of [`izb_lut::EdgeLut::cell`] computed in SIMD
+//! registers, then the floors and the table read only for the edges the
+//! scalar mask loop asks for ([`LutCoordinates::mask`]), in its order.
 //!
 //! All of it is the scalar operations bit for bit but the angle. The row
 //! is `floor((atan2f(γ, β) + π) · A/2π)` in `f32`, and libm's `atan2f`
@@ -33,39 +34,46 @@ use izb_lut::EdgeLut;
 /// combined error at A = 128 rows (both ≲ 10⁻⁶ rad, × A/2π ≈ 20).
 const ROW_MARGIN: f32 = 1.0 / 512.0;
 
-/// Per edge and lane (`[k][lane]`), what the LUT's cell needs: whether
+/// Edges a batch can ask for: three per lane.
+const SLOTS: usize = 3 * LANES;
+
+/// Per edge the lanes asked for (in slots, packed: `slot[k][lane]` says
+/// where edge k of lane `lane` went), what the LUT's cell needs: whether
 /// the edge's line may cut the µQuad (else the mask is constant), which
 /// constant, and the estimated row and exact column coordinates
 /// ([`Self::mask`] finishes the cell where it is asked for).
 #[derive(Default)]
 pub struct LutCoordinates {
+    slot: [[u8; LANES]; 3],
     /// 1 where the line may cut the µQuad (a `u32`, not a `bool`: LLVM
     /// vectorises the loop only so).
-    cuts: [[u32; LANES]; 3],
+    cuts: [u32; SLOTS],
     /// The saturated mask: every sample or none.
-    constant: [[u32; LANES]; 3],
+    constant: [u32; SLOTS],
     /// The row's floor, and 0 where the estimate is too near a whole
     /// number (or NaN) to be sure of it, else 1.
-    row: [[f32; LANES]; 3],
-    row_sure: [[u32; LANES]; 3],
+    row: [f32; SLOTS],
+    row_sure: [u32; SLOTS],
     /// The column coordinate's floor (exact).
-    column: [[f32; LANES]; 3],
+    column: [f32; SLOTS],
 }
 
 impl LutCoordinates {
-    /// Edge `k` of lane `l`: its mask from `lut` and whether it was the
-    /// saturation branch's, as [`izb_lut::EdgeLut::cell`] and
-    /// [`izb_lut::EdgeLut::cell_mask`] give them; `None` where the row
-    /// estimate lies too near a row boundary to be sure.
+    /// Edge `k` of lane `l` (a lane [`lut_coordinates`] was asked for):
+    /// its mask from `lut` and whether it was the saturation branch's, as
+    /// [`izb_lut::EdgeLut::cell`] and [`izb_lut::EdgeLut::cell_mask`] give
+    /// them; `None` where the row estimate lies too near a row boundary to
+    /// be sure.
     #[inline]
     pub fn mask(&self, lut: &EdgeLut, k: usize, l: usize) -> Option<(u32, bool)> {
-        if self.cuts[k][l] == 0 {
-            return Some((self.constant[k][l], true));
+        let i = self.slot[k][l] as usize;
+        if self.cuts[i] == 0 {
+            return Some((self.constant[i], true));
         }
-        if self.row_sure[k][l] == 0 {
+        if self.row_sure[i] == 0 {
             return None;
         }
-        let floor = self.row[k][l];
+        let floor = self.row[i];
         let (rows, columns) = (lut.angles as i32, lut.distances as i32);
         let angle = floor as i32;
         let angle = if angle >= rows {
@@ -73,7 +81,7 @@ impl LutCoordinates {
         } else {
             angle.max(0)
         };
-        let distance = (self.column[k][l] as i32).clamp(0, columns - 1);
+        let distance = (self.column[i] as i32).clamp(0, columns - 1);
         let index = (angle * columns + distance) as usize;
         Some((lut.masks[index], false))
     }
@@ -83,51 +91,72 @@ impl LutCoordinates {
 /// ([`super::survivor_batch::BatchTests::edges`]).
 pub type BatchEdges = [[[f32; LANES]; 3]; 3];
 
-/// The LUT coordinates of `edges` into `out`.
+/// The LUT coordinates of the edges of the lanes `wanted` marks, into
+/// `out`: packed into slots first, so that a batch whose masks mostly
+/// need no LUT (`super::empty_certificate`) computes one vector of edges
+/// rather than three.
 pub fn lut_coordinates(
     path: SimdPath,
     lut: &EdgeLut,
     edges: &BatchEdges,
+    wanted: impl Fn(usize) -> bool,
     out: &mut LutCoordinates,
 ) {
+    let mut packed = [[0.0f32; SLOTS]; 3];
+    let mut used = 0;
+    for l in (0..LANES).filter(|&l| wanted(l)) {
+        for (k, edge) in edges.iter().enumerate() {
+            for (component, values) in edge.iter().enumerate() {
+                packed[component][used] = values[l];
+            }
+            out.slot[k][l] = used as u8;
+            used += 1;
+        }
+    }
+    let chunks = used.div_ceil(LANES);
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `path` is Avx512 only where the processor has AVX-512F
         // (`SimdPath::or_supported`).
-        SimdPath::Avx512 => unsafe { kernel_avx512(lut, edges, out) },
+        SimdPath::Avx512 => unsafe { kernel_avx512(lut, &packed, chunks, out) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `path` is Avx2 only where the processor has AVX2.
-        SimdPath::Avx2 => unsafe { kernel_avx2(lut, edges, out) },
-        _ => kernel(lut, edges, out),
+        SimdPath::Avx2 => unsafe { kernel_avx2(lut, &packed, chunks, out) },
+        _ => kernel(lut, &packed, chunks, out),
     }
 }
+
+/// Packed edges, `[component][slot]`.
+type Packed = [[f32; SLOTS]; 3];
 
 /// # Safety
 /// The processor has AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn kernel_avx2(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
-    kernel(lut, edges, out)
+unsafe fn kernel_avx2(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut LutCoordinates) {
+    kernel(lut, packed, chunks, out)
 }
 
 /// # Safety
 /// The processor has AVX-512F.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn kernel_avx512(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
-    kernel(lut, edges, out)
+unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut LutCoordinates) {
+    kernel(lut, packed, chunks, out)
 }
 
-/// Every lane's coordinates: `EdgeLut::cell`'s operations up to the
-/// floors, with [`crate::frustum::normalised_edge`]'s branch as a factor
-/// of 1 (exact), so that each loop is straight-line code over lanes.
+/// The coordinates of the first `chunks` × [`LANES`] slots:
+/// `EdgeLut::cell`'s operations up to the floors, with
+/// [`crate::frustum::normalised_edge`]'s branch as a factor of 1 (exact),
+/// so that each loop is straight-line code over slots.
 #[inline(always)]
-fn kernel(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
+fn kernel(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut LutCoordinates) {
     const HALF_DIAGONAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
     const EXPONENT: u32 = 0x7F80_0000;
     let (angle_scale, distance_scale) = (lut.angle_scale_f32(), lut.distance_scale_f32());
-    for (k, [alphas, betas, gammas]) in edges.iter().enumerate() {
-        for l in 0..LANES {
+    let [alphas, betas, gammas] = packed;
+    for chunk in 0..chunks.min(3) {
+        for l in chunk * LANES..(chunk + 1) * LANES {
             let m = betas[l].abs().max(gammas[l].abs());
             let exponent = m.to_bits() & EXPONENT;
             let unscaled = m == 0.0 || exponent == EXPONENT;
@@ -135,16 +164,16 @@ fn kernel(lut: &EdgeLut, edges: &BatchEdges, out: &mut LutCoordinates) {
             let scale = if unscaled { 1.0 } else { scale };
             let (alpha, beta, gamma) = (alphas[l] * scale, betas[l] * scale, gammas[l] * scale);
             let r = (beta * beta + gamma * gamma).sqrt();
-            out.cuts[k][l] = u32::from(alpha.abs() < HALF_DIAGONAL * r);
+            out.cuts[l] = u32::from(alpha.abs() < HALF_DIAGONAL * r);
             let inside = (alpha >= 0.0) & (r >= 0.0);
-            out.constant[k][l] = 0u32.wrapping_sub(u32::from(inside));
-            out.column[k][l] = ((alpha / r + HALF_DIAGONAL) * distance_scale).floor();
+            out.constant[l] = 0u32.wrapping_sub(u32::from(inside));
+            out.column[l] = ((alpha / r + HALF_DIAGONAL) * distance_scale).floor();
             let row = (angle_estimate(beta, gamma) + std::f32::consts::PI) * angle_scale;
             let floor = row.floor();
-            out.row[k][l] = floor;
+            out.row[l] = floor;
             // False for NaN too.
             let sure = (row - floor).min(floor + 1.0 - row) > ROW_MARGIN;
-            out.row_sure[k][l] = u32::from(sure);
+            out.row_sure[l] = u32::from(sure);
         }
     }
 }
@@ -248,7 +277,7 @@ mod tests {
                     }
                 }
                 let mut out = LutCoordinates::default();
-                lut_coordinates(path, lut, &batch, &mut out);
+                lut_coordinates(path, lut, &batch, |_| true, &mut out);
                 for (i, e) in chunk.iter().enumerate() {
                     let (l, k) = (i / 3, i % 3);
                     match out.mask(lut, k, l) {

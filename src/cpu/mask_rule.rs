@@ -23,6 +23,9 @@ pub struct MaskRule<'a> {
     /// The samples are the light's (an area light, [`Self::for_light`]),
     /// not the µQuad's.
     pub light_samples: bool,
+    /// How far the LUT's edge masks may err, in µQuad sides
+    /// ([`super::empty_certificate::certificate_reach`]).
+    pub certificate_reach: f32,
     /// The instruction set of the batched tests
     /// ([`super::survivor_batch`]): masks and counters are the same on
     /// every path.
@@ -46,6 +49,7 @@ impl<'a> MaskRule<'a> {
             lut,
             skips,
             radius: crate::frustum::pattern_radius(pattern),
+            certificate_reach: super::empty_certificate::certificate_reach(lut),
             light_samples: soft,
             simd: SimdPath::detected(),
         }

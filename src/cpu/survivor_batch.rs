@@ -4,10 +4,12 @@
 //! batch, and the batch computes for every lane whether P lies beyond the
 //! triangle's plane ([`crate::frustum::beyond_triangle_plane`]), the
 //! winding and the three side planes' edge functions
-//! ([`crate::frustum::edge_function`]) in SIMD registers. The masks are
-//! then formed lane by lane, in the candidates' order, by the scalar code
-//! (the LUT's cell, or the exact sample loop), so a mask fills — and the
-//! walk stops — at the same candidate as one test at a time.
+//! ([`crate::frustum::edge_function`]) in SIMD registers, and whether the
+//! edges provably leave no sample inside ([`super::empty_certificate`]:
+//! such a lane's mask is 0 without the LUT). The other masks are then
+//! formed lane by lane, in the candidates' order, by the scalar code (the
+//! LUT's cell, or the exact sample loop), so a mask fills — and the walk
+//! stops — at the same candidate as one test at a time.
 //!
 //! Bit for bit the scalar test: each lane performs the scalar functions'
 //! operations in their order (`glam`'s dot as `(x·x' + y·y') + z·z'`, its
@@ -18,6 +20,8 @@
 //! AVX-512F enabled ([`SimdPath`]); LLVM vectorises each, and every path
 //! gives the same floats.
 
+use super::empty_certificate::no_sample_inside_lanes;
+use super::mask_rule::MaskRule;
 use super::simd::SimdPath;
 use crate::frustum::{max3, LightRel, Vector, DEPTH_TOLERANCE_ROUNDING};
 use glam::Vec3;
@@ -56,6 +60,10 @@ pub struct BatchTests {
     /// `edges[k][component][lane]`: edge function `k`'s (α, β, γ),
     /// flipped by the winding.
     pub edges: super::lut_batch::BatchEdges,
+    /// 1 where the edges provably leave no sample inside
+    /// ([`super::empty_certificate`]), else 0 (a `u32`: LLVM vectorises
+    /// the loop only so).
+    pub no_sample_inside: [u32; LANES],
     /// With the LUT: the edges' cell coordinates ([`super::lut_batch`]).
     pub lut: super::lut_batch::LutCoordinates,
 }
@@ -93,12 +101,13 @@ impl SurvivorBatch {
         [0, 1, 2].map(|v| Vec3::new(t[v][0][l], t[v][1][l], t[v][2][l]))
     }
 
-    /// The depth test's second condition, the winding and the edge
-    /// functions of every lane, into `out` (lanes past `len` hold stale
-    /// values).
-    pub fn test(
+    /// The depth test's second condition, the winding, the edge
+    /// functions and their certificate (each edge's mask erring by at most
+    /// the rule's `certificate_reach`) of every lane, on the rule's
+    /// instruction set, into `out` (lanes past `len` hold stale values).
+    pub(super) fn test(
         &self,
-        path: SimdPath,
+        rule: &MaskRule,
         microquad_part: f32,
         light: LightRel<Vec3>,
         ex: Vec3,
@@ -109,8 +118,9 @@ impl SurvivorBatch {
             microquad_part,
             ex,
             ey,
+            reach: rule.certificate_reach,
         };
-        match (path, light) {
+        match (rule.simd, light) {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `path` is Avx512 only where the processor has
             // AVX-512F (`SimdPath::or_supported`).
@@ -143,6 +153,8 @@ struct Frame {
     microquad_part: f32,
     ex: Vec3,
     ey: Vec3,
+    /// How far an edge's mask may err ([`super::empty_certificate`]).
+    reach: f32,
 }
 
 /// # Safety
@@ -210,4 +222,5 @@ fn kernel<const POINT: bool>(b: &SurvivorBatch, f: &Frame, light: Vec3, out: &mu
             [e[0][l], e[1][l], e[2][l]] = [-(n.dot(x)), n.dot(f.ex), n.dot(f.ey)];
         }
     }
+    no_sample_inside_lanes(&out.edges, f.reach, &mut out.no_sample_inside);
 }
