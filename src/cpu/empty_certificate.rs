@@ -42,9 +42,13 @@
 //! M = 2⁻¹⁶·(Σλ_k(|α_k| + R·r_k) + ½(Σλ_k|β_k| + Σλ_k|γ_k|)): the sum of
 //! the magnitudes V is formed from, times 2⁻¹⁶, hundreds of times the few
 //! roundings of its products and sums (each ≤ 2⁻²⁴ of those magnitudes;
-//! Higham 2002, §3.1), of r_k's root and of R. Overflow makes M infinite
-//! and NaN makes the comparison false: no certificate. Courtyard at
-//! 1920×1080 measured in `paper-notes/performance.md`.
+//! Higham 2002, §3.1), of r_k's root and of R. Each edge carries its
+//! share of M added to α_k + R·r_k, so a candidate is one weighted sum.
+//! An infinite or NaN share, and NaN anywhere, make the comparison false:
+//! no certificate. A product that overflows to −∞ does certify, and
+//! rightly: it exceeds every finite positive term by more than 2⁻¹⁷ of
+//! f32's range, its margin included. Measured in
+//! `paper-notes/performance.md` (issue 30, session 21).
 
 /// The reach R of the certificate for `lut`: the misclassification bound
 /// at a corner of the µQuad (the largest over the square, so any sample
@@ -69,11 +73,11 @@ fn scaled(alpha: f32, beta: f32, gamma: f32) -> [f32; 4] {
     [alpha, beta, gamma, (beta * beta + gamma * gamma).sqrt()]
 }
 
-/// An edge as the certificate reads it: α + R·r, the magnitude
-/// |α| + R·r + ½(|β| + |γ|) its terms are formed from, β, γ.
+/// An edge as the certificate reads it: β, γ, and α + R·r with the
+/// margin's share 2⁻¹⁶·(|α| + R·r + ½(|β| + |γ|)) added (the module's
+/// documentation: Σλ_k times it is the margin M).
 struct Grown {
-    shifted: f32,
-    magnitude: f32,
+    guarded: f32,
     beta: f32,
     gamma: f32,
 }
@@ -81,32 +85,30 @@ struct Grown {
 #[inline(always)]
 fn grown(e: [f32; 4], reach: f32) -> Grown {
     let grown = reach * e[3];
+    let magnitude = (e[0].abs() + grown) + 0.5 * (e[1].abs() + e[2].abs());
     Grown {
-        shifted: e[0] + grown,
-        magnitude: (e[0].abs() + grown) + 0.5 * (e[1].abs() + e[2].abs()),
+        guarded: (e[0] + grown) + magnitude * (1.0 / 65536.0),
         beta: e[1],
         gamma: e[2],
     }
 }
 
 /// Whether weights (`wa`, `wb`) ≥ 0 on edges `a`, `b` certify that no
-/// sample is inside: V + M < 0 with M finite (the module's documentation;
-/// M's sum of magnitudes is Σλ_k·magnitude_k).
+/// sample is inside: V + M < 0 (the module's documentation). An infinite
+/// magnitude makes its edge's `guarded` +∞ or NaN, so V + M is too and
+/// nothing is certified.
 #[inline(always)]
 fn certifies(wa: f32, a: &Grown, wb: f32, b: &Grown) -> bool {
-    let value = (wa * a.shifted + wb * b.shifted)
+    let beyond = (wa * a.guarded + wb * b.guarded)
         + 0.5 * ((wa * a.beta + wb * b.beta).abs() + (wa * a.gamma + wb * b.gamma).abs());
-    let margin = (wa * a.magnitude + wb * b.magnitude) * (1.0 / 65536.0);
-    (value + margin < 0.0) & (margin < f32::INFINITY)
+    beyond < 0.0
 }
 
 /// Edge `a` alone, or the pair (`a`, `b`) with its x terms and then its y
 /// terms cancelled.
 #[inline(always)]
 fn certified_by(a: &Grown, b: &Grown) -> bool {
-    let alone = (a.shifted + 0.5 * (a.beta.abs() + a.gamma.abs()) + a.magnitude * (1.0 / 65536.0)
-        < 0.0)
-        & (a.magnitude < f32::INFINITY);
+    let alone = a.guarded + 0.5 * (a.beta.abs() + a.gamma.abs()) < 0.0;
     alone
         | certifies(b.beta.abs(), a, a.beta.abs(), b)
         | certifies(b.gamma.abs(), a, a.gamma.abs(), b)
