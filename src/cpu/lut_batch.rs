@@ -38,13 +38,23 @@ const ROW_MARGIN: f32 = 1.0 / 512.0;
 const SLOTS: usize = 3 * LANES;
 
 /// Per edge the lanes asked for (in slots, packed: `slot[k][lane]` says
-/// where edge k of lane `lane` went), what the LUT's cell needs: whether
-/// the edge's line may cut the µQuad (else the mask is constant), which
-/// constant, and the estimated row and exact column coordinates
+/// where edge k of lane `lane` went), what the LUT's cell needs
 /// ([`Self::mask`] finishes the cell where it is asked for).
 #[derive(Default)]
 pub struct LutCoordinates {
     slot: [[u8; LANES]; 3],
+    /// The packed edges, kept from batch to batch: slots past those in
+    /// use hold stale edges, whose coordinates are computed and never
+    /// read (clearing them cost a store of 288 bytes per batch).
+    packed: Packed,
+    cells: Cells,
+}
+
+/// Per slot: whether the edge's line may cut the µQuad (else the mask is
+/// constant), which constant, and the estimated row and exact column
+/// coordinates.
+#[derive(Default)]
+struct Cells {
     /// 1 where the line may cut the µQuad (a `u32`, not a `bool`: LLVM
     /// vectorises the loop only so).
     cuts: [u32; SLOTS],
@@ -66,14 +76,14 @@ impl LutCoordinates {
     /// be sure.
     #[inline]
     pub fn mask(&self, lut: &EdgeLut, k: usize, l: usize) -> Option<(u32, bool)> {
-        let i = self.slot[k][l] as usize;
-        if self.cuts[i] == 0 {
-            return Some((self.constant[i], true));
+        let (i, cells) = (self.slot[k][l] as usize, &self.cells);
+        if cells.cuts[i] == 0 {
+            return Some((cells.constant[i], true));
         }
-        if self.row_sure[i] == 0 {
+        if cells.row_sure[i] == 0 {
             return None;
         }
-        let floor = self.row[i];
+        let floor = cells.row[i];
         let (rows, columns) = (lut.angles as i32, lut.distances as i32);
         let angle = floor as i32;
         let angle = if angle >= rows {
@@ -81,7 +91,7 @@ impl LutCoordinates {
         } else {
             angle.max(0)
         };
-        let distance = (self.column[i] as i32).clamp(0, columns - 1);
+        let distance = (cells.column[i] as i32).clamp(0, columns - 1);
         let index = (angle * columns + distance) as usize;
         Some((lut.masks[index], false))
     }
@@ -102,12 +112,11 @@ pub fn lut_coordinates(
     wanted: impl Fn(usize) -> bool,
     out: &mut LutCoordinates,
 ) {
-    let mut packed = [[0.0f32; SLOTS]; 3];
     let mut used = 0;
     for l in (0..LANES).filter(|&l| wanted(l)) {
         for (k, edge) in edges.iter().enumerate() {
             for (component, values) in edge.iter().enumerate() {
-                packed[component][used] = values[l];
+                out.packed[component][used] = values[l];
             }
             out.slot[k][l] = used as u8;
             used += 1;
@@ -118,11 +127,11 @@ pub fn lut_coordinates(
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `path` is Avx512 only where the processor has AVX-512F
         // (`SimdPath::or_supported`).
-        SimdPath::Avx512 => unsafe { kernel_avx512(lut, &packed, chunks, out) },
+        SimdPath::Avx512 => unsafe { kernel_avx512(lut, &out.packed, chunks, &mut out.cells) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `path` is Avx2 only where the processor has AVX2.
-        SimdPath::Avx2 => unsafe { kernel_avx2(lut, &packed, chunks, out) },
-        _ => kernel(lut, &packed, chunks, out),
+        SimdPath::Avx2 => unsafe { kernel_avx2(lut, &out.packed, chunks, &mut out.cells) },
+        _ => kernel(lut, &out.packed, chunks, &mut out.cells),
     }
 }
 
@@ -133,7 +142,7 @@ type Packed = [[f32; SLOTS]; 3];
 /// The processor has AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn kernel_avx2(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut LutCoordinates) {
+unsafe fn kernel_avx2(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
     kernel(lut, packed, chunks, out)
 }
 
@@ -141,7 +150,7 @@ unsafe fn kernel_avx2(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut L
 /// The processor has AVX-512F.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut LutCoordinates) {
+unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
     kernel(lut, packed, chunks, out)
 }
 
@@ -150,7 +159,7 @@ unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut
 /// [`crate::frustum::normalised_edge`]'s branch as a factor of 1 (exact),
 /// so that each loop is straight-line code over slots.
 #[inline(always)]
-fn kernel(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut LutCoordinates) {
+fn kernel(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
     const HALF_DIAGONAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
     const EXPONENT: u32 = 0x7F80_0000;
     let (angle_scale, distance_scale) = (lut.angle_scale_f32(), lut.distance_scale_f32());
