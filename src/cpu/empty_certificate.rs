@@ -50,6 +50,8 @@
 //! f32's range, its margin included. Measured in
 //! `paper-notes/performance.md` (issue 30, session 21).
 
+use crate::frustum::normalised_edge_lane;
+
 /// The reach R of the certificate for `lut`: the misclassification bound
 /// at a corner of the µQuad (the largest over the square, so any sample
 /// pattern) plus the lookup's `f32` allowance, 2⁻¹⁰ larger for the
@@ -59,17 +61,11 @@ pub fn certificate_reach(lut: &izb_lut::EdgeLut) -> f32 {
     (bound * (1.0 + 1.0 / 1024.0)) as f32
 }
 
-/// One edge scaled by its power of two ([`crate::frustum::normalised_edge`],
-/// branch-free so lanes vectorise): (α, β, γ, r = |(β, γ)|).
+/// One edge scaled by its power of two ([`normalised_edge_lane`]):
+/// (α, β, γ, r = |(β, γ)|).
 #[inline(always)]
 fn scaled(alpha: f32, beta: f32, gamma: f32) -> [f32; 4] {
-    const EXPONENT: u32 = 0x7F80_0000;
-    let m = beta.abs().max(gamma.abs());
-    let exponent = m.to_bits() & EXPONENT;
-    let unscaled = m == 0.0 || exponent == EXPONENT;
-    let scale = f32::from_bits(0x7F00_0000 - exponent.min(0x7E80_0000));
-    let scale = if unscaled { 1.0 } else { scale };
-    let (alpha, beta, gamma) = (alpha * scale, beta * scale, gamma * scale);
+    let [alpha, beta, gamma] = normalised_edge_lane([alpha, beta, gamma]);
     [alpha, beta, gamma, (beta * beta + gamma * gamma).sqrt()]
 }
 

@@ -27,6 +27,7 @@
 
 use super::simd::SimdPath;
 use super::survivor_batch::LANES;
+use crate::frustum::normalised_edge_lane;
 use izb_lut::EdgeLut;
 
 /// How far (in rows) the estimated row coordinate must lie from a whole
@@ -155,23 +156,17 @@ unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut
 }
 
 /// The coordinates of the first `chunks` × [`LANES`] slots:
-/// `EdgeLut::cell`'s operations up to the floors, with
-/// [`crate::frustum::normalised_edge`]'s branch as a factor of 1 (exact),
-/// so that each loop is straight-line code over slots.
+/// `EdgeLut::cell`'s operations up to the floors, the edge scaled by
+/// [`normalised_edge_lane`], so that each loop is straight-line code over
+/// slots.
 #[inline(always)]
 fn kernel(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
     const HALF_DIAGONAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
-    const EXPONENT: u32 = 0x7F80_0000;
     let (angle_scale, distance_scale) = (lut.angle_scale_f32(), lut.distance_scale_f32());
     let [alphas, betas, gammas] = packed;
     for chunk in 0..chunks.min(3) {
         for l in chunk * LANES..(chunk + 1) * LANES {
-            let m = betas[l].abs().max(gammas[l].abs());
-            let exponent = m.to_bits() & EXPONENT;
-            let unscaled = m == 0.0 || exponent == EXPONENT;
-            let scale = f32::from_bits(0x7F00_0000 - exponent.min(0x7E80_0000));
-            let scale = if unscaled { 1.0 } else { scale };
-            let (alpha, beta, gamma) = (alphas[l] * scale, betas[l] * scale, gammas[l] * scale);
+            let [alpha, beta, gamma] = normalised_edge_lane([alphas[l], betas[l], gammas[l]]);
             let r = (beta * beta + gamma * gamma).sqrt();
             out.cuts[l] = u32::from(alpha.abs() < HALF_DIAGONAL * r);
             let inside = (alpha >= 0.0) & (r >= 0.0);

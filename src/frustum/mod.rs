@@ -303,15 +303,22 @@ pub fn edge_function<V: Vector>(
 /// (`pixel_frustum.glsl`) is the twin.
 #[inline]
 pub fn normalised_edge(e: [f32; 3]) -> [f32; 3] {
+    normalised_edge_lane(e)
+}
+
+/// [`normalised_edge`] as straight-line code, for loops over SIMD lanes:
+/// an edge left as it is (zero, infinite or NaN largest term) is scaled by
+/// 1, which is exact, so every lane gets the same floats.
+#[inline(always)]
+pub fn normalised_edge_lane(e: [f32; 3]) -> [f32; 3] {
     const EXPONENT: u32 = 0x7F80_0000;
     let m = e[1].abs().max(e[2].abs());
     let exponent = m.to_bits() & EXPONENT;
-    if m == 0.0 || exponent == EXPONENT {
-        return e;
-    }
+    let unscaled = m == 0.0 || exponent == EXPONENT;
     // 2^(127 − E) as bits: biased exponent 254 − E, at least 1 (a normal
     // number) for the largest finite m.
     let scale = f32::from_bits(0x7F00_0000 - exponent.min(0x7E80_0000));
+    let scale = if unscaled { 1.0 } else { scale };
     e.map(|x| x * scale)
 }
 
