@@ -122,7 +122,7 @@ impl SurvivorBatch {
         };
         match (rule.simd, light) {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `path` is Avx512 only where the processor has
+            // SAFETY: `rule.simd` is Avx512 only where the processor has
             // AVX-512F (`SimdPath::or_supported`).
             (SimdPath::Avx512, LightRel::Toward(w)) => unsafe {
                 kernel_avx512::<false>(self, &frame, w, out)
@@ -133,7 +133,7 @@ impl SurvivorBatch {
                 kernel_avx512::<true>(self, &frame, l, out)
             },
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `path` is Avx2 only where the processor has AVX2.
+            // SAFETY: `rule.simd` is Avx2 only where the processor has AVX2.
             (SimdPath::Avx2, LightRel::Toward(w)) => unsafe {
                 kernel_avx2::<false>(self, &frame, w, out)
             },
