@@ -221,7 +221,19 @@ pub fn place(
 /// here has to be exact: `evaluate` only tests the best cover triangle
 /// first with the ordinary test and stops when that alone fills the mask.
 pub fn cover_floor(grid: &CascadeGrid, tri: &[Vec3; 3], level: u32, x: u32, y: u32) -> Option<f32> {
-    let n = upward_normal(tri)?;
+    cover_floor_below(grid, tri, upward_normal(tri)?, level, x, y)
+}
+
+/// [`cover_floor`] with the triangle's [`upward_normal`] `n` computed
+/// once for all the cells it is listed in.
+fn cover_floor_below(
+    grid: &CascadeGrid,
+    tri: &[Vec3; 3],
+    n: Vec3,
+    level: u32,
+    x: u32,
+    y: u32,
+) -> Option<f32> {
     let up = (1u32 << level) as f32;
     let corners = [
         Vec2::new(x as f32, y as f32),
@@ -465,6 +477,13 @@ fn block_entries(
             stats.per_level[level as usize] += 1;
             let [x0, y0, x1, y1] = f.rect;
             let cells = grid.level(level);
+            // The cover test's normal, once per triangle (`None`: no
+            // cover, the light sees it edge-on).
+            let cover_normal = if covers {
+                upward_normal(&light_view)
+            } else {
+                None
+            };
             let cull = receivers.map(|r| {
                 let t = TriangleCull::new(&light_view, setup.projection, setup.light_radius);
                 (r, t)
@@ -500,9 +519,8 @@ fn block_entries(
                         continue;
                     }
                     listed = true;
-                    let floor = covers
-                        .then(|| cover_floor(grid, &light_view, level, x, y))
-                        .flatten()
+                    let floor = cover_normal
+                        .and_then(|n| cover_floor_below(grid, &light_view, n, level, x, y))
                         .unwrap_or(f32::NEG_INFINITY);
                     let entry = CellEntry {
                         id: id as u32,
