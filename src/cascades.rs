@@ -208,8 +208,14 @@ pub fn max_total_cells(side: u32) -> u64 {
 /// fewer pixels share their cells: measured at 1920×1080 (CPU, shadow
 /// seconds, tests per pixel), 64 → 1024 takes courtyard 1.71 → 1.32 s
 /// (64.6 → 29.2 tests), engine 0.22 → 0.14 s (35.8 → 12.0), wires 1.01 →
-/// 0.51 s; 4096 and 16384 gain on simple scenes but let one GPU bin thread
-/// loop over that many cells (`paper-notes/performance.md`).
+/// 0.51 s. 1024 → 16384 (session 22, once the bin's cull and the GPU's
+/// subgroup-wide walk of big rectangles were in): a pixel visits every
+/// level that holds a triangle, and a few hundred big triangles kept four
+/// coarse levels busy. Courtyard's pixels visit 3.5 levels instead of
+/// 5.8, its bin and evaluate take 0.91 s instead of 0.96, deckchair's
+/// evaluate 0.087 s instead of 0.122, `default`'s bin and evaluate 0.18 s
+/// instead of 0.23, for about 5 % more entries; masks are unchanged
+/// (`paper-notes/performance.md`).
 pub const DEFAULT_LEVEL_CELLS: u32 = izb_contract::word::DEFAULT_LEVEL_CELLS;
 
 /// What the frame chose, for the report.

@@ -320,8 +320,10 @@ shared_constants! {
         ENTRY_FIRST_ROW = 2 << crate::size::ID_BITS;
         /// A cell no triangle covers (the conservative shadow map).
         NO_COVER = u32::MAX;
-        /// The default cells per triangle and pyramid level.
-        DEFAULT_LEVEL_CELLS = 1024;
+        /// The default cells per triangle and pyramid level (1 024 until
+        /// session 22: with it, courtyard's pixels visited 5.8 levels
+        /// each for 1 382 coarse triangles; `paper-notes/performance.md`).
+        DEFAULT_LEVEL_CELLS = 16384;
         /// Smallest and largest default grid side (cells).
         GRID_SIDE_MIN = 8;
         GRID_SIDE_MAX = 1024;

@@ -64,7 +64,7 @@ pub struct GridArgs {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::cascades::MAX_GRID_SIDE as i64))]
     cells: Option<u32>,
     /// A triangle is binned at the finest grid-pyramid level where its
-    /// cell rectangle holds at most this many cells (default 1024).
+    /// cell rectangle holds at most this many cells (default 16384).
     #[arg(long)]
     level_cells: Option<u32>,
     /// Sample-distribution cascades: auto (as few as the view-depth range

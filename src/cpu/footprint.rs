@@ -159,6 +159,8 @@ impl Footprint {
             // monotone, so these are the largest of the four corners'
             // rounded values too: bit for bit the maxima over the corners
             // ([`Self::touches_grown_by_corners`]), at a quarter of the work.
+            // The GPU twin (`shaders/bin_placement.glsl`) still evaluates
+            // the four corners, which gives the same verdict.
             let qx = if self.orientation * dy <= 0.0 {
                 hi_x
             } else {

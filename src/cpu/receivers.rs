@@ -413,7 +413,8 @@ fn plane_height(n: Vec3, a: Vec3, q: Vec2) -> f32 {
 /// rounded step monotone, the corner against the normal's x and y is the
 /// highest of the four rounded heights, bit for bit. A non-finite height
 /// there (an overflow, which a NaN at another corner would carry there)
-/// asks all four.
+/// asks all four. (`shaders/bin_placement.glsl` takes the four corners'
+/// largest, the same value.)
 #[inline]
 fn highest_plane_height(n: Vec3, a: Vec3, lo: Vec2, hi: Vec2) -> f32 {
     let highest = Vec2::new(
