@@ -390,9 +390,10 @@ fn plane_below_box(
         return false;
     };
     let plane_max = highest_plane_height(n, tri[0], lo, hi);
-    if !(plane_max < z_min) {
-        // The margin is never negative, so the answer is no without it
-        // (the usual one: most triangles rise above their cells' floor).
+    if plane_max.partial_cmp(&z_min) != Some(std::cmp::Ordering::Less) {
+        // Not below the floor (or NaN): the margin is never negative, so
+        // the answer is no without it, the usual one (most triangles rise
+        // above their cells' floor).
         return false;
     }
     // Size of the whole configuration, for the margin.
