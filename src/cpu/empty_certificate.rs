@@ -150,13 +150,8 @@ mod tests {
         let lut = crate::lut::edge_lut();
         let pattern = crate::lut::sample_pattern();
         let reach = certificate_reach(lut);
-        let mut seed = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut random = crate::cpu::test_random::XorShift::new(0x9E37_79B9_7F4A_7C15);
+        let mut next = move || random.unit_f32();
         let (mut certified, mut outside, mut checked) = (0, 0, 0);
         // Triangles whose LUT masks set bits no sample's exact test does:
         // the cases a certificate with too small a reach would lose.

@@ -141,15 +141,10 @@ impl Footprint {
     /// cells along x and y) instead of the pad and [`CELL_PADDING`].
     #[inline]
     pub fn touches_grown(&self, x: i64, y: i64, grow: Vec2) -> bool {
-        let [x0, y0, x1, y1] = self.rect.map(i64::from);
-        if x < x0 || x > x1 || y < y0 || y > y1 {
-            return false;
-        }
-        if self.orientation == 0.0 {
-            return true;
-        }
-        let (lo_x, lo_y) = (x as f32 - grow.x, y as f32 - grow.y);
-        let (hi_x, hi_y) = (x as f32 + 1.0 + grow.x, y as f32 + 1.0 + grow.y);
+        let [lo_x, lo_y, hi_x, hi_y] = match self.grown_cell(x, y, grow) {
+            Ok(cell) => cell,
+            Err(verdict) => return verdict,
+        };
         (0..3).all(|k| {
             let (a, b) = (self.v[k], self.v[(k + 1) % 3]);
             let (dx, dy) = (b.x - a.x, b.y - a.y);
@@ -190,19 +185,30 @@ impl Footprint {
     /// tested against.
     #[cfg(test)]
     pub fn touches_grown_by_corners(&self, x: i64, y: i64, grow: Vec2) -> bool {
+        let cell = match self.grown_cell(x, y, grow) {
+            Ok(cell) => cell,
+            Err(verdict) => return verdict,
+        };
+        (0..3).all(|k| {
+            edge_touches_by_corners(self.orientation, self.v[k], self.v[(k + 1) % 3], cell)
+        })
+    }
+
+    /// Cell (`x`, `y`) grown by `grow`, as `[lo_x, lo_y, hi_x, hi_y]`, for
+    /// the edge tests; `Err` with the verdict where they are not needed
+    /// (outside the rectangle: untouched; a sliver: touched).
+    #[inline]
+    fn grown_cell(&self, x: i64, y: i64, grow: Vec2) -> Result<[f32; 4], bool> {
         let [x0, y0, x1, y1] = self.rect.map(i64::from);
         if x < x0 || x > x1 || y < y0 || y > y1 {
-            return false;
+            return Err(false);
         }
         if self.orientation == 0.0 {
-            return true;
+            return Err(true);
         }
         let (lo_x, lo_y) = (x as f32 - grow.x, y as f32 - grow.y);
         let (hi_x, hi_y) = (x as f32 + 1.0 + grow.x, y as f32 + 1.0 + grow.y);
-        (0..3).all(|k| {
-            let (a, b) = (self.v[k], self.v[(k + 1) % 3]);
-            edge_touches_by_corners(self.orientation, a, b, [lo_x, lo_y, hi_x, hi_y])
-        })
+        Ok([lo_x, lo_y, hi_x, hi_y])
     }
 }
 
@@ -233,13 +239,8 @@ mod tests {
     /// coordinates near `f32::MAX`, where products overflow.
     #[test]
     fn the_selected_corner_decides_like_every_corner() {
-        let mut seed = 0x2545_F491_4F6C_DD1D_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut random = crate::cpu::test_random::XorShift::new(0x2545_F491_4F6C_DD1D);
+        let mut next = move || random.unit_f32();
         let (mut checked, mut touched, mut overflowing) = (0, 0, 0);
         for i in 0..20_000 {
             let scale = 2f32.powi((next() * 30.0) as i32 - 10);

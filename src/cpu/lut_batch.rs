@@ -225,13 +225,8 @@ mod tests {
     #[test]
     fn a_batch_s_lut_masks_equal_the_scalar_cells() {
         let lut = crate::lut::edge_lut();
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut random = crate::cpu::test_random::XorShift::new(0x2545_f491_4f6c_dd1d);
+        let mut next = move || random.next_u64();
         let special = [
             0.0,
             -0.0,

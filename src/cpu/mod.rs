@@ -26,6 +26,8 @@ pub mod penumbra;
 pub mod receivers;
 pub mod simd;
 pub mod survivor_batch;
+#[cfg(test)]
+mod test_random;
 pub mod translate_vertices;
 
 // The settings the CPU twins take, declared below both backends.

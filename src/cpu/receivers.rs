@@ -493,13 +493,8 @@ mod tests {
     /// the products overflow.
     #[test]
     fn the_selected_corner_is_the_highest() {
-        let mut seed = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32 - 0.5
-        };
+        let mut random = crate::cpu::test_random::XorShift::new(0x9E37_79B9_7F4A_7C15);
+        let mut next = move || random.unit_f32() - 0.5;
         let (mut checked, mut overflowing) = (0, 0);
         for i in 0..400_000 {
             let scale = 2f32.powi((next() * 32.0) as i32 + 4);

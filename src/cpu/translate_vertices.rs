@@ -78,13 +78,9 @@ mod tests {
     use super::*;
 
     /// Uniform numbers in [−1, 1) from a xorshift generator seeded by `seed`.
-    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
-        move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        }
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut random = crate::cpu::test_random::XorShift::new(seed);
+        move || random.unit_f64() * 2.0 - 1.0
     }
 
     /// The two-sum difference is `f32(v − eye)` but within 2⁻⁴⁸ of the
