@@ -11,9 +11,9 @@ pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
 use super::footprint::{footprint, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
-use super::receivers::upward_normal;
 use super::receivers::TriangleCull;
 pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
+use super::receivers::{plane_height, upward_normal};
 use super::Skips;
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -251,11 +251,10 @@ fn cover_floor_below(
         return None;
     }
     let a = tri[0];
-    let height = |q: Vec2| a.z - (n.x * (q.x - a.x) + n.y * (q.y - a.y)) / n.z;
     Some(
         corners
             .iter()
-            .map(|&q| height(q))
+            .map(|&q| plane_height(n, a, q))
             .fold(f32::INFINITY, f32::min),
     )
 }

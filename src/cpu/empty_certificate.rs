@@ -50,7 +50,7 @@
 //! f32's range, its margin included. Measured in
 //! `paper-notes/performance.md` (issue 30, session 21).
 
-use crate::frustum::normalised_edge_lane;
+use crate::frustum::normalised_edge;
 
 /// The reach R of the certificate for `lut`: the misclassification bound
 /// at a corner of the µQuad (the largest over the square, so any sample
@@ -61,11 +61,11 @@ pub fn certificate_reach(lut: &izb_lut::EdgeLut) -> f32 {
     (bound * (1.0 + 1.0 / 1024.0)) as f32
 }
 
-/// One edge scaled by its power of two ([`normalised_edge_lane`]):
+/// One edge scaled by its power of two ([`normalised_edge`]):
 /// (α, β, γ, r = |(β, γ)|).
 #[inline(always)]
 fn scaled(alpha: f32, beta: f32, gamma: f32) -> [f32; 4] {
-    let [alpha, beta, gamma] = normalised_edge_lane([alpha, beta, gamma]);
+    let [alpha, beta, gamma] = normalised_edge([alpha, beta, gamma]);
     [alpha, beta, gamma, (beta * beta + gamma * gamma).sqrt()]
 }
 

@@ -27,7 +27,7 @@
 
 use super::simd::SimdPath;
 use super::survivor_batch::LANES;
-use crate::frustum::normalised_edge_lane;
+use crate::frustum::normalised_edge;
 use izb_lut::EdgeLut;
 
 /// How far (in rows) the estimated row coordinate must lie from a whole
@@ -157,7 +157,7 @@ unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut
 
 /// The coordinates of the first `chunks` × [`LANES`] slots:
 /// `EdgeLut::cell`'s operations up to the floors, the edge scaled by
-/// [`normalised_edge_lane`], so that each loop is straight-line code over
+/// [`normalised_edge`], so that each loop is straight-line code over
 /// slots.
 #[inline(always)]
 fn kernel(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
@@ -166,7 +166,7 @@ fn kernel(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
     let [alphas, betas, gammas] = packed;
     for chunk in 0..chunks.min(3) {
         for l in chunk * LANES..(chunk + 1) * LANES {
-            let [alpha, beta, gamma] = normalised_edge_lane([alphas[l], betas[l], gammas[l]]);
+            let [alpha, beta, gamma] = normalised_edge([alphas[l], betas[l], gammas[l]]);
             let r = (beta * beta + gamma * gamma).sqrt();
             out.cuts[l] = u32::from(alpha.abs() < HALF_DIAGONAL * r);
             let inside = (alpha >= 0.0) & (r >= 0.0);

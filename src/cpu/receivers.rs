@@ -406,7 +406,7 @@ fn plane_below_box(
 
 /// The height over `q` of the plane through `a` with upward normal `n`.
 #[inline]
-fn plane_height(n: Vec3, a: Vec3, q: Vec2) -> f32 {
+pub(super) fn plane_height(n: Vec3, a: Vec3, q: Vec2) -> f32 {
     a.z - (n.x * (q.x - a.x) + n.y * (q.y - a.y)) / n.z
 }
 

@@ -301,16 +301,12 @@ pub fn edge_function<V: Vector>(
 /// by the numeric-extremes run, `examples/fuzz_extremes`). Zero, infinite
 /// and NaN edges pass as they are. The GPU's `normalised_edge`
 /// (`pixel_frustum.glsl`) is the twin.
-#[inline]
-pub fn normalised_edge(e: [f32; 3]) -> [f32; 3] {
-    normalised_edge_lane(e)
-}
-
-/// [`normalised_edge`] as straight-line code, for loops over SIMD lanes:
-/// an edge left as it is (zero, infinite or NaN largest term) is scaled by
-/// 1, which is exact, so every lane gets the same floats.
+///
+/// Straight-line code, so that loops over SIMD lanes (the LUT kernel, the
+/// empty certificate) vectorise: an edge left as it is (zero, infinite or
+/// NaN largest term) is scaled by 1, which is exact.
 #[inline(always)]
-pub fn normalised_edge_lane(e: [f32; 3]) -> [f32; 3] {
+pub fn normalised_edge(e: [f32; 3]) -> [f32; 3] {
     const EXPONENT: u32 = 0x7F80_0000;
     let m = e[1].abs().max(e[2].abs());
     let exponent = m.to_bits() & EXPONENT;
