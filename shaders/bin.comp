@@ -224,6 +224,10 @@ void main() {
     // light: the lowest is the farthest.
     vec3 p_light = to_light_view(p);
     uint z = ordered_bits(light.projection == 0u ? p_light.z : -p_light.z);
+    // receivers::reach_box: the reach spans the box and P itself, which
+    // an edge surface's covered box need not hold.
+    vec2 centre = grid_coords(k, ndc_of(p_light));
+    vec2 reach_lo = min(lo, centre), reach_hi = max(hi, centre);
     // Every used level of the pyramid (the others are never read): the
     // level-0 box scaled by 2^-l.
     uint used = counters[C_LEVELS + k];
@@ -234,7 +238,7 @@ void main() {
             uvec4 cells;
             if (!cell_range_at(k, l, lo, hi, cells)) break;
             ivec2 e = ivec2(-int(l));
-            vec2 extent = ldexp(hi, e) - ldexp(lo, e);
+            vec2 extent = ldexp(reach_hi, e) - ldexp(reach_lo, e);
             uint reach = uint(ceil(max(extent.x, extent.y))) + 1u;
             register_receivers(k, level_start, l, cells, z, reach);
         }

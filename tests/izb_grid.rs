@@ -8,12 +8,17 @@
 mod common;
 
 use izb::bvh::SceneBvh;
-use izb::cpu::bin::{bin, place, CellEntry, Placement};
-use izb::cpu::evaluate::{for_each_candidate, triangle_mask_for_pixel};
-use izb::cpu::{
-    eye_relative_f32, light_setup, CascadeCount, GridRequest, MaskRule, SampleMode, Skips,
+use izb::cpu::bin::{
+    bin, cell_range_at, cell_receivers, place, CellEntry, Placement, CELL_PADDING,
 };
-use izb::gbuffer::{flags, gbuffer};
+use izb::cpu::evaluate::{for_each_candidate, triangle_mask_for_pixel};
+use izb::cpu::light_setup::level_scale;
+use izb::cpu::receivers::receiver_reach;
+use izb::cpu::{
+    eye_relative_f32, is_receiver, light_setup, CascadeCount, GridRequest, IzbSettings, MaskRule,
+    SampleMode, Skips,
+};
+use izb::gbuffer::{flags, gbuffer, gbuffer_with};
 use izb::scene::{self, Scene};
 use std::collections::HashSet;
 
@@ -182,4 +187,91 @@ fn point_light_grid_offers_every_occluder() {
         checked += 1;
     }
     assert_eq!(checked, 3);
+}
+
+/// The behind-receivers cull's premise, with edge surfaces: the µQuad
+/// centre P of every receiver (where its depth test is taken) lies in each
+/// cell it registers in, grown by that cell's reach and the padding. An
+/// edge surface's box spans only the samples it covers and can leave P
+/// cells away (`receivers::reach_box`); the grown cell must still hold it.
+/// Counts the registrations where the box's own reach would not have.
+#[test]
+fn every_receiver_centre_lies_in_its_cells_reach() {
+    let mut scenes: Vec<Scene> = ["default", "grazing", "wires", "city"]
+        .iter()
+        .map(|name| {
+            scene::load(name)
+                .unwrap()
+                .with_resolution([320, 180])
+                .unwrap()
+        })
+        .collect();
+    scenes.extend(common::shared_scene("ficus").map(|s| s.with_resolution([960, 540]).unwrap()));
+    let (mut checked, mut outside_box, mut beyond_box_reach) = (0u64, 0u64, 0u64);
+    for scene in &scenes {
+        let bvh = SceneBvh::build(scene);
+        let settings = IzbSettings {
+            edge_surfaces: true,
+            ..IzbSettings::default()
+        };
+        let g = gbuffer_with(scene, &bvh, settings.edge_halves(scene));
+        assert!(g.edges.is_some(), "{}: no edge surfaces", scene.name);
+        let setup = light_setup(scene, &g, GridRequest::from(&settings));
+        let boxes = setup.receiver_boxes(&g, Skips::ALL, true);
+        let levels: Vec<u32> = setup.cascades.iter().map(|c| (1 << c.levels) - 1).collect();
+        let tables = setup.level_tables();
+        let receivers = cell_receivers(&setup, &g, &boxes, Skips::ALL, &levels, &tables).unwrap();
+        let before = checked;
+        for (layer, layer_boxes) in g.layers().zip(boxes.layers()) {
+            for i in (0..layer.flags.len()).filter(|&i| is_receiver(layer.flags[i], Skips::ALL)) {
+                let k = setup.cascade_of(layer.position[i]);
+                let grid = &setup.cascades[k];
+                let (lo, hi) = layer_boxes.grid_box(grid, i);
+                let p = setup.to_light_view(layer.position[i]);
+                let centre = grid.grid_coords(setup.ndc(p).unwrap());
+                outside_box += !(centre.cmpge(lo).all() && centre.cmple(hi).all()) as u64;
+                for level in 0..grid.levels {
+                    let Some([x0, y0, x1, y1]) = cell_range_at(grid, level, lo, hi) else {
+                        continue;
+                    };
+                    let s = level_scale(level);
+                    let own = receiver_reach(lo * s, hi * s) as f32 + CELL_PADDING;
+                    let c = centre * s;
+                    for y in y0..=y1 {
+                        for x in x0..=x1 {
+                            let r = receivers.reach[tables[k][level as usize].index(x, y)] as f32
+                                + CELL_PADDING;
+                            let within = |r: f32| {
+                                (x as f32 - r..=x as f32 + 1.0 + r).contains(&c.x)
+                                    && (y as f32 - r..=y as f32 + 1.0 + r).contains(&c.y)
+                            };
+                            assert!(
+                                within(r),
+                                "{}: receiver {i}'s centre {c} outside cell ({x}, {y}) of level \
+                                 {level} grown by its reach {r}",
+                                scene.name
+                            );
+                            beyond_box_reach += !within(own) as u64;
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            checked - before > 10_000,
+            "{}: too few registrations",
+            scene.name
+        );
+    }
+    println!(
+        "{} scenes: {checked} registrations, {outside_box} receivers' centres outside their \
+         box, {beyond_box_reach} registrations beyond the box's own reach",
+        scenes.len()
+    );
+    assert!(outside_box > 100, "no edge surface's centre left its box");
+    assert!(
+        beyond_box_reach > 0,
+        "the case reach_box covers did not occur"
+    );
 }

@@ -494,8 +494,18 @@ fn block_entries(
             touched_above.clear();
             touched_above.resize((x1 - x0 + 1) as usize, false);
             for y in y0..=y1 {
+                // Cells outside the row's span are untouched
+                // (`Footprint::row_span`): only the flags above them are
+                // cleared.
+                let (a, b) = f.row_span(i64::from(y));
+                // As x in a..b (b ≥ a − 1: an empty span is a..a).
+                let (a, b) = (a as u32, (b + 1) as u32);
+                let span = (a - x0) as usize..(b - x0) as usize;
+                stats.cells_untouched += touched_above.len() - span.len();
+                touched_above[..span.start].fill(false);
+                touched_above[span.end..].fill(false);
                 let mut touched_left = false;
-                for (x, above) in (x0..=x1).zip(touched_above.iter_mut()) {
+                for (x, above) in (a..b).zip(touched_above[span].iter_mut()) {
                     let touched = f.touches(i64::from(x), i64::from(y));
                     let first = (!touched_left, !*above);
                     (touched_left, *above) = (touched, touched);

@@ -142,7 +142,9 @@ pub fn cell_receivers(
                 let k = setup.cascade_of(g.position[i]);
                 let grid = &setup.cascades[k];
                 let (lo, hi) = boxes.grid_box(grid, i);
-                let z = receiver_key(projection, setup.to_light_view(g.position[i]));
+                let p = setup.to_light_view(g.position[i]);
+                let z = receiver_key(projection, p);
+                let (reach_lo, reach_hi) = reach_box(setup, grid, p, (lo, hi));
                 for &(level, s, dims) in &wanted_levels[k] {
                     let (lo, hi) = (lo * s, hi * s);
                     // `cell_range_at`, its level's scale and sides read
@@ -150,7 +152,7 @@ pub fn cell_receivers(
                     let Some(range) = cell_range_in(dims, lo, hi) else {
                         break;
                     };
-                    let reach = receiver_reach(lo, hi);
+                    let reach = receiver_reach(reach_lo * s, reach_hi * s);
                     let [x0, y0, x1, y1] = range;
                     let cells = level_cells[k][level as usize];
                     for y in y0..=y1 {
@@ -174,9 +176,34 @@ pub fn cell_receivers(
 /// Entries per block when the receivers are shared out between threads.
 const RECEIVER_BLOCK: usize = 4096;
 
-/// How many cells the µQuad centre may lie from a cell its grid box
-/// `[lo, hi]` touches: the box's larger side, rounded up, plus one for
-/// the cell itself and the padding.
+/// The box whose larger side gives a receiver's reach: its µQuad's grid
+/// box `[lo, hi]` (`grid`'s level 0) and its µQuad centre P (light view
+/// `p`), where the depth test is taken. The two differ where the box spans
+/// only the part of the µQuad an edge surface's samples cover
+/// ([`LightSetup::receiver_boxes`]): P can then lie cells away from it
+/// (ficus at 1920×1080: an edge surface's P 2.5 cells beyond its box
+/// grown by the box's reach), and the cull's box must still hold it.
+/// `shaders/bin.comp`'s `STEP_RECEIVERS` is the GPU twin.
+#[inline]
+pub fn reach_box(
+    setup: &LightSetup,
+    grid: &CascadeGrid,
+    p: Vec3,
+    (lo, hi): (Vec2, Vec2),
+) -> (Vec2, Vec2) {
+    match setup.ndc(p) {
+        Some(n) => {
+            let centre = grid.grid_coords(n);
+            (lo.min(centre), hi.max(centre))
+        }
+        None => (lo, hi),
+    }
+}
+
+/// How many cells a receiver's µQuad centre may lie from a cell its grid
+/// box touches, given its [`reach_box`] `[lo, hi]` (at that cell's level):
+/// the larger side, rounded up, plus one for the cell itself and the
+/// padding.
 #[inline]
 pub fn receiver_reach(lo: Vec2, hi: Vec2) -> u32 {
     ((hi - lo).max_element().ceil() as u32).saturating_add(1)
