@@ -312,6 +312,45 @@ fn edge_touches_by_corners(o: f32, a: Vec2, b: Vec2, [lo_x, lo_y, hi_x, hi_y]: [
 mod tests {
     use super::*;
 
+    /// The level-0 footprint of vertices `v` (cells) over the box of its
+    /// vertices clamped to `[lo, hi]` and rounded out to whole cells,
+    /// oriented `degenerate` where its winding is 0; with its winding.
+    fn test_footprint(
+        v: [Vec2; 3],
+        (lo, hi): (f32, f32),
+        degenerate: f32,
+        pad: Vec2,
+    ) -> (Footprint, f32) {
+        let (d1, d2) = (v[1] - v[0], v[2] - v[0]);
+        let winding = d1.x * d2.y - d1.y * d2.x;
+        let clamp = |p: Vec2| p.clamp(Vec2::splat(lo), Vec2::splat(hi));
+        let (box_lo, box_hi) = (
+            clamp(v[0].min(v[1]).min(v[2])),
+            clamp(v[0].max(v[1]).max(v[2])),
+        );
+        let orientation = if winding == 0.0 {
+            degenerate
+        } else {
+            winding.signum()
+        };
+        let rect = [
+            box_lo.x as u32,
+            box_lo.y as u32,
+            box_hi.x as u32 + 1,
+            box_hi.y as u32 + 1,
+        ];
+        (
+            Footprint {
+                level: 0,
+                rect,
+                v,
+                orientation,
+                pad,
+            },
+            winding,
+        )
+    }
+
     /// The selected corner gives every verdict the four corners give: on
     /// random triangles (a third slivers, some with exactly axis-aligned
     /// edges) at scales 2⁻¹⁰ to 2²⁰ cells, against every cell of their
@@ -333,27 +372,7 @@ mod tests {
                 3 if i % 12 == 3 => v = v.map(|p| p * 1e37),
                 _ => {}
             }
-            let (d1, d2) = (v[1] - v[0], v[2] - v[0]);
-            let winding = d1.x * d2.y - d1.y * d2.x;
-            let lo = v[0]
-                .min(v[1])
-                .min(v[2])
-                .clamp(Vec2::splat(-1.0), Vec2::splat(70.0));
-            let hi = v[0]
-                .max(v[1])
-                .max(v[2])
-                .clamp(Vec2::splat(-1.0), Vec2::splat(70.0));
-            let f = Footprint {
-                level: 0,
-                rect: [lo.x as u32, lo.y as u32, hi.x as u32 + 1, hi.y as u32 + 1],
-                v,
-                orientation: if winding == 0.0 {
-                    1.0
-                } else {
-                    winding.signum()
-                },
-                pad: Vec2::ZERO,
-            };
+            let (f, winding) = test_footprint(v, (-1.0, 70.0), 1.0, Vec2::ZERO);
             overflowing += !winding.is_finite() as usize;
             let grow = Vec2::new(next(), next()) * [0.0, 1.0 / 64.0, 2.0][i % 3];
             let [x0, y0, x1, y1] = f.rect.map(i64::from);
@@ -393,24 +412,8 @@ mod tests {
                 3 if i % 20 == 3 => v = v.map(|p| p * 1e37),
                 _ => {}
             }
-            let (d1, d2) = (v[1] - v[0], v[2] - v[0]);
-            let winding = d1.x * d2.y - d1.y * d2.x;
-            let (lo, hi) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
-            let (lo, hi) = (
-                lo.clamp(Vec2::ZERO, Vec2::splat(160.0)),
-                hi.clamp(Vec2::ZERO, Vec2::splat(160.0)),
-            );
-            let f = Footprint {
-                level: 0,
-                rect: [lo.x as u32, lo.y as u32, hi.x as u32 + 1, hi.y as u32 + 1],
-                v,
-                orientation: if winding == 0.0 {
-                    0.0
-                } else {
-                    winding.signum()
-                },
-                pad: Vec2::new(next(), next()) * [0.0, 0.5, 3.0][i % 3],
-            };
+            let pad = Vec2::new(next(), next()) * [0.0, 0.5, 3.0][i % 3];
+            let (f, _) = test_footprint(v, (0.0, 160.0), 0.0, pad);
             let [x0, y0, x1, y1] = f.rect.map(i64::from);
             for y in y0..=y1 {
                 let (a, b) = f.row_span(y);
