@@ -242,7 +242,8 @@ impl Candidates {
     }
 }
 
-#[cfg(test)]
+// Every test here traces the scene (the `cli` feature's BVH).
+#[cfg(all(test, feature = "cli"))]
 mod tests {
     use super::*;
 
@@ -256,7 +257,6 @@ mod tests {
 
     /// A raster's 4× ids as the CPU's own rays see them: the BVH's
     /// closest hit through each standard sample position.
-    #[cfg(feature = "cli")]
     fn traced_samples(scene: &Scene, bvh: &crate::bvh::SceneBvh) -> Vec<u32> {
         let [w, h] = scene.resolution;
         let frame = scene.camera.frame(scene.resolution);
@@ -287,7 +287,6 @@ mod tests {
     /// pixel (a ray can meet first a triangle no sample of its 3×3 pixels
     /// saw).
     #[test]
-    #[cfg(feature = "cli")]
     fn the_ray_cast_s_sample_ids_give_the_ray_cast_s_masks() {
         use crate::cpu::{render_cpu_on, SampleMode};
         use crate::settings::IzbSettings;

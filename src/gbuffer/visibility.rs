@@ -94,6 +94,7 @@ mod tests {
     use crate::bvh::SceneBvh;
 
     /// The longer µQuad axis of entry `i` (tolerances scale with it).
+    #[cfg(feature = "cli")]
     fn footprint(g: &GBuffer, i: usize) -> f64 {
         let [x, y] = [g.axis_x[i], g.axis_y[i]].map(|a| f64::from(a.length()));
         x.max(y)
