@@ -48,6 +48,49 @@ impl SampleMode {
     }
 }
 
+/// When the CPU twin's bin takes the `behind_receivers` skip, the skip
+/// itself being on. The cull needs every receiver registered in the cells
+/// its µQuad touches, on every level that holds triangles: about 50 ns a
+/// receiver per thread, 25–70 ms at 1920×1080 on 2 cores. Only grids
+/// dense with triangles give it that much to save: measured on the twelve
+/// scenes at 960×540 and 1920×1080 (`paper-notes/skipping-work.md`), it
+/// paid on engine (+19 and +41 ms) and courtyard (+9 and +44 ms), whose
+/// placed rectangles cover 37–87 cells per cell, and cost 1–60 ms on the
+/// ten others, at 2–13. The GPU twin registers whenever the skip is on
+/// (its costs were not measured on a GPU).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum ReceiverCull {
+    /// Every frame.
+    Always,
+    /// Where it can pay: under an area light, whose per-cell penumbra
+    /// bound reads the same registration, or where the placed triangles'
+    /// cell rectangles cover at least [`Self::DENSE_RECTANGLE_CELLS`]
+    /// cells per cell of their level, summed over a cascade's levels.
+    #[default]
+    WhereDense,
+}
+
+impl ReceiverCull {
+    /// The rectangle cells per cell from which `WhereDense` culls: between
+    /// the ten scenes where the cull did not pay (at most 12.8) and the two
+    /// where it did (at least 36.7).
+    pub const DENSE_RECTANGLE_CELLS: f64 = 20.0;
+
+    /// Whether the bin registers the receivers and culls, for a light of
+    /// `light_radius` and grids whose densest cascade has
+    /// `rectangle_cells_per_cell`.
+    pub fn culls(self, light_radius: f32, rectangle_cells_per_cell: f64) -> bool {
+        match self {
+            ReceiverCull::Always => true,
+            ReceiverCull::WhereDense => {
+                light_radius > 0.0 || rectangle_cells_per_cell >= Self::DENSE_RECTANGLE_CELLS
+            }
+        }
+    }
+}
+
 /// How to render.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct IzbSettings {
@@ -66,6 +109,8 @@ pub struct IzbSettings {
     pub split_lambda: f32,
     /// Exact shortcuts to take (all by default).
     pub skips: Skips,
+    /// When the CPU twin takes the `behind_receivers` one.
+    pub receiver_cull: ReceiverCull,
     /// Edge pixels' samples each on the surface its own ray sees
     /// ([`crate::gbuffer::edge_surfaces`]), where the mode has per-sample
     /// rays ([`Self::uses_edge_surfaces`]).
@@ -137,6 +182,7 @@ impl Default for IzbSettings {
             cascades: CascadeCount::Auto,
             split_lambda: 1.0,
             skips: Skips::ALL,
+            receiver_cull: ReceiverCull::WhereDense,
             edge_surfaces: false,
             simd: crate::cpu::simd::SimdPath::detected(),
         }

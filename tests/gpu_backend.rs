@@ -19,7 +19,7 @@ mod common;
 
 use common::gpu::{assert_no_validation_messages, renderer};
 use izb::bvh::SceneBvh;
-use izb::cpu::{render_cpu, CascadeCount, IzbSettings, SampleMode};
+use izb::cpu::{render_cpu, CascadeCount, IzbSettings, ReceiverCull, SampleMode};
 use izb::gpu::{GBufferSource, GpuError, GpuRenderer};
 use izb::scene::{self, Scene};
 
@@ -287,10 +287,12 @@ fn grid_capacity_overrun_reruns_with_room() {
         .with_resolution([96, 64])
         .unwrap();
     let bvh = SceneBvh::build(&scene);
+    // The GPU twin takes the behind-receivers skip whatever the density.
     let s = IzbSettings {
         mode: SampleMode::Exact32,
         cells: Some(200),
         level_cells: Some(200 * 200),
+        receiver_cull: ReceiverCull::Always,
         ..Default::default()
     };
     let cpu = render_cpu(&scene, &bvh, s);

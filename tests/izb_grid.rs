@@ -9,14 +9,14 @@ mod common;
 
 use izb::bvh::SceneBvh;
 use izb::cpu::bin::{
-    bin, cell_range_at, cell_receivers, place, CellEntry, Placement, CELL_PADDING,
+    bin, cell_range_at, cell_receivers, place, CellEntry, CullAgainst, Placement, CELL_PADDING,
 };
 use izb::cpu::evaluate::{for_each_candidate, triangle_mask_for_pixel};
 use izb::cpu::light_setup::level_scale;
 use izb::cpu::receivers::receiver_reach;
 use izb::cpu::{
     eye_relative_f32, is_receiver, light_setup, CascadeCount, GridRequest, IzbSettings, MaskRule,
-    SampleMode, Skips,
+    ReceiverCull, SampleMode, Skips,
 };
 use izb::gbuffer::{flags, gbuffer, gbuffer_with};
 use izb::scene::{self, Scene};
@@ -44,7 +44,12 @@ fn check_grid(
     assert_eq!(setup.cascades.len(), cascades as usize);
     let triangles = eye_relative_f32(scene);
     let boxes = setup.microquad_boxes(&g, Skips::ALL);
-    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some((&g, &boxes)));
+    let cull_against = CullAgainst {
+        g: &g,
+        boxes: &boxes,
+        when: ReceiverCull::Always,
+    };
+    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some(cull_against));
 
     // Scatter against the placements, cell by cell, level by level and
     // cascade by cascade (with the cull, a subset of them), neighbour bits

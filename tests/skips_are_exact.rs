@@ -14,7 +14,7 @@ mod common;
 
 use common::gpu::{lock, renderer};
 use izb::bvh::SceneBvh;
-use izb::cpu::{render_cpu, CascadeCount, IzbSettings, SampleMode, Skips};
+use izb::cpu::{render_cpu, CascadeCount, IzbSettings, ReceiverCull, SampleMode, Skips};
 use izb::gpu::{GBufferSource, GpuError};
 use izb::scene::{self, Scene};
 
@@ -53,10 +53,13 @@ fn scenes(resolution: Option<[u32; 2]>) -> Vec<(String, Scene)> {
         .collect()
 }
 
+/// `mode` with `skips`; the `behind_receivers` skip taken whatever the
+/// grid's density, so that it is tested on every scene.
 fn settings(mode: SampleMode, skips: Skips) -> IzbSettings {
     IzbSettings {
         mode,
         skips,
+        receiver_cull: ReceiverCull::Always,
         ..Default::default()
     }
 }
@@ -145,6 +148,75 @@ fn cpu_masks_are_identical_with_and_without_skips() {
     assert!(
         shadow_map_early_outs > 0,
         "the shadow-map early-out never fired: the exactness check above proved nothing"
+    );
+}
+
+/// The `behind_receivers` skip is taken where the grid is dense
+/// (`ReceiverCull::WhereDense`: under an area light, or where the placed
+/// rectangles cover at least `DENSE_RECTANGLE_CELLS` cells per cell), and
+/// taken or not, the masks are those it gives when always taken: every
+/// scene in the LUT and exact modes, the procedural ones also on a grid of
+/// 16 cells a side, dense for each of them.
+#[test]
+fn the_receiver_cull_is_taken_where_the_grid_is_dense() {
+    let all = scenes(Some(RESOLUTION));
+    let procedural = |name: &str| scene::procedural::NAMES.contains(&name);
+    // Two modes, on two grids for the procedural scenes.
+    let expected_cases: usize = all
+        .iter()
+        .map(|(name, _)| if procedural(name) { 4 } else { 2 })
+        .sum();
+    let (mut taken, mut left, mut cases) = (0, 0, 0);
+    for (name, scene) in all {
+        let bvh = SceneBvh::build(&scene);
+        let procedural = procedural(&name);
+        let grids: &[Option<u32>] = if procedural {
+            &[None, Some(16)]
+        } else {
+            &[None]
+        };
+        for &cells in grids {
+            for mode in [SampleMode::Lut32, SampleMode::Exact32] {
+                let with = |receiver_cull| IzbSettings {
+                    mode,
+                    cells,
+                    receiver_cull,
+                    ..Default::default()
+                };
+                let dense = render_cpu(&scene, &bvh, with(ReceiverCull::WhereDense));
+                let always = render_cpu(&scene, &bvh, with(ReceiverCull::Always));
+                let (d, a) = (&dense.report.bin, &always.report.bin);
+                let density = d.rectangle_cells_per_cell;
+                println!(
+                    "{name} {mode:?} cells {cells:?}: {density:.2} rectangle cells per cell, \
+                     culled {}; entries {} where dense, {} always",
+                    d.receivers_culled_against, d.cell_entries, a.cell_entries
+                );
+                let expected =
+                    scene.has_area_light() || density >= ReceiverCull::DENSE_RECTANGLE_CELLS;
+                assert_eq!(
+                    d.receivers_culled_against, expected,
+                    "{name} {mode:?} {cells:?}"
+                );
+                assert!(a.receivers_culled_against, "{name}");
+                assert_eq!(a.rectangle_cells_per_cell, density, "{name}");
+                if !expected {
+                    assert_eq!(d.entries_behind_receivers, 0, "{name}");
+                    assert!(d.cell_entries >= a.cell_entries, "{name}");
+                }
+                if let Some((i, x, y)) = first_difference(&dense.masks, &always.masks) {
+                    panic!("{name} {mode:?} {cells:?}: pixel {i}: where dense {x:#010x}, always {y:#010x}");
+                }
+                taken += expected as usize;
+                left += !expected as usize;
+                cases += 1;
+            }
+        }
+    }
+    assert_eq!(cases, expected_cases);
+    assert!(
+        taken > 0 && left > 0,
+        "the cull was taken in {taken} cases and left in {left}: one way is untested"
     );
 }
 

@@ -7,11 +7,11 @@
 mod common;
 
 use izb::bvh::SceneBvh;
-use izb::cpu::bin::bin;
+use izb::cpu::bin::{bin, CullAgainst};
 use izb::cpu::evaluate::{for_each_candidate, triangle_mask_for_pixel};
 use izb::cpu::{
     eye_relative_f32, light_setup, render_cpu, CascadeCount, GridRequest, IzbSettings, MaskRule,
-    SampleMode, Skips,
+    ReceiverCull, SampleMode, Skips,
 };
 use izb::gbuffer::{flags, gbuffer, pixel_surface};
 use izb::reference::same_samples::FLOAT_DECISION_TOLERANCE;
@@ -40,7 +40,12 @@ fn check_soft_grid(
     assert!(setup.light_radius > 0.0, "{}: no area light", scene.name);
     let triangles = eye_relative_f32(scene);
     let boxes = setup.microquad_boxes(&g, Skips::ALL);
-    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some((&g, &boxes)));
+    let cull_against = CullAgainst {
+        g: &g,
+        boxes: &boxes,
+        when: ReceiverCull::Always,
+    };
+    let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some(cull_against));
     let rule = MaskRule::for_light(SampleMode::Exact32, Skips::NONE, true);
     let (mut pixels, mut pairs) = (0, 0);
     for i in (0..g.flags.len()).step_by(stride) {

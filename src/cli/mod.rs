@@ -14,7 +14,7 @@ use crate::bvh::SceneBvh;
 use crate::cascades::CascadeCount;
 use crate::reference::{reference, ReferenceImage, ReferenceSettings};
 use crate::scene::{self, Scene};
-use crate::settings::IzbSettings;
+use crate::settings::{IzbSettings, ReceiverCull};
 use anyhow::Result;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -74,6 +74,11 @@ pub struct GridArgs {
     /// Cascade split blend: 1 logarithmic, 0 uniform.
     #[arg(long, default_value_t = 1.0)]
     split_lambda: f32,
+    /// When the CPU twin takes the behind-receivers skip: always, or
+    /// where-dense (under an area light, or where the placed triangles'
+    /// rectangles cover at least 20 cells per cell).
+    #[arg(long, value_enum, default_value_t = ReceiverCull::WhereDense)]
+    receiver_cull: ReceiverCull,
 }
 
 impl GridArgs {
@@ -92,6 +97,7 @@ impl GridArgs {
             level_cells: self.level_cells,
             cascades: self.cascades,
             split_lambda: self.split_lambda,
+            receiver_cull: self.receiver_cull,
             ..settings
         })
     }

@@ -8,13 +8,13 @@
 //! plane, and every triangle when the grid is disabled.
 
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
-use super::footprint::{footprint, Footprint};
+use super::footprint::{footprint, range_area, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
 use super::receivers::TriangleCull;
 pub use super::receivers::{behind_receivers, cell_receivers, CellReceivers};
 use super::receivers::{plane_height, upward_normal};
-use super::Skips;
+use super::{ReceiverCull, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -108,6 +108,12 @@ pub struct BinStats {
     pub entries_outside_penumbra: usize,
     /// Cells with a cover triangle (the conservative shadow map).
     pub covered_cells: usize,
+    /// The densest cascade's placed rectangles: their cells per cell of
+    /// their level, summed over its levels ([`ReceiverCull::WhereDense`]).
+    pub rectangle_cells_per_cell: f64,
+    /// Whether the receivers were registered and the `behind_receivers`
+    /// skip taken.
+    pub receivers_culled_against: bool,
 }
 
 /// The binned grids of every cascade, back to back. Cells hold triangle
@@ -259,13 +265,22 @@ fn cover_floor_below(
     )
 }
 
+/// The receivers the `behind_receivers` skip culls against: a G-buffer's,
+/// with their µQuads' boxes, and when to take the skip.
+#[derive(Clone, Copy)]
+pub struct CullAgainst<'a> {
+    pub g: &'a GBuffer,
+    pub boxes: &'a MicroquadBoxes,
+    pub when: ReceiverCull,
+}
+
 /// Bins eye-relative `f32` triangles (`triangles[id]`) into every
 /// cascade's pyramid. With the `outside_bounds` skip off, triangles that
 /// miss a grid go to that cascade's overflow list instead of being culled;
-/// with `cull_behind` (the `behind_receivers` skip: the G-buffer whose
-/// receivers to cull against) a cell does not list triangles that are
-/// behind all of its receivers; with the `shadow_map` skip (directional
-/// lights) each cell records its cover triangle.
+/// with `cull_behind` (the `behind_receivers` skip) a cell does not list
+/// triangles that are behind all of its receivers, when `when` says it
+/// pays; with the `shadow_map` skip (directional lights) each cell records
+/// its cover triangle.
 ///
 /// Placement and the per-cell tests run in parallel over blocks of
 /// triangles; the counting sort itself (counts, prefix sum, scatter) runs
@@ -275,7 +290,7 @@ pub fn bin(
     setup: &LightSetup,
     triangles: &[[Vec3; 3]],
     skips: Skips,
-    cull_behind: Option<(&GBuffer, &MicroquadBoxes)>,
+    cull_behind: Option<CullAgainst<'_>>,
 ) -> Bins {
     // Each triangle's placement only: its footprint (84 bytes with the
     // placement, 74 MB at courtyard's 877 k triangles) and its light-view
@@ -306,8 +321,10 @@ pub fn bin(
         })
         .collect();
     let level_cells = setup.level_tables();
+    let density = rectangle_cells_per_cell(setup, &placed);
     let receivers = cull_behind
-        .and_then(|(g, boxes)| cell_receivers(setup, g, boxes, skips, &levels, &level_cells));
+        .filter(|c| c.when.culls(setup.light_radius, density))
+        .and_then(|c| cell_receivers(setup, c.g, c.boxes, skips, &levels, &level_cells));
     let covers = skips.shadow_map && setup.projection == Projection::Orthographic;
     let blocks: Vec<BlockEntries> = (0..triangles.len())
         .step_by(TRIANGLE_BLOCK)
@@ -321,6 +338,8 @@ pub fn bin(
     let cells = setup.total_cells();
     let mut stats = BinStats {
         triangles: triangles.len(),
+        rectangle_cells_per_cell: density,
+        receivers_culled_against: receivers.is_some(),
         ..Default::default()
     };
     // Count (and the best cover floor per cell: highest wins, ties to the
@@ -432,6 +451,35 @@ impl BinStats {
             *t += s;
         }
     }
+}
+
+/// The cells of the placed triangles' rectangles per cell of their level,
+/// summed over a cascade's levels (as a pixel visits each), in the densest
+/// cascade: a bound on the entries a pixel's cells list on average, read
+/// before any is listed.
+fn rectangle_cells_per_cell(setup: &LightSetup, placed: &[Vec<Placement>]) -> f64 {
+    let per_cascade = setup.cascades.iter().zip(placed).map(|(grid, placed)| {
+        let mut rectangle_cells = vec![0u64; grid.levels as usize];
+        for p in placed {
+            if let Placement::Cells {
+                level,
+                x0,
+                y0,
+                x1,
+                y1,
+            } = *p
+            {
+                rectangle_cells[level as usize] += range_area([x0, y0, x1, y1]);
+            }
+        }
+        (0..grid.levels)
+            .map(|l| {
+                let [w, h] = grid.level_dims(l);
+                rectangle_cells[l as usize] as f64 / (f64::from(w) * f64::from(h)).max(1.0)
+            })
+            .sum::<f64>()
+    });
+    per_cascade.fold(0.0, f64::max)
 }
 
 /// The entries of triangles `ids` in every cascade: each cell of its

@@ -32,7 +32,7 @@ pub mod translate_vertices;
 
 // The settings the CPU twins take, declared below both backends.
 pub use crate::cascades::CascadeCount;
-pub use crate::settings::{IzbSettings, PassSeconds, PassTimes, SampleMode};
+pub use crate::settings::{IzbSettings, PassSeconds, PassTimes, ReceiverCull, SampleMode};
 pub use crate::skips::Skips;
 pub use evaluate::{MaskRule, FULL};
 pub use export_images::{export_images, ExportedImages};
@@ -228,7 +228,11 @@ pub fn render_cpu_with(
     // point-like light a surface needs only the part of its µQuad its
     // samples span.
     let boxes = setup.receiver_boxes(&g, settings.skips, !soft);
-    let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
+    let cull_behind = settings.skips.behind_receivers.then_some(bin::CullAgainst {
+        g: &g,
+        boxes: &boxes,
+        when: settings.receiver_cull,
+    });
     let bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
     seconds.bin = lap();
     let rule = MaskRule {
@@ -303,7 +307,11 @@ pub fn candidate_counts(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) ->
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     let triangles = eye_relative_f32(scene);
     let boxes = setup.microquad_boxes(&g, settings.skips);
-    let cull_behind = settings.skips.behind_receivers.then_some((&g, &boxes));
+    let cull_behind = settings.skips.behind_receivers.then_some(bin::CullAgainst {
+        g: &g,
+        boxes: &boxes,
+        when: settings.receiver_cull,
+    });
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);
     (0..g.flags.len())
         .into_par_iter()
