@@ -146,9 +146,16 @@ fn cover_of(setup: &LightSetup, bins: &Bins, px: &PixelFrustum) -> u32 {
     NO_COVER
 }
 
-/// The levels set in `mask`, finest first.
+/// The levels set in `mask`, finest first: its set bits, lowest first
+/// (a filter over all 32 bits was 13 % of `evaluate_pixel`'s profile on
+/// `default` at 1080p, where a pixel has one or two candidates).
 fn levels_of(mask: u32) -> impl Iterator<Item = u32> {
-    (0..32).filter(move |l| mask & (1 << l) != 0)
+    let mut rest = mask;
+    std::iter::from_fn(move || {
+        let level = (rest != 0).then(|| rest.trailing_zeros())?;
+        rest &= rest - 1;
+        Some(level)
+    })
 }
 
 /// Occluded samples of `tri` (eye-relative, not yet relative to P) for
