@@ -122,15 +122,16 @@ pub fn no_sample_inside(e: [[f32; 3]; 3], reach: f32) -> bool {
     certified_by(&e0, &e1) | certified_by(&e1, &e2) | certified_by(&e2, &e0)
 }
 
-/// [`no_sample_inside`] of every lane of a batch's edges
+/// [`no_sample_inside`] of the first `lanes` lanes of a batch's edges
 /// (`edges[k][component][lane]`): 1 where certified, else 0.
 #[inline(always)]
 pub fn no_sample_inside_lanes<const LANES: usize>(
     edges: &[[[f32; LANES]; 3]; 3],
     reach: f32,
     out: &mut [u32; LANES],
+    lanes: usize,
 ) {
-    for l in 0..LANES {
+    for l in 0..lanes {
         let e = |k: usize| [edges[k][0][l], edges[k][1][l], edges[k][2][l]];
         out[l] = u32::from(no_sample_inside([e(0), e(1), e(2)], reach));
     }

@@ -436,11 +436,12 @@ fn test_batch(
     counters: &mut TestCounters,
     stop_when_full: bool,
 ) -> Option<WalkPoint> {
-    let len = std::mem::take(&mut batch.len);
+    let len = batch.len;
     if len == 0 {
         return None;
     }
     batch.test(rule, px.microquad_part, px.light, px.ex, px.ey, r);
+    batch.len = 0;
     counters.survivor_batches += 1;
     counters.survivor_lanes += len as u64;
     // With the `saturated_edges` skip a lane whose edges provably leave

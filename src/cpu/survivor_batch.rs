@@ -103,8 +103,9 @@ impl SurvivorBatch {
 
     /// The depth test's second condition, the winding, the edge
     /// functions and their certificate (each edge's mask erring by at most
-    /// the rule's `certificate_reach`) of every lane, on the rule's
-    /// instruction set, into `out` (lanes past `len` hold stale values).
+    /// the rule's `certificate_reach`) of the batch's lanes, on the
+    /// rule's instruction set, into `out` (lanes past `len` hold stale
+    /// values).
     pub(super) fn test(
         &self,
         rule: &MaskRule,
@@ -120,6 +121,15 @@ impl SurvivorBatch {
             ey,
             reach: rule.certificate_reach,
         };
+        // A pixel's last batch often holds one or two candidates (city at
+        // 1080p: 1.2 lanes a batch); the vector kernel would test all
+        // eight.
+        if self.len <= FEW_LANES {
+            return match light {
+                LightRel::Toward(w) => kernel::<false>(self, &frame, w, out, self.len),
+                LightRel::At(l) => kernel::<true>(self, &frame, l, out, self.len),
+            };
+        }
         match (rule.simd, light) {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `rule.simd` is Avx512 only where the processor has
@@ -142,8 +152,8 @@ impl SurvivorBatch {
             (SimdPath::Avx2, LightRel::At(l)) => unsafe {
                 kernel_avx2::<true>(self, &frame, l, out)
             },
-            (_, LightRel::Toward(w)) => kernel::<false>(self, &frame, w, out),
-            (_, LightRel::At(l)) => kernel::<true>(self, &frame, l, out),
+            (_, LightRel::Toward(w)) => kernel::<false>(self, &frame, w, out, LANES),
+            (_, LightRel::At(l)) => kernel::<true>(self, &frame, l, out, LANES),
         }
     }
 }
@@ -167,7 +177,7 @@ unsafe fn kernel_avx2<const POINT: bool>(
     light: Vec3,
     out: &mut BatchTests,
 ) {
-    kernel::<POINT>(b, f, light, out)
+    kernel::<POINT>(b, f, light, out, LANES)
 }
 
 /// # Safety
@@ -180,13 +190,23 @@ unsafe fn kernel_avx512<const POINT: bool>(
     light: Vec3,
     out: &mut BatchTests,
 ) {
-    kernel::<POINT>(b, f, light, out)
+    kernel::<POINT>(b, f, light, out, LANES)
 }
 
-/// Every lane's test; `POINT`: `light` is the point light's position
-/// minus P (`LightRel::At`), else the unit vector toward it.
+/// Lanes at most this many are tested one by one ([`SurvivorBatch::test`]).
+const FEW_LANES: usize = 2;
+
+/// The first `lanes` lanes' tests (all [`LANES`], a constant, where the
+/// loop is to be vectorised); `POINT`: `light` is the point light's
+/// position minus P (`LightRel::At`), else the unit vector toward it.
 #[inline(always)]
-fn kernel<const POINT: bool>(b: &SurvivorBatch, f: &Frame, light: Vec3, out: &mut BatchTests) {
+fn kernel<const POINT: bool>(
+    b: &SurvivorBatch,
+    f: &Frame,
+    light: Vec3,
+    out: &mut BatchTests,
+    lanes: usize,
+) {
     let rounding = <Vec3 as Vector>::from_f64(DEPTH_TOLERANCE_ROUNDING);
     // `side_plane_normal`.
     let side = |x: Vec3, y: Vec3| {
@@ -196,7 +216,7 @@ fn kernel<const POINT: bool>(b: &SurvivorBatch, f: &Frame, light: Vec3, out: &mu
             (y - x).cross(light)
         }
     };
-    for l in 0..LANES {
+    for l in 0..lanes {
         let t = b.triangle(l);
         // `above_full_tolerance`.
         let reach = max3(t[0].length(), t[1].length(), t[2].length());
@@ -222,5 +242,5 @@ fn kernel<const POINT: bool>(b: &SurvivorBatch, f: &Frame, light: Vec3, out: &mu
             [e[0][l], e[1][l], e[2][l]] = [-(n.dot(x)), n.dot(f.ex), n.dot(f.ey)];
         }
     }
-    no_sample_inside_lanes(&out.edges, f.reach, &mut out.no_sample_inside);
+    no_sample_inside_lanes(&out.edges, f.reach, &mut out.no_sample_inside, lanes);
 }
