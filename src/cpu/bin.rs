@@ -8,7 +8,7 @@
 //! plane, and every triangle when the grid is disabled.
 
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
-use super::footprint::{footprint, range_area, Footprint};
+use super::footprint::{footprint, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
 use super::receivers::TriangleCull;
@@ -265,8 +265,8 @@ fn cover_floor_below(
     )
 }
 
-/// The receivers the `behind_receivers` skip culls against: a G-buffer's,
-/// with their µQuads' boxes, and when to take the skip.
+/// The receivers (and µQuad boxes) the `behind_receivers` skip culls
+/// against, and when to take it.
 #[derive(Clone, Copy)]
 pub struct CullAgainst<'a> {
     pub g: &'a GBuffer,
@@ -453,31 +453,20 @@ impl BinStats {
     }
 }
 
-/// The cells of the placed triangles' rectangles per cell of their level,
-/// summed over a cascade's levels (as a pixel visits each), in the densest
-/// cascade: a bound on the entries a pixel's cells list on average, read
-/// before any is listed.
+/// [`CascadeGrid::rectangle_cells_per_cell`] of the placed rectangles, in
+/// the densest cascade.
 fn rectangle_cells_per_cell(setup: &LightSetup, placed: &[Vec<Placement>]) -> f64 {
     let per_cascade = setup.cascades.iter().zip(placed).map(|(grid, placed)| {
-        let mut rectangle_cells = vec![0u64; grid.levels as usize];
-        for p in placed {
-            if let Placement::Cells {
+        grid.rectangle_cells_per_cell(placed.iter().filter_map(|p| match *p {
+            Placement::Cells {
                 level,
                 x0,
                 y0,
                 x1,
                 y1,
-            } = *p
-            {
-                rectangle_cells[level as usize] += range_area([x0, y0, x1, y1]);
-            }
-        }
-        (0..grid.levels)
-            .map(|l| {
-                let [w, h] = grid.level_dims(l);
-                rectangle_cells[l as usize] as f64 / (f64::from(w) * f64::from(h)).max(1.0)
-            })
-            .sum::<f64>()
+            } => Some((level, [x0, y0, x1, y1])),
+            _ => None,
+        }))
     });
     per_cascade.fold(0.0, f64::max)
 }

@@ -146,9 +146,8 @@ fn cover_of(setup: &LightSetup, bins: &Bins, px: &PixelFrustum) -> u32 {
     NO_COVER
 }
 
-/// The levels set in `mask`, finest first: its set bits, lowest first
-/// (a filter over all 32 bits was 13 % of `evaluate_pixel`'s profile on
-/// `default` at 1080p, where a pixel has one or two candidates).
+/// The levels set in `mask`, finest first (a filter over all 32 bits was
+/// 13 % of `evaluate_pixel`'s profile on `default` at 1080p).
 fn levels_of(mask: u32) -> impl Iterator<Item = u32> {
     let mut rest = mask;
     std::iter::from_fn(move || {
