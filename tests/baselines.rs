@@ -98,6 +98,7 @@ fn rasteriser_matches_brute_force_at_every_texel() {
                 level_cells: None,
                 cascades: izb::cpu::CascadeCount::Fixed(2),
                 split_lambda: 1.0,
+                simd: izb::cpu::simd::SimdPath::detected(),
             },
         );
         let tris: Vec<_> = eye_relative_f32(&scene)
@@ -315,6 +316,7 @@ fn gpu_rasteriser_draws_the_cpu_twins_texels() {
                     level_cells: None,
                     cascades: izb::cpu::CascadeCount::Fixed(settings.cascades),
                     split_lambda: 1.0,
+                    simd: izb::cpu::simd::SimdPath::detected(),
                 },
             );
             let cpu = shadow_map(

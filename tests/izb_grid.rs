@@ -39,6 +39,7 @@ fn check_grid(
         level_cells: Some(level_cells),
         cascades: CascadeCount::Fixed(cascades),
         split_lambda: 1.0,
+        simd: izb::cpu::simd::SimdPath::detected(),
     };
     let setup = light_setup(scene, &g, request);
     assert_eq!(setup.cascades.len(), cascades as usize);

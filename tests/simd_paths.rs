@@ -10,8 +10,10 @@
 mod common;
 
 use izb::bvh::SceneBvh;
+use izb::cpu::light_setup::{light_setup, microquad_corners, GridRequest};
 use izb::cpu::simd::SimdPath;
-use izb::cpu::{render_cpu, IzbSettings, SampleMode};
+use izb::cpu::{is_receiver, render_cpu, IzbSettings, SampleMode, Skips};
+use izb::gbuffer::{flags, gbuffer_with};
 use izb::scene::{self, Scene};
 
 const RESOLUTION: [u32; 2] = [64, 36];
@@ -44,9 +46,10 @@ fn scenes() -> Vec<(String, Scene)> {
     out
 }
 
-#[test]
-fn every_simd_path_gives_the_scalar_masks_and_counters() {
-    let paths: Vec<SimdPath> = SimdPath::ALL
+/// The paths this processor runs, narrowest first; the others printed as
+/// skipped.
+fn supported_paths() -> Vec<SimdPath> {
+    SimdPath::ALL
         .into_iter()
         .filter(|p| {
             let ok = p.supported();
@@ -55,7 +58,12 @@ fn every_simd_path_gives_the_scalar_masks_and_counters() {
             }
             ok
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn every_simd_path_gives_the_scalar_masks_and_counters() {
+    let paths = supported_paths();
     let scenes = scenes();
     let mut compared = 0;
     for (name, scene) in &scenes {
@@ -127,4 +135,87 @@ fn izb_simd_scalar_renders_the_same_image() {
     assert_eq!(widest_path, serde_json::to_value(widest_expected).unwrap());
     assert!(scalar == widest, "IZB_SIMD=scalar changed visibility.exr");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The light setup's per-receiver loops and the µQuad boxes, sixteen
+/// G-buffer entries at a time (`light_setup::receiver_lanes`), give the
+/// same floats on every path: the same light setup, and the same boxes,
+/// bit for bit. On the scalar path the boxes of whole µQuads are those
+/// of `LightSetup::microquad_ndc_box`, one receiver at a time, and the
+/// receivers' light-view depth range that of all their corners.
+#[test]
+fn every_simd_path_gives_the_one_receiver_light_setup_and_boxes() {
+    let paths = supported_paths();
+    let scenes = scenes();
+    let bits = |(lo, hi): (glam::Vec2, glam::Vec2)| [lo.x, lo.y, hi.x, hi.y].map(f32::to_bits);
+    let (mut compared, mut whole_boxes) = (0, 0u64);
+    for (name, scene) in &scenes {
+        // Rows and layers whose lengths are not multiples of sixteen: the
+        // chunks' tails run one entry at a time.
+        let scene = scene.clone().with_resolution([101, 37]).unwrap();
+        let bvh = SceneBvh::build(&scene);
+        let settings = IzbSettings {
+            edge_surfaces: true,
+            ..Default::default()
+        };
+        let g = gbuffer_with(&scene, &bvh, settings.edge_halves(&scene));
+        let for_path = |simd| {
+            let request = GridRequest {
+                simd,
+                ..GridRequest::from(&settings)
+            };
+            let setup = light_setup(&scene, &g, request);
+            let boxes = setup.receiver_boxes(&g, Skips::ALL, true);
+            (setup, boxes)
+        };
+        let (setup, boxes) = for_path(SimdPath::Scalar);
+        let (mut z_lo, mut z_hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for layer in g.layers() {
+            for i in 0..layer.flags.len() {
+                if layer.flags[i] & flags::SHADOW_TESTED == 0 {
+                    continue;
+                }
+                let (p, ex, ey) = (layer.position[i], layer.axis_x[i], layer.axis_y[i]);
+                for corner in microquad_corners(p, ex, ey) {
+                    let z = setup.to_light_view(corner).z;
+                    (z_lo, z_hi) = (z_lo.min(z), z_hi.max(z));
+                }
+            }
+        }
+        assert_eq!(
+            setup.receiver_z.map(f32::to_bits),
+            [z_lo, z_hi].map(f32::to_bits),
+            "{name}: the receivers' light-view depth range"
+        );
+        let coverage = g.edges.as_ref().map(|e| &e.centre_coverage);
+        for i in 0..g.flags.len() {
+            let whole = coverage.is_none_or(|c| c[i] == u32::MAX || c[i] == 0);
+            if whole && is_receiver(g.flags[i], Skips::ALL) {
+                let one = setup.microquad_ndc_box(g.position[i], g.axis_x[i], g.axis_y[i]);
+                assert_eq!(bits(boxes.ndc[i]), bits(one), "{name}: pixel {i}'s box");
+                whole_boxes += 1;
+            }
+        }
+        for &path in &paths[1..] {
+            let (other_setup, other_boxes) = for_path(path);
+            assert_eq!(
+                serde_json::to_value(&setup).unwrap(),
+                serde_json::to_value(&other_setup).unwrap(),
+                "{name} {path:?}: the light setup differs from the scalar path's"
+            );
+            for (layer, (a, b)) in boxes.layers().zip(other_boxes.layers()).enumerate() {
+                assert_eq!(a.ndc.len(), b.ndc.len());
+                for (i, (&a, &b)) in a.ndc.iter().zip(&b.ndc).enumerate() {
+                    assert_eq!(bits(a), bits(b), "{name} {path:?}: layer {layer} entry {i}");
+                }
+            }
+            compared += 1;
+        }
+    }
+    assert_eq!(compared, scenes.len() * (paths.len() - 1));
+    assert!(whole_boxes > 0);
+    println!(
+        "{compared} (scene, path) light setups and boxes equal to the scalar path's; \
+         {whole_boxes} boxes equal to one receiver's"
+    );
 }

@@ -35,6 +35,7 @@ fn check_soft_grid(
         level_cells: Some(level_cells),
         cascades: CascadeCount::Fixed(1),
         split_lambda: 1.0,
+        simd: izb::cpu::simd::SimdPath::detected(),
     };
     let setup = light_setup(scene, &g, request);
     assert!(setup.light_radius > 0.0, "{}: no area light", scene.name);

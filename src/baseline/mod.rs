@@ -181,6 +181,7 @@ pub fn render_shadow_map(
             level_cells: None,
             cascades: CascadeCount::Fixed(settings.cascades),
             split_lambda: 1.0,
+            simd: crate::cpu::simd::SimdPath::detected(),
         },
     );
     if setup.grid_disabled {

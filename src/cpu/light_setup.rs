@@ -8,6 +8,7 @@
 //! light's view axis).
 
 use crate::cascades::{self, CascadeChoice, CascadeCount, MAX_CASCADES};
+use crate::cpu::simd::SimdPath;
 use crate::frustum::LightRel;
 use crate::gbuffer::GBuffer;
 use crate::scene::{light_disk_f32, Light, LightDisk, Scene};
@@ -15,6 +16,7 @@ use glam::{DMat3, DVec3, Mat3, Vec2, Vec3};
 
 mod boxes;
 mod receiver_bounds;
+mod receiver_lanes;
 
 pub use boxes::{microquad_corners, MicroquadBoxes};
 
@@ -215,6 +217,10 @@ pub struct LightSetup {
     /// light's angular radius, or a point light's sphere radius; 0 for a
     /// point-like light (hard shadows).
     pub light_radius: f32,
+    /// The instruction set of the per-receiver loops
+    /// ([`GridRequest::simd`]).
+    #[serde(skip)]
+    pub simd: SimdPath,
     /// A directional light's disk, the same from every receiver (host
     /// `f64`, then `f32`; the GPU frame receives these very floats), when
     /// the light has a size.
@@ -355,6 +361,10 @@ pub struct GridRequest {
     pub cascades: CascadeCount,
     /// Blend of logarithmic (1) and uniform (0) splits.
     pub split_lambda: f32,
+    /// The instruction set of the per-receiver loops (the light setup's
+    /// and [`LightSetup::receiver_boxes`]'): every path gives the same
+    /// floats.
+    pub simd: SimdPath,
 }
 
 impl From<&crate::settings::IzbSettings> for GridRequest {
@@ -365,6 +375,7 @@ impl From<&crate::settings::IzbSettings> for GridRequest {
             level_cells: s.level_cells,
             cascades: s.cascades,
             split_lambda: s.split_lambda,
+            simd: s.simd.or_supported(),
         }
     }
 }
@@ -388,7 +399,9 @@ pub fn light_setup_for(
     // Receivers' eye-relative bounds centre: the light-view origin of a
     // directional light, the aim of a point light. View depth range: the
     // cascade splits.
-    let bounds = receiver_bounds::view_bounds(gbuffer, view_forward);
+    // A path this processor runs: the kernels' `unsafe` rests on it.
+    let simd = request.simd.or_supported();
+    let bounds = receiver_bounds::view_bounds(gbuffer, view_forward, simd);
     let (lo, hi, near, far) = (bounds.lo, bounds.hi, bounds.near, bounds.far);
     let tested = bounds.count;
     let centre = if tested == 0 {
@@ -433,6 +446,7 @@ pub fn light_setup_for(
         receivers: tested,
         grid_disabled: false,
         light_radius: 0.0,
+        simd,
         sun_disk: None,
     };
     if scene.has_area_light() {
@@ -458,7 +472,7 @@ pub fn light_setup_for(
         cascades::cascade_of_depth(&setup.split_depths, p.dot(view_forward)).min(count - 1)
     };
     // Per cascade: light-NDC bounds of its µQuads' corners.
-    let bounds = receiver_bounds::light_bounds(gbuffer, &setup, cascade_of);
+    let bounds = receiver_bounds::light_bounds(gbuffer, &setup, simd, (count, cascade_of));
     let (nmin, nmax, receivers) = (bounds.nmin, bounds.nmax, bounds.receivers);
     let (zmin, zmax) = (bounds.zmin, bounds.zmax);
     setup.grid_disabled |= bounds.no_ndc;

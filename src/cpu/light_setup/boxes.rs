@@ -3,11 +3,13 @@
 //! and evaluate (and, with edge surfaces under a point-like light, only
 //! the part of a µQuad its samples span).
 
+use super::receiver_lanes::{corner_boxes, CornerBoxes, LANES};
 use super::{CascadeGrid, LightSetup};
 use crate::cpu::Skips;
-use crate::gbuffer::GBuffer;
+use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 impl LightSetup {
     /// Light-NDC bounding box of the µQuad (centre `p`, axes `ex`, `ey`,
@@ -79,32 +81,68 @@ impl LightSetup {
 
     fn boxes_of(&self, g: &GBuffer, skips: Skips, coverage: Option<&[u32]>) -> Vec<(Vec2, Vec2)> {
         let pattern = crate::lut::sample_pattern();
-        let boxes: Vec<(Vec2, Vec2)> = (0..g.flags.len())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|i| {
-                if !crate::cpu::is_receiver(g.flags[i], skips) {
-                    return (Vec2::NAN, Vec2::NAN);
+        // A path this processor runs: the kernels' `unsafe` rests on it.
+        let simd = self.simd.or_supported();
+        // `crate::cpu::is_receiver` as one bit test.
+        let receiver_flags = flags::SHADOW_TESTED | if skips.facing_away { 0 } else { flags::HIT };
+        let n = g.flags.len();
+        let mut boxes = Vec::with_capacity(n);
+        boxes.spare_capacity_mut()[..n]
+            .par_chunks_mut(LANES)
+            .enumerate()
+            .with_min_len(256)
+            .for_each_init(ChunkQuads::default, |lanes, (chunk, out)| {
+                let c = chunk * LANES..chunk * LANES + out.len();
+                if !g.flags[c.clone()].iter().any(|f| f & receiver_flags != 0) {
+                    // Sky or back-facing pixels only.
+                    out.fill(MaybeUninit::new((Vec2::NAN, Vec2::NAN)));
+                    return;
                 }
-                let (p, ex, ey) = (g.position[i], g.axis_x[i], g.axis_y[i]);
-                match coverage.map(|c| c[i]).filter(|&c| c != u32::MAX && c != 0) {
-                    None => self.microquad_ndc_box(p, ex, ey),
-                    Some(c) => {
-                        let (lo, hi) = covered_rectangle(pattern, c);
-                        // The sub-rectangle as a µQuad of its own.
-                        let centre = (lo + hi) * 0.5 - Vec2::splat(0.5);
-                        let size = hi - lo;
-                        self.microquad_ndc_box(
-                            p + centre.x * ex + centre.y * ey,
-                            ex * size.x,
-                            ey * size.y,
-                        )
+                let mut quads = (
+                    &g.position[c.clone()],
+                    &g.axis_x[c.clone()],
+                    &g.axis_y[c.clone()],
+                );
+                // An edge pixel's surface that covers only some samples:
+                // the sub-rectangle they span, as a µQuad of its own.
+                let covered = coverage.map(|cov| &cov[c.clone()]);
+                if covered.is_some_and(|cov| cov.iter().any(|&c| c != u32::MAX && c != 0)) {
+                    let (p, ex, ey) = &mut lanes.quads;
+                    for (l, &c) in covered.into_iter().flatten().enumerate() {
+                        (p[l], ex[l], ey[l]) = (quads.0[l], quads.1[l], quads.2[l]);
+                        if c != u32::MAX && c != 0 {
+                            let (lo, hi) = covered_rectangle(pattern, c);
+                            let centre = (lo + hi) * 0.5 - Vec2::splat(0.5);
+                            let size = hi - lo;
+                            p[l] = p[l] + centre.x * ex[l] + centre.y * ey[l];
+                            (ex[l], ey[l]) = (ex[l] * size.x, ey[l] * size.y);
+                        }
                     }
+                    let len = out.len();
+                    quads = (&p[..len], &ex[..len], &ey[..len]);
                 }
-            })
-            .collect();
+                corner_boxes(self, simd, quads, &mut lanes.boxes);
+                for (l, (i, slot)) in c.zip(out).enumerate() {
+                    slot.write(if g.flags[i] & receiver_flags != 0 {
+                        lanes.boxes.ndc_box(l)
+                    } else {
+                        (Vec2::NAN, Vec2::NAN)
+                    });
+                }
+            });
+        // SAFETY: the chunks cover the first `n` slots, and each slot of a
+        // chunk was written above.
+        unsafe { boxes.set_len(n) };
         boxes
     }
+}
+
+/// One chunk's µQuads where some are covered sub-rectangles, and its
+/// boxes: reused chunk after chunk.
+#[derive(Default)]
+struct ChunkQuads {
+    quads: ([Vec3; LANES], [Vec3; LANES], [Vec3; LANES]),
+    boxes: CornerBoxes,
 }
 
 /// Per pixel, the light-NDC box of its µQuad

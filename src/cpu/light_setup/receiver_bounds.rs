@@ -8,11 +8,14 @@
 //! it or adds to it, where the two zeros act alike; NaN never wins a
 //! `min` or `max` in any order.
 
-use super::{microquad_corners, LightSetup};
+use super::receiver_lanes::{corner_boxes, CornerBoxes, LightLanes, ViewLanes, LANES, NOT_TESTED};
+use super::LightSetup;
 use crate::cascades::MAX_CASCADES;
+use crate::cpu::simd::SimdPath;
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Entries per parallel job.
 const MIN_JOB: usize = 4096;
@@ -36,16 +39,6 @@ impl ViewBounds {
         count: 0,
     };
 
-    #[inline]
-    fn add(&mut self, p: Vec3, view_forward: Vec3) {
-        self.lo = self.lo.min(p);
-        self.hi = self.hi.max(p);
-        let d = p.dot(view_forward);
-        self.near = self.near.min(d);
-        self.far = self.far.max(d);
-        self.count += 1;
-    }
-
     fn merge(self, o: ViewBounds) -> ViewBounds {
         ViewBounds {
             lo: self.lo.min(o.lo),
@@ -57,14 +50,14 @@ impl ViewBounds {
     }
 }
 
-/// Folds `add` over the shadow-tested entries of every layer of `g` in
-/// parallel, in blocks of [`MIN_JOB`] entries, each block into its own
-/// accumulator (a plain loop on a local value: the accumulators are too
-/// large to pass by value per receiver), merged with `merge`.
-fn fold_tested<B: Copy + Send + Sync>(
+/// Folds `block` over every layer of `g` in parallel, in blocks of
+/// [`MIN_JOB`] entries, each block into its own accumulator (the lanes'
+/// accumulators are too large to pass by value per chunk), merged with
+/// `merge`.
+fn fold_blocks<B: Copy + Send + Sync>(
     g: &GBuffer,
     empty: B,
-    add: impl Fn(&mut B, &GBuffer, usize) + Sync,
+    block: impl Fn(&GBuffer, Range<usize>) -> B + Sync,
     merge: impl Fn(B, B) -> B + Sync,
 ) -> B {
     // The pixels' centre surfaces and the edge pixels' extra surfaces,
@@ -74,28 +67,49 @@ fn fold_tested<B: Copy + Send + Sync>(
             let n = g.flags.len();
             (0..n.div_ceil(MIN_JOB))
                 .into_par_iter()
-                .map(|block| {
-                    let mut b = empty;
-                    for i in block * MIN_JOB..((block + 1) * MIN_JOB).min(n) {
-                        if g.flags[i] & flags::SHADOW_TESTED != 0 {
-                            add(&mut b, g, i);
-                        }
-                    }
-                    b
-                })
+                .map(|b| block(g, b * MIN_JOB..((b + 1) * MIN_JOB).min(n)))
                 .reduce(|| empty, &merge)
         })
         .fold(empty, &merge)
 }
 
+/// The chunks of at most [`LANES`] entries of `range` in layer `g` that
+/// hold a shadow-tested receiver (sky and back-facing pixels come in
+/// runs: `engine` at 1080p has 315 k receivers among 2 M pixels).
+fn chunks<'a>(g: &'a GBuffer, range: Range<usize>) -> impl Iterator<Item = Range<usize>> + 'a {
+    let end = range.end;
+    range
+        .step_by(LANES)
+        .map(move |start| start..(start + LANES).min(end))
+        .filter(|c| {
+            g.flags[c.clone()]
+                .iter()
+                .any(|f| f & flags::SHADOW_TESTED != 0)
+        })
+}
+
 /// [`ViewBounds`] of the shadow-tested receivers of `g`.
-pub(super) fn view_bounds(g: &GBuffer, view_forward: Vec3) -> ViewBounds {
-    fold_tested(
-        g,
-        ViewBounds::EMPTY,
-        |b, g, i| b.add(g.position[i], view_forward),
-        ViewBounds::merge,
-    )
+pub(super) fn view_bounds(g: &GBuffer, view_forward: Vec3, simd: SimdPath) -> ViewBounds {
+    let block = |g: &GBuffer, range: Range<usize>| {
+        let mut lanes = ViewLanes::EMPTY;
+        for c in chunks(g, range) {
+            lanes.add(simd, &g.position[c.clone()], &g.flags[c], view_forward);
+        }
+        let mut b = ViewBounds::EMPTY;
+        for l in 0..LANES {
+            let lo = Vec3::new(lanes.lo[0][l], lanes.lo[1][l], lanes.lo[2][l]);
+            let hi = Vec3::new(lanes.hi[0][l], lanes.hi[1][l], lanes.hi[2][l]);
+            b = b.merge(ViewBounds {
+                lo,
+                hi,
+                near: lanes.near[l],
+                far: lanes.far[l],
+                count: lanes.count[l] as usize,
+            });
+        }
+        b
+    };
+    fold_blocks(g, ViewBounds::EMPTY, block, ViewBounds::merge)
 }
 
 /// Per cascade, the light-NDC bounds of its receivers' µQuad corners and
@@ -135,28 +149,50 @@ impl LightBounds {
 }
 
 /// [`LightBounds`] of the shadow-tested receivers of `g` in `setup`'s
-/// light view, `cascade_of` their P's cascade.
+/// light view, `cascade_of` their P's cascade (of `cascades`).
 pub(super) fn light_bounds(
     g: &GBuffer,
     setup: &LightSetup,
-    cascade_of: impl Fn(Vec3) -> usize + Sync,
+    simd: SimdPath,
+    (cascades, cascade_of): (usize, impl Fn(Vec3) -> usize + Sync),
 ) -> LightBounds {
-    let add = |b: &mut LightBounds, g: &GBuffer, i: usize| {
-        let p = g.position[i];
-        let k = cascade_of(p);
-        b.receivers[k] += 1;
-        for corner in microquad_corners(p, g.axis_x[i], g.axis_y[i]) {
-            let p = setup.to_light_view(corner);
-            b.zmin = b.zmin.min(p.z);
-            b.zmax = b.zmax.max(p.z);
-            match setup.ndc(p) {
-                Some(n) => {
-                    b.nmin[k] = b.nmin[k].min(n);
-                    b.nmax[k] = b.nmax[k].max(n);
+    let block = |g: &GBuffer, range: Range<usize>| {
+        let mut lanes = LightLanes::EMPTY;
+        let mut boxes = CornerBoxes::default();
+        let mut cascade = [NOT_TESTED; LANES];
+        for c in chunks(g, range) {
+            let quads = (
+                &g.position[c.clone()],
+                &g.axis_x[c.clone()],
+                &g.axis_y[c.clone()],
+            );
+            corner_boxes(setup, simd, quads, &mut boxes);
+            cascade.fill(NOT_TESTED);
+            for (l, i) in c.enumerate() {
+                if g.flags[i] & flags::SHADOW_TESTED != 0 {
+                    cascade[l] = if cascades == 1 {
+                        0
+                    } else {
+                        cascade_of(g.position[i]) as u32
+                    };
                 }
-                None => b.no_ndc = true,
             }
+            lanes.add(simd, &boxes, &cascade, cascades);
         }
+        let mut b = LightBounds::EMPTY;
+        for l in 0..LANES {
+            for k in 0..MAX_CASCADES {
+                let nmin = Vec2::new(lanes.nmin[k][0][l], lanes.nmin[k][1][l]);
+                let nmax = Vec2::new(lanes.nmax[k][0][l], lanes.nmax[k][1][l]);
+                b.nmin[k] = b.nmin[k].min(nmin);
+                b.nmax[k] = b.nmax[k].max(nmax);
+                b.receivers[k] += lanes.receivers[k][l] as usize;
+            }
+            b.zmin = b.zmin.min(lanes.z_lo[l]);
+            b.zmax = b.zmax.max(lanes.z_hi[l]);
+            b.no_ndc |= lanes.no_ndc[l] != 0;
+        }
+        b
     };
-    fold_tested(g, LightBounds::EMPTY, add, LightBounds::merge)
+    fold_blocks(g, LightBounds::EMPTY, block, LightBounds::merge)
 }
