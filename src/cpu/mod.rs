@@ -47,6 +47,7 @@ use crate::gbuffer::{gbuffer, gbuffer_with};
 use crate::scene::Scene;
 use glam::Vec3;
 use light_setup::MicroquadBoxes;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Whether `evaluate` tests a pixel with G-buffer `flags`: shadow-tested
@@ -107,7 +108,11 @@ pub fn resolve(masks: &[u32], g: &GBuffer) -> Vec<f32> {
 /// 1 − popcount(mask) / popcount(counted).
 pub fn resolve_halves(masks: &[u32], high: &[u32], g: &GBuffer) -> Vec<f32> {
     let halves = 1 + usize::from(!high.is_empty());
+    // Each pixel's value is its own, so the threads change no bit
+    // (single-threaded, 6–8 ms of `default`'s 1080p shadow pass).
     (0..masks.len())
+        .into_par_iter()
+        .with_min_len(4096)
         .map(|i| {
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 return f32::NAN;
@@ -302,7 +307,6 @@ pub fn render_cpu_with(
 /// viewer (`izb view`): where the grid concentrates its work.
 #[cfg(feature = "cli")]
 pub fn candidate_counts(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) -> Vec<u32> {
-    use rayon::prelude::*;
     let g = gbuffer(scene, bvh);
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     let triangles = eye_relative_f32(scene);

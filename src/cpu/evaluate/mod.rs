@@ -27,7 +27,7 @@ use crate::frustum::{
 use crate::gbuffer::{flags, GBuffer};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use walk::{candidates_of, cover_of};
+use walk::{candidates_of, cover_of, level_ranges, LevelRanges};
 
 mod walk;
 pub use walk::for_each_candidate;
@@ -206,6 +206,15 @@ fn occluded_samples(
     )
 }
 
+/// What a pixel's evaluation fills and empties, reused pixel after pixel:
+/// the survivor batch and its results, the levels' cell ranges.
+#[derive(Default)]
+struct PixelScratch {
+    batch: SurvivorBatch,
+    batch_tests: BatchTests,
+    ranges: LevelRanges,
+}
+
 /// The occlusion mask of receiver pixel `i` and its tests (and its
 /// counters).
 fn evaluate_pixel(
@@ -214,9 +223,14 @@ fn evaluate_pixel(
     triangles: &[[Vec3; 3]],
     px: &PixelFrustum,
     rule: &MaskRule,
-    (batch, batch_tests): (&mut SurvivorBatch, &mut BatchTests),
+    scratch: &mut PixelScratch,
     stats: &mut EvaluateStats,
 ) -> (u32, u64) {
+    let PixelScratch {
+        batch,
+        batch_tests,
+        ranges,
+    } = scratch;
     // An area light's samples below the receiver's horizon are hidden by
     // the receiver itself.
     let mut mask = match (&px.soft, &px.paired) {
@@ -231,8 +245,9 @@ fn evaluate_pixel(
     // grid offers every triangle that can shadow a sample), so ORing it in
     // and skipping it in the loop leaves the mask as it was; when it fills
     // the mask alone, the loop is skipped.
+    level_ranges(setup, bins, px, ranges);
     let cover = if rule.skips.shadow_map {
-        cover_of(setup, bins, px)
+        cover_of(bins, px, ranges)
     } else {
         NO_COVER
     };
@@ -253,7 +268,7 @@ fn evaluate_pixel(
         let batching = px.soft.is_none();
         batch.len = 0;
         let mut stopped: Option<WalkPoint> = None;
-        let mut walked = candidates_of(setup, bins, px, |id, walked| {
+        let mut walked = candidates_of(bins, px, ranges, |id, walked| {
             if id == px.receiver || id == cover {
                 return false;
             }
@@ -451,8 +466,7 @@ pub fn evaluate_wanted(
             };
             let mut stats = EvaluateStats::default();
             let mut longest = vec![0u64; group_of(entries.end - 1) + 1];
-            // The batch and its results, reused pixel after pixel.
-            let mut batch = (SurvivorBatch::default(), BatchTests::default());
+            let mut scratch = PixelScratch::default();
             let masks = entries
                 .map(|i| {
                     if !is_receiver(g.flags[i], rule.skips) {
@@ -463,15 +477,8 @@ pub fn evaluate_wanted(
                     if let Some(w) = wanted {
                         px.wanted = w[i];
                     }
-                    let (mask, tests) = evaluate_pixel(
-                        setup,
-                        bins,
-                        triangles,
-                        &px,
-                        rule,
-                        (&mut batch.0, &mut batch.1),
-                        &mut stats,
-                    );
+                    let (mask, tests) =
+                        evaluate_pixel(setup, bins, triangles, &px, rule, &mut scratch, &mut stats);
                     stats.longest_pixel_tests = stats.longest_pixel_tests.max(tests);
                     let group = &mut longest[group_of(i)];
                     *group = (*group).max(tests);
