@@ -142,7 +142,7 @@ impl CascadeGrid {
 }
 
 /// One pyramid level's place in the cell arrays ([`CascadeGrid::level`]).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct LevelCells {
     /// Index of the level's first cell.
     pub start: usize,
@@ -378,7 +378,7 @@ impl From<&crate::settings::IzbSettings> for GridRequest {
             level_cells: s.level_cells,
             cascades: s.cascades,
             split_lambda: s.split_lambda,
-            simd: s.simd.or_supported(),
+            simd: s.simd,
         }
     }
 }

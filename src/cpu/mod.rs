@@ -56,7 +56,13 @@ use std::time::Instant;
 /// pixels either way: moving the light-view origin changes the f32
 /// rounding of every test, and the skips must leave masks bit-identical.
 pub fn is_receiver(pixel_flags: u32, skips: Skips) -> bool {
-    pixel_flags & flags::SHADOW_TESTED != 0 || (!skips.facing_away && pixel_flags & flags::HIT != 0)
+    pixel_flags & receiver_flags(skips) != 0
+}
+
+/// The G-buffer flags of which [`is_receiver`] asks for any: shadow-tested,
+/// and with the `facing_away` skip off any hit.
+pub fn receiver_flags(skips: Skips) -> u32 {
+    flags::SHADOW_TESTED | if skips.facing_away { 0 } else { flags::HIT }
 }
 
 /// Settings, timings and counters of one render (`report.json`).

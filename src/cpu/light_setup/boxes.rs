@@ -6,7 +6,7 @@
 use super::receiver_lanes::{corner_boxes, CornerBoxes, LANES};
 use super::{CascadeGrid, LightSetup};
 use crate::cpu::Skips;
-use crate::gbuffer::{flags, GBuffer};
+use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -83,8 +83,7 @@ impl LightSetup {
         let pattern = crate::lut::sample_pattern();
         // A path this processor runs: the kernels' `unsafe` rests on it.
         let simd = self.simd.or_supported();
-        // `crate::cpu::is_receiver` as one bit test.
-        let receiver_flags = flags::SHADOW_TESTED | if skips.facing_away { 0 } else { flags::HIT };
+        let receiver_flags = crate::cpu::receiver_flags(skips);
         let n = g.flags.len();
         let mut boxes = Vec::with_capacity(n);
         boxes.spare_capacity_mut()[..n]

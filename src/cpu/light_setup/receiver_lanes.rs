@@ -32,25 +32,13 @@ pub const LANES: usize = 16;
 /// [`LightSetup::microquad_ndc_box`] forms it (NaN where a corner has no
 /// NDC, as there), the corners' light-view depth range, and whether a
 /// corner had no NDC (at or behind a point light).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 pub struct CornerBoxes {
     pub lo: [[f32; LANES]; 2],
     pub hi: [[f32; LANES]; 2],
     pub z_lo: [f32; LANES],
     pub z_hi: [f32; LANES],
     pub no_ndc: [u32; LANES],
-}
-
-impl Default for CornerBoxes {
-    fn default() -> Self {
-        CornerBoxes {
-            lo: [[0.0; LANES]; 2],
-            hi: [[0.0; LANES]; 2],
-            z_lo: [0.0; LANES],
-            z_hi: [0.0; LANES],
-            no_ndc: [0; LANES],
-        }
-    }
 }
 
 impl CornerBoxes {
@@ -80,7 +68,7 @@ pub(super) fn corner_boxes(
     match (lanes == LANES, simd, perspective) {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `simd` is Avx512 only where the processor has AVX-512F
-        // (`SimdPath::or_supported`, `SimdPath::detected`).
+        // (the callers pass `SimdPath::or_supported` paths).
         (true, SimdPath::Avx512, false) => unsafe {
             corners_avx512::<false>(frame, (p, ex, ey), out)
         },
