@@ -8,6 +8,7 @@
 //! plane, and every triangle when the grid is disabled.
 
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
+use super::counting_sort::{sort_into_cells, BlockEntry, CellLists};
 use super::footprint::{footprint, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
@@ -283,9 +284,10 @@ pub struct CullAgainst<'a> {
 /// its cover triangle.
 ///
 /// Placement and the per-cell tests run in parallel over blocks of
-/// triangles; the counting sort itself (counts, prefix sum, scatter) runs
-/// over their entries in triangle order, so every cell lists its ids in
-/// increasing order, as a stable GPU scatter after a sort would.
+/// triangles; the counting sort itself (counts, prefix sum, scatter,
+/// [`super::counting_sort`]) takes their entries in triangle order, so
+/// every cell lists its ids in increasing order, as a stable GPU scatter
+/// after a sort would.
 pub fn bin(
     setup: &LightSetup,
     triangles: &[[Vec3; 3]],
@@ -342,50 +344,20 @@ pub fn bin(
         receivers_culled_against: receivers.is_some(),
         ..Default::default()
     };
-    // Count (and the best cover floor per cell: highest wins, ties to the
-    // lowest id, as ids arrive in increasing order).
-    let mut counts = vec![0u32; cells + 1];
-    let mut cover = vec![NO_COVER; cells];
-    let mut best_floor = vec![f32::NEG_INFINITY; cells];
     let mut overflow = Vec::new();
     for b in &blocks {
-        for &(c, entry, floor) in &b.entries {
-            counts[c as usize] += 1;
-            if floor > best_floor[c as usize] {
-                best_floor[c as usize] = floor;
-                cover[c as usize] = entry.id;
-            }
-        }
         overflow.extend_from_slice(&b.overflow);
         b.stats.add_to(&mut stats);
     }
     stats.overflow = overflow.len();
+    let entries: Vec<&[BlockEntry]> = blocks.iter().map(|b| &b.entries[..]).collect();
+    let CellLists {
+        cell_start,
+        cell_triangles,
+        cover,
+    } = sort_into_cells(&entries, cells);
     stats.covered_cells = cover.iter().filter(|&&c| c != NO_COVER).count();
-    // Exclusive prefix sum.
-    let mut cell_start = Vec::with_capacity(cells + 1);
-    let mut sum = 0u32;
-    for c in &counts[..cells] {
-        cell_start.push(sum);
-        sum += c;
-    }
-    cell_start.push(sum);
-    stats.cell_entries = sum as usize;
-    // Scatter.
-    let mut cursor = cell_start.clone();
-    let mut cell_triangles = vec![
-        CellEntry {
-            id: 0,
-            first_column: false,
-            first_row: false
-        };
-        sum as usize
-    ];
-    for b in &blocks {
-        for &(c, entry, _) in &b.entries {
-            cell_triangles[cursor[c as usize] as usize] = entry;
-            cursor[c as usize] += 1;
-        }
-    }
+    stats.cell_entries = cell_triangles.len();
     // Each cascade's overflow list, as the entries of a cell that every
     // pixel of the cascade tests whole.
     let overflow = (0..setup.cascades.len())
@@ -429,7 +401,7 @@ const TRIANGLE_BLOCK: usize = 1024;
 /// (cell, entry, cover floor or −∞) per listed cell, overflow entries and
 /// counters.
 struct BlockEntries {
-    entries: Vec<(u32, CellEntry, f32)>,
+    entries: Vec<BlockEntry>,
     overflow: Vec<OverflowEntry>,
     stats: BinStats,
 }

@@ -12,6 +12,7 @@
 //! The G-buffer (pass 0) comes from [`crate::gbuffer`].
 
 pub mod bin;
+mod counting_sort;
 pub mod empty_certificate;
 pub mod evaluate;
 pub mod evaluate_stats;

@@ -458,12 +458,15 @@ pub fn evaluate_wanted(
     // 1024 entries, its groups 32 consecutive entries.
     let one_row = g.height == 1;
     let band = if one_row { 1024 } else { w * GROUP[1] };
-    let bands: Vec<(Vec<u32>, EvaluateStats)> = (0..n)
-        .step_by(band)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|start| {
-            let entries = start..(start + band).min(n);
+    // Each band writes its masks in place: one allocation, no copy of
+    // band vectors into it.
+    let mut masks = vec![0u32; n];
+    let bands: Vec<EvaluateStats> = masks
+        .par_chunks_mut(band)
+        .enumerate()
+        .map(|(b, out)| {
+            let start = b * band;
+            let entries = start..start + out.len();
             let group_of = |i: usize| {
                 if one_row {
                     (i - start) / (GROUP[0] * GROUP[1])
@@ -474,36 +477,30 @@ pub fn evaluate_wanted(
             let mut stats = EvaluateStats::default();
             let mut longest = vec![0u64; group_of(entries.end - 1) + 1];
             let mut scratch = PixelScratch::default();
-            let masks = entries
-                .map(|i| {
-                    if !is_receiver(g.flags[i], rule.skips) {
-                        return 0;
-                    }
-                    stats.pixels_tested += 1;
-                    let mut px = pixel_frustum(setup, g, i, boxes.ndc[i], rule);
-                    if let Some(w) = wanted {
-                        px.wanted = w[i];
-                    }
-                    let (mask, tests) =
-                        evaluate_pixel(setup, bins, triangles, &px, rule, &mut scratch, &mut stats);
-                    stats.longest_pixel_tests = stats.longest_pixel_tests.max(tests);
-                    let group = &mut longest[group_of(i)];
-                    *group = (*group).max(tests);
-                    if g.flags[i] & flags::SHADOW_TESTED == 0 {
-                        0
-                    } else {
-                        mask
-                    }
-                })
-                .collect();
+            for (i, slot) in entries.zip(out) {
+                if !is_receiver(g.flags[i], rule.skips) {
+                    continue;
+                }
+                stats.pixels_tested += 1;
+                let mut px = pixel_frustum(setup, g, i, boxes.ndc[i], rule);
+                if let Some(w) = wanted {
+                    px.wanted = w[i];
+                }
+                let (mask, tests) =
+                    evaluate_pixel(setup, bins, triangles, &px, rule, &mut scratch, &mut stats);
+                stats.longest_pixel_tests = stats.longest_pixel_tests.max(tests);
+                let group = &mut longest[group_of(i)];
+                *group = (*group).max(tests);
+                if g.flags[i] & flags::SHADOW_TESTED != 0 {
+                    *slot = mask;
+                }
+            }
             stats.group_longest_tests = longest.iter().sum();
-            (masks, stats)
+            stats
         })
         .collect();
-    let mut masks = Vec::with_capacity(g.flags.len());
     let mut stats = EvaluateStats::default();
-    for (m, s) in bands {
-        masks.extend(m);
+    for s in bands {
         stats.add(&s);
     }
     (masks, stats)
