@@ -40,10 +40,11 @@ fn check_soft_grid(
     let setup = light_setup(scene, &g, request);
     assert!(setup.light_radius > 0.0, "{}: no area light", scene.name);
     let triangles = eye_relative_f32(scene);
-    let boxes = setup.microquad_boxes(&g, Skips::ALL);
+    let boxes = std::cell::OnceCell::new();
     let cull_against = CullAgainst {
         g: &g,
         boxes: &boxes,
+        covered_only: false,
         when: ReceiverCull::Always,
     };
     let bins = bin(&setup, &triangles, Skips::ALL, cull.then_some(cull_against));

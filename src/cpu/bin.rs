@@ -7,8 +7,8 @@
 //! for what has no footprint: triangles crossing a point light's image
 //! plane, and every triangle when the grid is disabled.
 
-pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
 use super::counting_sort::{sort_into_cells, BlockEntry, CellLists};
+pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
 use super::footprint::{footprint, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
@@ -19,6 +19,7 @@ use super::{ReceiverCull, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use std::cell::OnceCell;
 
 /// Where one triangle went in one cascade's grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -271,7 +272,12 @@ fn cover_floor_below(
 #[derive(Clone, Copy)]
 pub struct CullAgainst<'a> {
     pub g: &'a GBuffer,
-    pub boxes: &'a MicroquadBoxes,
+    /// The receivers' µQuad boxes: given, or projected by the bin once it
+    /// takes the cull ([`LightSetup::receiver_boxes`] with
+    /// `covered_only`), for evaluate to read after it. Where the cull is
+    /// not taken, nothing projects them ahead of evaluate.
+    pub boxes: &'a OnceCell<MicroquadBoxes>,
+    pub covered_only: bool,
     pub when: ReceiverCull,
 }
 
@@ -326,7 +332,12 @@ pub fn bin(
     let density = rectangle_cells_per_cell(setup, &placed);
     let receivers = cull_behind
         .filter(|c| c.when.culls(setup.light_radius, density))
-        .and_then(|c| cell_receivers(setup, c.g, c.boxes, skips, &levels, &level_cells));
+        .and_then(|c| {
+            let boxes = c
+                .boxes
+                .get_or_init(|| setup.receiver_boxes(c.g, skips, c.covered_only));
+            cell_receivers(setup, c.g, boxes, skips, &levels, &level_cells)
+        });
     let covers = skips.shadow_map && setup.projection == Projection::Orthographic;
     let blocks: Vec<BlockEntries> = (0..triangles.len())
         .step_by(TRIANGLE_BLOCK)

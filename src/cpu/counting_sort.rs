@@ -35,10 +35,13 @@ pub(super) fn sort_into_cells(blocks: &[&[BlockEntry]], cells: usize) -> CellLis
     // The entries of cells lo..lo + len, in block order, as (offset in
     // the range, entry, floor).
     let in_range = move |lo: usize, len: usize| {
-        blocks.iter().flat_map(|b| b.iter()).filter_map(move |&(c, entry, floor)| {
-            let j = (c as usize).wrapping_sub(lo);
-            (j < len).then_some((j, entry, floor))
-        })
+        blocks
+            .iter()
+            .flat_map(|b| b.iter())
+            .filter_map(move |&(c, entry, floor)| {
+                let j = (c as usize).wrapping_sub(lo);
+                (j < len).then_some((j, entry, floor))
+            })
     };
     // Count (and the best cover floor per cell: highest wins, ties to the
     // lowest id, as ids arrive in increasing order).

@@ -18,7 +18,7 @@ mod boxes;
 mod receiver_bounds;
 mod receiver_lanes;
 
-pub use boxes::{microquad_corners, MicroquadBoxes};
+pub use boxes::{microquad_corners, BandBoxes, MicroquadBoxes, ReceiverBoxes};
 
 /// How light view maps to the 2-D grid plane.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]

@@ -47,7 +47,7 @@ use crate::gbuffer::{flags, GBuffer, GBufferStats};
 use crate::gbuffer::{gbuffer, gbuffer_with};
 use crate::scene::Scene;
 use glam::Vec3;
-use light_setup::MicroquadBoxes;
+use light_setup::ReceiverBoxes;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -161,8 +161,8 @@ pub fn eye_relative_f32(scene: &Scene) -> Vec<[glam::Vec3; 3]> {
 fn evaluate_half(
     (setup, bins, triangles): (&LightSetup, &bin::Bins, &[[Vec3; 3]]),
     g: &GBuffer,
-    (edges, edge_boxes): (Option<&EdgeSurfaces>, Option<&MicroquadBoxes>),
-    boxes: &MicroquadBoxes,
+    (edges, edge_boxes): (Option<&EdgeSurfaces>, Option<ReceiverBoxes<'_>>),
+    boxes: ReceiverBoxes<'_>,
     rule: &MaskRule,
     stats: &mut evaluate::EvaluateStats,
 ) -> Vec<u32> {
@@ -239,13 +239,21 @@ pub fn render_cpu_with(
     // surface's mask is full once its own samples are set; under a
     // point-like light a surface needs only the part of its µQuad its
     // samples span.
-    let boxes = setup.receiver_boxes(&g, settings.skips, !soft);
+    let covered_only = !soft;
+    // The µQuad boxes: projected for the whole image by the bin where its
+    // cull takes them, else band by band in evaluate.
+    let stored_boxes = std::cell::OnceCell::new();
     let cull_behind = settings.skips.behind_receivers.then_some(bin::CullAgainst {
         g: &g,
-        boxes: &boxes,
+        boxes: &stored_boxes,
+        covered_only,
         when: settings.receiver_cull,
     });
     let bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
+    let boxes = match stored_boxes.get() {
+        Some(stored) => ReceiverBoxes::Stored(stored),
+        None => ReceiverBoxes::PerBand { covered_only },
+    };
     seconds.bin = lap();
     let rule = MaskRule {
         simd: settings.simd.or_supported(),
@@ -255,8 +263,8 @@ pub fn render_cpu_with(
     let masks = evaluate_half(
         (&setup, &bins, triangles),
         &g,
-        (g.edges.as_deref(), boxes.edges.as_deref()),
-        &boxes,
+        (g.edges.as_deref(), boxes.layer(|b| b.edges.as_deref())),
+        boxes,
         &rule,
         &mut eval_stats,
     );
@@ -266,8 +274,11 @@ pub fn render_cpu_with(
         evaluate_half(
             (&setup, &bins, triangles),
             &g,
-            (g.edges_high.as_deref(), boxes.edges_high.as_deref()),
-            &boxes,
+            (
+                g.edges_high.as_deref(),
+                boxes.layer(|b| b.edges_high.as_deref()),
+            ),
+            boxes,
             &rule.half(1),
             &mut eval_stats,
         )
@@ -317,10 +328,11 @@ pub fn candidate_counts(scene: &Scene, bvh: &SceneBvh, settings: IzbSettings) ->
     let g = gbuffer(scene, bvh);
     let setup = light_setup(scene, &g, GridRequest::from(&settings));
     let triangles = eye_relative_f32(scene);
-    let boxes = setup.microquad_boxes(&g, settings.skips);
+    let boxes = std::cell::OnceCell::new();
     let cull_behind = settings.skips.behind_receivers.then_some(bin::CullAgainst {
         g: &g,
         boxes: &boxes,
+        covered_only: false,
         when: settings.receiver_cull,
     });
     let bins = bin::bin(&setup, &triangles, settings.skips, cull_behind);

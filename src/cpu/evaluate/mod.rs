@@ -17,7 +17,7 @@ use super::bin::{cell_range, Bins, NO_COVER};
 use super::light_samples::{
     below_horizon, occluded_light_samples, paired_occluded_samples, LightView, PairedRays,
 };
-use super::light_setup::{LightSetup, MicroquadBoxes};
+use super::light_setup::{BandBoxes, LightSetup, MicroquadBoxes, ReceiverBoxes};
 use super::survivor_batch::{BatchTests, SurvivorBatch, WalkPoint};
 use super::{is_receiver, SampleMode};
 use crate::frustum::{
@@ -435,6 +435,7 @@ pub fn evaluate(
     boxes: &MicroquadBoxes,
     rule: &MaskRule,
 ) -> (Vec<u32>, EvaluateStats) {
+    let boxes = ReceiverBoxes::Stored(boxes);
     evaluate_wanted(setup, bins, triangles, g, boxes, rule, None)
 }
 
@@ -447,7 +448,7 @@ pub fn evaluate_wanted(
     bins: &Bins,
     triangles: &[[Vec3; 3]],
     g: &GBuffer,
-    boxes: &MicroquadBoxes,
+    boxes: ReceiverBoxes<'_>,
     rule: &MaskRule,
     wanted: Option<&[u32]>,
 ) -> (Vec<u32>, EvaluateStats) {
@@ -477,12 +478,23 @@ pub fn evaluate_wanted(
             let mut stats = EvaluateStats::default();
             let mut longest = vec![0u64; group_of(entries.end - 1) + 1];
             let mut scratch = PixelScratch::default();
+            let mut band_boxes = BandBoxes::default();
+            let receiver_flags = super::receiver_flags(rule.skips);
+            boxes.project_band(
+                setup,
+                g,
+                entries.clone(),
+                wanted,
+                receiver_flags,
+                &mut band_boxes,
+            );
             for (i, slot) in entries.zip(out) {
                 if !is_receiver(g.flags[i], rule.skips) {
                     continue;
                 }
                 stats.pixels_tested += 1;
-                let mut px = pixel_frustum(setup, g, i, boxes.ndc[i], rule);
+                let ndc_box = boxes.ndc_box(i, &band_boxes);
+                let mut px = pixel_frustum(setup, g, i, ndc_box, rule);
                 if let Some(w) = wanted {
                     px.wanted = w[i];
                 }

@@ -5,11 +5,13 @@
 
 use super::receiver_lanes::{corner_boxes, CornerBoxes, LANES};
 use super::{CascadeGrid, LightSetup};
+use crate::cpu::simd::SimdPath;
 use crate::cpu::Skips;
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
+use std::ops::Range;
 
 impl LightSetup {
     /// Light-NDC bounding box of the µQuad (centre `p`, axes `ex`, `ey`,
@@ -80,7 +82,6 @@ impl LightSetup {
     }
 
     fn boxes_of(&self, g: &GBuffer, skips: Skips, coverage: Option<&[u32]>) -> Vec<(Vec2, Vec2)> {
-        let pattern = crate::lut::sample_pattern();
         // A path this processor runs: the kernels' `unsafe` rests on it.
         let simd = self.simd.or_supported();
         let receiver_flags = crate::cpu::receiver_flags(skips);
@@ -97,30 +98,7 @@ impl LightSetup {
                     out.fill(MaybeUninit::new((Vec2::NAN, Vec2::NAN)));
                     return;
                 }
-                let mut quads = (
-                    &g.position[c.clone()],
-                    &g.axis_x[c.clone()],
-                    &g.axis_y[c.clone()],
-                );
-                // An edge pixel's surface that covers only some samples:
-                // the sub-rectangle they span, as a µQuad of its own.
-                let covered = coverage.map(|cov| &cov[c.clone()]);
-                if covered.is_some_and(|cov| cov.iter().any(|&c| c != u32::MAX && c != 0)) {
-                    let (p, ex, ey) = &mut lanes.quads;
-                    for (l, &c) in covered.into_iter().flatten().enumerate() {
-                        (p[l], ex[l], ey[l]) = (quads.0[l], quads.1[l], quads.2[l]);
-                        if c != u32::MAX && c != 0 {
-                            let (lo, hi) = covered_rectangle(pattern, c);
-                            let centre = (lo + hi) * 0.5 - Vec2::splat(0.5);
-                            let size = hi - lo;
-                            p[l] = p[l] + centre.x * ex[l] + centre.y * ey[l];
-                            (ex[l], ey[l]) = (ex[l] * size.x, ey[l] * size.y);
-                        }
-                    }
-                    let len = out.len();
-                    quads = (&p[..len], &ex[..len], &ey[..len]);
-                }
-                corner_boxes(self, simd, quads, &mut lanes.boxes);
+                lanes.project(self, simd, g, c.clone(), coverage);
                 for (l, (i, slot)) in c.zip(out).enumerate() {
                     slot.write(if g.flags[i] & receiver_flags != 0 {
                         lanes.boxes.ndc_box(l)
@@ -142,6 +120,49 @@ impl LightSetup {
 struct ChunkQuads {
     quads: ([Vec3; LANES], [Vec3; LANES], [Vec3; LANES]),
     boxes: CornerBoxes,
+}
+
+impl ChunkQuads {
+    /// The boxes of `g`'s entries `c` (at most [`LANES`]) into
+    /// `self.boxes`, non-receivers' too; `simd` one this processor runs.
+    fn project(
+        &mut self,
+        setup: &LightSetup,
+        simd: SimdPath,
+        g: &GBuffer,
+        c: Range<usize>,
+        coverage: Option<&[u32]>,
+    ) {
+        let mut quads = (
+            &g.position[c.clone()],
+            &g.axis_x[c.clone()],
+            &g.axis_y[c.clone()],
+        );
+        // An edge pixel's surface that covers only some samples: the
+        // sub-rectangle they span, as a µQuad of its own.
+        let covered = coverage.map(|cov| &cov[c.clone()]);
+        if covered.is_some_and(|cov| cov.iter().any(|&c| c != u32::MAX && c != 0)) {
+            let pattern = crate::lut::sample_pattern();
+            let (p, ex, ey) = &mut self.quads;
+            for (l, &c) in covered.into_iter().flatten().enumerate() {
+                let quad = (quads.0[l], quads.1[l], quads.2[l]);
+                (p[l], ex[l], ey[l]) = covered_quad(pattern, quad, c);
+            }
+            let len = c.len();
+            quads = (&p[..len], &ex[..len], &ey[..len]);
+        }
+        corner_boxes(setup, simd, quads, &mut self.boxes);
+    }
+}
+
+/// The boxes of the band of entries evaluate is in, projected together
+/// as [`LightSetup::receiver_boxes`] projects them, before the band's
+/// pixels are evaluated ([`ReceiverBoxes::PerBand`]).
+#[derive(Default)]
+pub struct BandBoxes {
+    first: usize,
+    ndc: Vec<(Vec2, Vec2)>,
+    lanes: ChunkQuads,
 }
 
 /// Per pixel, the light-NDC box of its µQuad
@@ -173,10 +194,98 @@ impl MicroquadBoxes {
     }
 }
 
+/// Where evaluate finds each receiver's µQuad box.
+#[derive(Clone, Copy)]
+pub enum ReceiverBoxes<'a> {
+    /// Projected for the whole layer before evaluate: the bin's cull
+    /// needed them ([`LightSetup::receiver_boxes`]).
+    Stored(&'a MicroquadBoxes),
+    /// Projected by evaluate band by band ([`BandBoxes`]), with the
+    /// kernels and arithmetic of [`LightSetup::receiver_boxes`]
+    /// (`covered_only` as there), just before the band's pixels read the
+    /// same µQuads. Where no cull needs the boxes first, a stored layer
+    /// was a pass of its own over the G-buffer, bound by memory: 10–13 ms
+    /// of tablefan's and grazing's 1080p frame for 16 bytes a pixel
+    /// written and read back; a band's boxes stay in cache. (Projecting
+    /// each run of sixteen as the pixel loop reached it cost evaluate
+    /// twice what the pass had.)
+    PerBand { covered_only: bool },
+}
+
+impl ReceiverBoxes<'_> {
+    /// Projects the boxes of `g`'s entries `band` into `out` where they
+    /// are not stored; `receiver_flags` as [`crate::cpu::receiver_flags`].
+    pub fn project_band(
+        self,
+        setup: &LightSetup,
+        g: &GBuffer,
+        band: Range<usize>,
+        coverage: Option<&[u32]>,
+        receiver_flags: u32,
+        out: &mut BandBoxes,
+    ) {
+        let ReceiverBoxes::PerBand { covered_only } = self else {
+            return;
+        };
+        let coverage = coverage.filter(|_| covered_only);
+        // A path this processor runs: the kernels' `unsafe` rests on it.
+        let simd = setup.simd.or_supported();
+        out.first = band.start;
+        out.ndc.clear();
+        for first in band.clone().step_by(LANES) {
+            let c = first..(first + LANES).min(band.end);
+            if g.flags[c.clone()].iter().any(|f| f & receiver_flags != 0) {
+                out.lanes.project(setup, simd, g, c.clone(), coverage);
+                out.ndc
+                    .extend((0..c.len()).map(|l| out.lanes.boxes.ndc_box(l)));
+            } else {
+                out.ndc.extend(c.map(|_| (Vec2::NAN, Vec2::NAN)));
+            }
+        }
+    }
+
+    /// Receiver `i`'s box, from `band` where not stored.
+    #[inline]
+    pub fn ndc_box(self, i: usize, band: &BandBoxes) -> (Vec2, Vec2) {
+        match self {
+            ReceiverBoxes::Stored(boxes) => boxes.ndc[i],
+            ReceiverBoxes::PerBand { .. } => band.ndc[i - band.first],
+        }
+    }
+
+    /// The boxes of one of the layer's edge-surface layers
+    /// (`MicroquadBoxes::edges` or `edges_high`): none where stored boxes
+    /// lack it.
+    pub fn layer(self, pick: fn(&MicroquadBoxes) -> Option<&MicroquadBoxes>) -> Option<Self> {
+        match self {
+            ReceiverBoxes::Stored(boxes) => pick(boxes).map(ReceiverBoxes::Stored),
+            per_pixel => Some(per_pixel),
+        }
+    }
+}
+
 /// Sample offsets' margin around a covered sub-rectangle, in µQuad units:
 /// its corners are not samples, so rounding at a corner cannot drop one.
 /// The GPU's `receiver_grid_box` grows it by the same margin.
 const COVERED_MARGIN: f32 = izb_contract::tolerance::COVERED_MARGIN;
+
+/// The µQuad (centre, axes) of the sub-rectangle spanned by the samples
+/// `coverage` marks when they are some but not all, else `quad` itself.
+#[inline]
+fn covered_quad(
+    pattern: &[[f32; 2]; 32],
+    quad: (Vec3, Vec3, Vec3),
+    coverage: u32,
+) -> (Vec3, Vec3, Vec3) {
+    let (p, ex, ey) = quad;
+    if coverage == u32::MAX || coverage == 0 {
+        return quad;
+    }
+    let (lo, hi) = covered_rectangle(pattern, coverage);
+    let centre = (lo + hi) * 0.5 - Vec2::splat(0.5);
+    let size = hi - lo;
+    (p + centre.x * ex + centre.y * ey, ex * size.x, ey * size.y)
+}
 
 /// The rectangle of µQuad offsets (in [0, 1]²) spanned by the samples of
 /// `pattern` that `coverage` marks, grown by [`COVERED_MARGIN`].
