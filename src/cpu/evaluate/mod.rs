@@ -442,7 +442,8 @@ pub fn evaluate(
 /// [`evaluate`] where only the samples `wanted[i]` of entry `i` count
 /// (an edge pixel's surface, [`crate::gbuffer::edge_surfaces`]): a mask
 /// is full, and its pixel stops, once those are set. Bits outside them
-/// are left as they fall (the caller masks them out).
+/// are left as they fall (the caller masks them out). The receivers'
+/// µQuad boxes come from `boxes`: stored, or projected band by band.
 pub fn evaluate_wanted(
     setup: &LightSetup,
     bins: &Bins,

@@ -1,7 +1,8 @@
 //! The light-space boxes of the receivers' µQuads: per pixel and per edge
-//! surface, projected once per frame for the bin's receiver registration
-//! and evaluate (and, with edge surfaces under a point-like light, only
-//! the part of a µQuad its samples span).
+//! surface, projected once per frame, for the whole image where the bin's
+//! receiver registration needs them (then evaluate reads them too), else
+//! band by band in evaluate; with edge surfaces under a point-like light,
+//! only the part of a µQuad its samples span.
 
 use super::receiver_lanes::{corner_boxes, CornerBoxes, LANES};
 use super::{CascadeGrid, LightSetup};
@@ -167,8 +168,9 @@ pub struct BandBoxes {
 
 /// Per pixel, the light-NDC box of its µQuad
 /// ([`LightSetup::microquad_ndc_box`]; NaN for pixels that are not
-/// receivers): the µQuad projection the bin and evaluate both need, so the
-/// four corners are projected once per frame, not once per pass.
+/// receivers): the µQuad projection the bin's cull and evaluate both
+/// need, so the four corners are projected once per frame, not once per
+/// pass.
 pub struct MicroquadBoxes {
     pub ndc: Vec<(Vec2, Vec2)>,
     /// The boxes of the G-buffer's edge surfaces ([`GBuffer::edges`],
@@ -259,7 +261,7 @@ impl ReceiverBoxes<'_> {
     pub fn layer(self, pick: fn(&MicroquadBoxes) -> Option<&MicroquadBoxes>) -> Option<Self> {
         match self {
             ReceiverBoxes::Stored(boxes) => pick(boxes).map(ReceiverBoxes::Stored),
-            per_pixel => Some(per_pixel),
+            per_band => Some(per_band),
         }
     }
 }
