@@ -291,7 +291,7 @@ pub struct CullAgainst<'a> {
 ///
 /// Placement and the per-cell tests run in parallel over blocks of
 /// triangles; the counting sort itself (counts, prefix sum, scatter,
-/// [`super::counting_sort`]) takes their entries in triangle order, so
+/// `cpu::counting_sort`) takes their entries in triangle order, so
 /// every cell lists its ids in increasing order, as a stable GPU scatter
 /// after a sort would.
 pub fn bin(
