@@ -10,9 +10,11 @@
 mod common;
 
 use izb::bvh::SceneBvh;
-use izb::cpu::light_setup::{light_setup, microquad_corners, GridRequest};
+use izb::cpu::light_setup::{
+    light_setup, microquad_corners, BandBoxes, GridRequest, ReceiverBoxes,
+};
 use izb::cpu::simd::SimdPath;
-use izb::cpu::{is_receiver, render_cpu, IzbSettings, SampleMode, Skips};
+use izb::cpu::{is_receiver, receiver_flags, render_cpu, IzbSettings, SampleMode, Skips};
 use izb::gbuffer::{flags, gbuffer_with};
 use izb::scene::{self, Scene};
 
@@ -142,13 +144,15 @@ fn izb_simd_scalar_renders_the_same_image() {
 /// same floats on every path: the same light setup, and the same boxes,
 /// bit for bit. On the scalar path the boxes of whole µQuads are those
 /// of `LightSetup::microquad_ndc_box`, one receiver at a time, and the
-/// receivers' light-view depth range that of all their corners.
+/// receivers' light-view depth range that of all their corners. The
+/// boxes evaluate projects band by band where the bin's cull stored none
+/// equal the stored ones.
 #[test]
 fn every_simd_path_gives_the_one_receiver_light_setup_and_boxes() {
     let paths = supported_paths();
     let scenes = scenes();
     let bits = |(lo, hi): (glam::Vec2, glam::Vec2)| [lo.x, lo.y, hi.x, hi.y].map(f32::to_bits);
-    let (mut compared, mut whole_boxes) = (0, 0u64);
+    let (mut compared, mut whole_boxes, mut band_boxes) = (0, 0u64, 0u64);
     for (name, scene) in &scenes {
         // Rows and layers whose lengths are not multiples of sixteen: the
         // chunks' tails run one entry at a time.
@@ -196,8 +200,44 @@ fn every_simd_path_gives_the_one_receiver_light_setup_and_boxes() {
                 whole_boxes += 1;
             }
         }
+        // Evaluate's boxes where no cull stored them, projected band by
+        // band (bands of four 101-entry rows: not whole chunks), equal
+        // the stored ones on every path.
+        let mut per_band = |setup: &izb::cpu::light_setup::LightSetup,
+                            boxes: &izb::cpu::light_setup::MicroquadBoxes,
+                            path: SimdPath| {
+            let coverages = [
+                g.edges.as_ref().map(|e| &e.centre_coverage[..]),
+                g.edges.as_ref().map(|e| &e.coverage[..]),
+                None,
+            ];
+            let per_band = ReceiverBoxes::PerBand { covered_only: true };
+            let mut band = BandBoxes::default();
+            for ((layer, stored), coverage) in g.layers().zip(boxes.layers()).zip(coverages) {
+                let n = layer.flags.len();
+                for start in (0..n).step_by(404) {
+                    let entries = start..(start + 404).min(n);
+                    let receivers = receiver_flags(Skips::ALL);
+                    per_band.project_band(
+                        setup,
+                        layer,
+                        entries.clone(),
+                        coverage,
+                        receivers,
+                        &mut band,
+                    );
+                    for i in entries.filter(|&i| is_receiver(layer.flags[i], Skips::ALL)) {
+                        let (a, b) = (per_band.ndc_box(i, &band), stored.ndc[i]);
+                        assert_eq!(bits(a), bits(b), "{name} {path:?}: band box of entry {i}");
+                        band_boxes += 1;
+                    }
+                }
+            }
+        };
+        per_band(&setup, &boxes, SimdPath::Scalar);
         for &path in &paths[1..] {
             let (other_setup, other_boxes) = for_path(path);
+            per_band(&other_setup, &other_boxes, path);
             assert_eq!(
                 serde_json::to_value(&setup).unwrap(),
                 serde_json::to_value(&other_setup).unwrap(),
@@ -214,8 +254,9 @@ fn every_simd_path_gives_the_one_receiver_light_setup_and_boxes() {
     }
     assert_eq!(compared, scenes.len() * (paths.len() - 1));
     assert!(whole_boxes > 0);
+    assert!(band_boxes >= whole_boxes * paths.len() as u64);
     println!(
         "{compared} (scene, path) light setups and boxes equal to the scalar path's; \
-         {whole_boxes} boxes equal to one receiver's"
+         {whole_boxes} boxes equal to one receiver's; {band_boxes} band boxes equal to the stored"
     );
 }
