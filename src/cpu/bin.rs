@@ -192,15 +192,11 @@ pub fn place(
     if setup.grid_disabled {
         return (Placement::Overflow, None);
     }
-    let ndc = match triangle_ndc(setup, tri) {
-        Ok(n) => n,
+    let (g, pad) = match grid_coords_and_pad(setup, grid, tri) {
+        Ok(found) => found,
         Err(p) => return (p, None),
     };
-    let Some(pad) = penumbra_pad(setup, tri, &ndc) else {
-        return (Placement::Overflow, None);
-    };
-    let pad = ndc_pad_in_cells(grid, pad);
-    match footprint(grid, ndc.map(|n| grid.grid_coords(n)), pad) {
+    match footprint(grid, g, pad) {
         None => (Placement::Culled, None),
         Some(f) => {
             let [x0, y0, x1, y1] = f.rect;
@@ -216,6 +212,36 @@ pub fn place(
                 Some(f),
             )
         }
+    }
+}
+
+/// A triangle's level-0 grid coordinates and penumbra pad (cells) in
+/// `grid`, or the placement it gets without them.
+fn grid_coords_and_pad(
+    setup: &LightSetup,
+    grid: &CascadeGrid,
+    tri: &[Vec3; 3],
+) -> Result<([Vec2; 3], Vec2), Placement> {
+    let ndc = triangle_ndc(setup, tri)?;
+    let pad = penumbra_pad(setup, tri, &ndc).ok_or(Placement::Overflow)?;
+    Ok((
+        ndc.map(|n| grid.grid_coords(n)),
+        ndc_pad_in_cells(grid, pad),
+    ))
+}
+
+/// The footprint [`place`] found for a triangle it placed at `level` in
+/// `rect`, computed again from its vertices without the level search.
+fn placed_footprint(
+    setup: &LightSetup,
+    grid: &CascadeGrid,
+    tri: &[Vec3; 3],
+    level: u32,
+    rect: [u32; 4],
+) -> Footprint {
+    match grid_coords_and_pad(setup, grid, tri) {
+        Ok((g, pad)) => Footprint::at_level(level, rect, g, pad),
+        Err(_) => unreachable!("a placed triangle has grid coordinates"),
     }
 }
 
@@ -482,10 +508,13 @@ fn block_entries(
                     overflows |= 1 << k;
                     continue;
                 }
-                Placement::Cells { .. } => match place(setup, grid, &light_view).1 {
-                    Some(f) => f,
-                    None => unreachable!("cells without a footprint"),
-                },
+                Placement::Cells {
+                    level,
+                    x0,
+                    y0,
+                    x1,
+                    y1,
+                } => placed_footprint(setup, grid, &light_view, level, [x0, y0, x1, y1]),
             };
             placed_anywhere = true;
             stats.binned += 1;

@@ -108,25 +108,32 @@ pub fn footprint(grid: &CascadeGrid, g: [Vec2; 3], pad: Vec2) -> Option<Footprin
     let (level, rect) = (0..grid.levels)
         .filter_map(|l| cell_range_at(grid, l, lo, hi).map(|r| (l, r)))
         .find(|&(l, r)| l == top || range_area(r) <= limit)?;
-    let v = g.map(|p| p * level_scale(level));
-    let (d1, d2) = (v[1] - v[0], v[2] - v[0]);
-    let winding = d1.x * d2.y - d1.y * d2.x;
-    let scale = (d1.x.abs() + d1.y.abs()) * (d2.x.abs() + d2.y.abs());
-    let orientation = if winding.abs() > SLIVER_RATIO * scale {
-        winding.signum()
-    } else {
-        0.0
-    };
-    Some(Footprint {
-        level,
-        rect,
-        v,
-        orientation,
-        pad: pad * level_scale(level),
-    })
+    Some(Footprint::at_level(level, rect, g, pad))
 }
 
 impl Footprint {
+    /// The footprint [`footprint`] gives a triangle it places at `level`
+    /// in `rect`, from the same `g` and `pad`, without searching the
+    /// levels again (the bin's second look at a placed triangle).
+    pub fn at_level(level: u32, rect: [u32; 4], g: [Vec2; 3], pad: Vec2) -> Footprint {
+        let v = g.map(|p| p * level_scale(level));
+        let (d1, d2) = (v[1] - v[0], v[2] - v[0]);
+        let winding = d1.x * d2.y - d1.y * d2.x;
+        let scale = (d1.x.abs() + d1.y.abs()) * (d2.x.abs() + d2.y.abs());
+        let orientation = if winding.abs() > SLIVER_RATIO * scale {
+            winding.signum()
+        } else {
+            0.0
+        };
+        Footprint {
+            level,
+            rect,
+            v,
+            orientation,
+            pad: pad * level_scale(level),
+        }
+    }
+
     /// Whether the triangle's projection touches the padded box of cell
     /// (`x`, `y`) of its level (false outside its rectangle): no edge has
     /// every corner of the box outside it by more than its rounding.
