@@ -25,6 +25,7 @@ pub mod lut_batch;
 mod mask_rule;
 pub mod penumbra;
 pub mod receivers;
+mod shadow_map_cover;
 pub mod simd;
 pub mod survivor_batch;
 #[cfg(test)]
