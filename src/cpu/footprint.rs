@@ -91,7 +91,17 @@ pub struct Footprint {
     /// so the triangle is listed where its projection grown by that box
     /// (a superset of the disk of its penumbra) touches.
     pad: Vec2,
+    /// Every vertex coordinate below [`TAME_COORDINATE`] in magnitude:
+    /// with a cell's growth below it too, no edge's value or rounding
+    /// bound can overflow at a cell of the rectangle (its cells are `u32`).
+    tame: bool,
 }
+
+/// Vertex coordinates and cell growths (cells) below this keep every
+/// value and rounding bound of [`Footprint::touches_grown`] finite (a
+/// bound at most about 2⁻¹⁸ · 2⁴² · 2⁴³), so an edge value of at least
+/// zero passes without its bound.
+const TAME_COORDINATE: f32 = (1u64 << 40) as f32;
 
 /// Where a triangle whose vertices have level-0 grid coordinates `g` is
 /// binned in `grid`: `None` when its padded box misses level 0 (it can
@@ -125,12 +135,14 @@ impl Footprint {
         } else {
             0.0
         };
+        let tame = v.iter().all(|p| p.abs().max_element() < TAME_COORDINATE);
         Footprint {
             level,
             rect,
             v,
             orientation,
             pad: pad * level_scale(level),
+            tame,
         }
     }
 
@@ -152,7 +164,14 @@ impl Footprint {
             Ok(cell) => cell,
             Err(verdict) => return verdict,
         };
+        let tame = self.tame && grow.max_element() < TAME_COORDINATE;
         (0..3).all(|k| {
+            // The rounding bound is never positive, and finite here: a
+            // value of at least zero passes without it (most edges of a
+            // touched cell, and all but one of an untouched one's).
+            if tame && self.edge_inside(k, [lo_x, lo_y, hi_x, hi_y]) >= 0.0 {
+                return true;
+            }
             let (inside, bound) = self.edge_at_corner(k, [lo_x, lo_y, hi_x, hi_y]);
             if !(inside.is_finite() && bound.is_finite()) {
                 // Only where a product overflowed (a NaN at another corner
@@ -222,7 +241,21 @@ impl Footprint {
     /// GPU twin (`shaders/bin_placement.glsl`) still evaluates the four
     /// corners, which gives the same verdict.
     #[inline(always)]
-    fn edge_at_corner(&self, k: usize, [lo_x, lo_y, hi_x, hi_y]: [f32; 4]) -> (f32, f32) {
+    fn edge_at_corner(&self, k: usize, cell: [f32; 4]) -> (f32, f32) {
+        let [lo_x, lo_y, hi_x, hi_y] = cell;
+        let (a, b) = (self.v[k], self.v[(k + 1) % 3]);
+        let (dx, dy) = (b.x - a.x, b.y - a.y);
+        let reach =
+            (lo_x - a.x).abs().max((hi_x - a.x).abs()) + (lo_y - a.y).abs().max((hi_y - a.y).abs());
+        (
+            self.edge_inside(k, cell),
+            -(TOUCH_ROUNDING * (dx.abs() + dy.abs()) * reach),
+        )
+    }
+
+    /// [`Self::edge_at_corner`]'s value alone.
+    #[inline(always)]
+    fn edge_inside(&self, k: usize, [lo_x, lo_y, hi_x, hi_y]: [f32; 4]) -> f32 {
         let (a, b) = (self.v[k], self.v[(k + 1) % 3]);
         let (dx, dy) = (b.x - a.x, b.y - a.y);
         let qx = if self.orientation * dy <= 0.0 {
@@ -235,10 +268,7 @@ impl Footprint {
         } else {
             lo_y
         };
-        let inside = self.orientation * (dx * (qy - a.y) - dy * (qx - a.x));
-        let reach =
-            (lo_x - a.x).abs().max((hi_x - a.x).abs()) + (lo_y - a.y).abs().max((hi_y - a.y).abs());
-        (inside, -(TOUCH_ROUNDING * (dx.abs() + dy.abs()) * reach))
+        self.orientation * (dx * (qy - a.y) - dy * (qx - a.x))
     }
 
     /// [`Self::touches_grown`] as it is defined: every corner of the grown
@@ -353,6 +383,7 @@ mod tests {
                 v,
                 orientation,
                 pad,
+                tame: v.iter().all(|p| p.abs().max_element() < TAME_COORDINATE),
             },
             winding,
         )
