@@ -41,6 +41,23 @@ pub enum Placement {
     },
 }
 
+impl Placement {
+    /// The level and rectangle (`[x0, y0, x1, y1]`) of a placement in
+    /// cells.
+    pub fn cells(&self) -> Option<(u32, [u32; 4])> {
+        match *self {
+            Placement::Cells {
+                level,
+                x0,
+                y0,
+                x1,
+                y1,
+            } => Some((level, [x0, y0, x1, y1])),
+            _ => None,
+        }
+    }
+}
+
 /// One entry of a cell's list: the triangle and whether it does *not*
 /// touch the cell to the left / below (at the same level). A pixel tests
 /// the entry in cell (`x`, `y`) of its range `[px0, px1] × [py0, py1]`
@@ -203,16 +220,14 @@ pub fn place(
         Some(f) => {
             let [x0, y0, x1, y1] = f.rect;
             let level = f.level;
-            (
-                Placement::Cells {
-                    level,
-                    x0,
-                    y0,
-                    x1,
-                    y1,
-                },
-                Some(f),
-            )
+            let cells = Placement::Cells {
+                level,
+                x0,
+                y0,
+                x1,
+                y1,
+            };
+            (cells, Some(f))
         }
     }
 }
@@ -420,16 +435,7 @@ impl BinStats {
 /// the densest cascade.
 fn rectangle_cells_per_cell(setup: &LightSetup, placed: &[Vec<Placement>]) -> f64 {
     let per_cascade = setup.cascades.iter().zip(placed).map(|(grid, placed)| {
-        grid.rectangle_cells_per_cell(placed.iter().filter_map(|p| match *p {
-            Placement::Cells {
-                level,
-                x0,
-                y0,
-                x1,
-                y1,
-            } => Some((level, [x0, y0, x1, y1])),
-            _ => None,
-        }))
+        grid.rectangle_cells_per_cell(placed.iter().filter_map(Placement::cells))
     });
     per_cascade.fold(0.0, f64::max)
 }
@@ -456,20 +462,13 @@ fn block_entries(
         let mut overflows = 0u8;
         let mut placed_anywhere = false;
         for (k, grid) in setup.cascades.iter().enumerate() {
-            let f = match placed[k][id] {
-                Placement::Culled => continue,
-                Placement::Overflow => {
+            let Some((level, rect)) = placed[k][id].cells() else {
+                if placed[k][id] == Placement::Overflow {
                     overflows |= 1 << k;
-                    continue;
                 }
-                Placement::Cells {
-                    level,
-                    x0,
-                    y0,
-                    x1,
-                    y1,
-                } => placed_footprint(setup, grid, &light_view, level, [x0, y0, x1, y1]),
+                continue;
             };
+            let f = placed_footprint(setup, grid, &light_view, level, rect);
             placed_anywhere = true;
             stats.binned += 1;
             let level = f.level;
