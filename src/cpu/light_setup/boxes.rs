@@ -11,7 +11,6 @@ use crate::cpu::Skips;
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use std::mem::MaybeUninit;
 use std::ops::Range;
 
 impl LightSetup {
@@ -94,22 +93,12 @@ impl LightSetup {
             .with_min_len(256)
             .for_each_init(ChunkQuads::default, |lanes, (chunk, out)| {
                 let c = chunk * LANES..chunk * LANES + out.len();
-                if !g.flags[c.clone()].iter().any(|f| f & receiver_flags != 0) {
-                    // Sky or back-facing pixels only.
-                    out.fill(MaybeUninit::new((Vec2::NAN, Vec2::NAN)));
-                    return;
-                }
-                lanes.project(self, simd, g, c.clone(), coverage);
-                for (l, (i, slot)) in c.zip(out).enumerate() {
-                    slot.write(if g.flags[i] & receiver_flags != 0 {
-                        lanes.boxes.ndc_box(l)
-                    } else {
-                        (Vec2::NAN, Vec2::NAN)
-                    });
-                }
+                lanes.receiver_boxes(self, simd, g, c, coverage, receiver_flags, |l, b| {
+                    out[l].write(b);
+                });
             });
-        // SAFETY: the chunks cover the first `n` slots, and each slot of a
-        // chunk was written above.
+        // SAFETY: the chunks cover the first `n` slots, and
+        // `receiver_boxes` hands every lane of a chunk to the write above.
         unsafe { boxes.set_len(n) };
         boxes
     }
@@ -153,6 +142,38 @@ impl ChunkQuads {
             quads = (&p[..len], &ex[..len], &ey[..len]);
         }
         corner_boxes(setup, simd, quads, &mut self.boxes);
+    }
+
+    /// Hands `write` each lane's box of `g`'s entries `c` (at most
+    /// [`LANES`]): NaN where the entry is not a receiver
+    /// (`receiver_flags`). A chunk without receivers (sky, back faces)
+    /// is not projected.
+    #[allow(clippy::too_many_arguments)]
+    fn receiver_boxes(
+        &mut self,
+        setup: &LightSetup,
+        simd: SimdPath,
+        g: &GBuffer,
+        c: Range<usize>,
+        coverage: Option<&[u32]>,
+        receiver_flags: u32,
+        mut write: impl FnMut(usize, (Vec2, Vec2)),
+    ) {
+        let flags = &g.flags[c.clone()];
+        let any = flags.iter().any(|f| f & receiver_flags != 0);
+        if any {
+            self.project(setup, simd, g, c, coverage);
+        }
+        for (l, f) in flags.iter().enumerate() {
+            write(
+                l,
+                if any && f & receiver_flags != 0 {
+                    self.boxes.ndc_box(l)
+                } else {
+                    (Vec2::NAN, Vec2::NAN)
+                },
+            );
+        }
     }
 }
 
@@ -234,15 +255,12 @@ impl ReceiverBoxes<'_> {
         let simd = setup.simd.or_supported();
         out.first = band.start;
         out.ndc.clear();
+        let BandBoxes { ndc, lanes, .. } = out;
         for first in band.clone().step_by(LANES) {
             let c = first..(first + LANES).min(band.end);
-            if g.flags[c.clone()].iter().any(|f| f & receiver_flags != 0) {
-                out.lanes.project(setup, simd, g, c.clone(), coverage);
-                out.ndc
-                    .extend((0..c.len()).map(|l| out.lanes.boxes.ndc_box(l)));
-            } else {
-                out.ndc.extend(c.map(|_| (Vec2::NAN, Vec2::NAN)));
-            }
+            lanes.receiver_boxes(setup, simd, g, c, coverage, receiver_flags, |_, b| {
+                ndc.push(b);
+            });
         }
     }
 
