@@ -471,12 +471,11 @@ fn block_entries(
             let f = placed_footprint(setup, grid, &light_view, level, rect);
             placed_anywhere = true;
             stats.binned += 1;
-            let level = f.level;
             if stats.per_level.len() <= level as usize {
                 stats.per_level.resize(level as usize + 1, 0);
             }
             stats.per_level[level as usize] += 1;
-            let [x0, y0, x1, y1] = f.rect;
+            let [x0, y0, x1, y1] = rect;
             let cells = grid.level(level);
             // The cover test's normal, once per triangle (`None`: no
             // cover, the light sees it edge-on).
