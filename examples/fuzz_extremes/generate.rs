@@ -39,10 +39,44 @@ pub struct Case {
 }
 
 impl Case {
-    /// The comfortable twin: the relative extremes, no similarity.
+    /// The comfortable twin: the scene the renderer was handed, with the
+    /// similarity undone, so the relative extremes are kept.
+    ///
+    /// It is undone from the extreme inputs as `f64` rounded them, not
+    /// built from the generator's values: at an offset of 4·10⁷ each vertex
+    /// moves by up to 4·10⁻⁹, and where near-coincident copies lie 10⁻¹⁵
+    /// apart that can move a sample ray to another copy (primary
+    /// visibility decides exactly, on the rounded scene). Undoing the
+    /// offset is exact (Sterbenz); undoing a scale rounds once more, at
+    /// 10⁻¹⁶ of the scene. [`Case::generator_twin`] is the other twin.
     pub fn twin(&self) -> Result<Scene, String> {
+        let (triangles, camera, light) = self.extreme_inputs();
+        let undo = |p: DVec3| (p - self.offset) / self.scale;
+        let triangles = triangles.iter().map(|t| t.map(undo)).collect();
+        let camera = Camera {
+            eye: undo(camera.eye),
+            target: undo(camera.target),
+            near: camera.near / self.scale,
+            far: camera.far / self.scale,
+            ..camera
+        };
+        let light = match light {
+            Light::Point { position } => Light::Point {
+                position: undo(position),
+            },
+            directional => directional,
+        };
+        Scene::new("twin", triangles, camera, light, RESOLUTION).map_err(|e| e.to_string())
+    }
+
+    /// The generator's own scene, before the similarity and its rounding:
+    /// what the extreme scene would be in exact arithmetic. Its shadows
+    /// against the twin's measure what the inputs' `f64` rounding at the
+    /// extreme's distance from the origin does (the envelope's
+    /// `MAX_ORIGIN_RADII`).
+    pub fn generator_twin(&self) -> Result<Scene, String> {
         Scene::new(
-            "twin",
+            "generator twin",
             self.triangles.clone(),
             self.camera,
             self.light,
@@ -54,6 +88,12 @@ impl Case {
     /// The extreme scene, built as `izb render` builds a scene (the
     /// envelope is enforced by `Scene::new`).
     pub fn extreme(&self) -> Result<Scene, String> {
+        let (triangles, camera, light) = self.extreme_inputs();
+        Scene::new("extreme", triangles, camera, light, RESOLUTION).map_err(|e| e.to_string())
+    }
+
+    /// The extreme scene's inputs: the similarity applied in `f64`.
+    fn extreme_inputs(&self) -> (Vec<Triangle>, Camera, Light) {
         let f = |p: DVec3| p * self.scale + self.offset;
         let triangles = self.triangles.iter().map(|t| t.map(f)).collect();
         let c = &self.camera;
@@ -70,7 +110,7 @@ impl Case {
             },
             directional => directional,
         };
-        Scene::new("extreme", triangles, camera, light, RESOLUTION).map_err(|e| e.to_string())
+        (triangles, camera, light)
     }
 
     /// Whether the similarity is exact in floating point: a power-of-two
