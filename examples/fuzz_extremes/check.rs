@@ -168,11 +168,11 @@ fn differing_within_margin(
                     judge.counted(i)
                 ));
             }
-            found.moved += if tested && judge.tested(i) {
-                (counted ^ judge.counted(i)).count_ones() as u64
-            } else {
-                counted.max(judge.counted(i)).count_ones() as u64
-            };
+            // The samples one render counts and the other does not (all
+            // of the tested one's where only one tests the pixel).
+            let counted_by = |r: &Rendered, c: u32| if r.tested(i) { c } else { 0 };
+            let moved = counted_by(subject, counted) ^ counted_by(judge, judge.counted(i));
+            found.moved += moved.count_ones() as u64;
             if !(tested && judge.tested(i)) {
                 continue;
             }
