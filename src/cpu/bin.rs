@@ -338,6 +338,8 @@ pub fn bin(
         .step_by(TRIANGLE_BLOCK)
         .collect::<Vec<_>>()
         .into_par_iter()
+        // One job per block, as evaluate's bands (dense blocks cost more).
+        .with_max_len(1)
         .map(|first| {
             let ids = first..(first + TRIANGLE_BLOCK).min(triangles.len());
             block_entries(setup, &placed, triangles, receivers.as_ref(), covers, ids)

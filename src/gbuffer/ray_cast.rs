@@ -56,8 +56,12 @@ pub fn gbuffer(scene: &Scene, bvh: &SceneBvh) -> GBuffer {
 pub fn gbuffer_with(scene: &Scene, bvh: &SceneBvh, edge_halves: usize) -> GBuffer {
     let [w, h] = scene.resolution;
     let frame = scene.camera.frame(scene.resolution);
+    // A job per row (`with_max_len(1)`): rows under dense geometry cost
+    // many times a sky row's, and rayon's adaptive split would leave one
+    // thread walking a long run of them alone.
     let rows: Vec<Vec<Option<PixelSurface>>> = (0..h)
         .into_par_iter()
+        .with_max_len(1)
         .map(|y| {
             (0..w)
                 .map(|x| pixel_surface(bvh, scene, &frame, x, y))

@@ -55,8 +55,10 @@ pub fn edge_surfaces_of(
         .collect();
     // Only the candidates' results are kept: a smooth pixel's entries are
     // the defaults below.
+    // A job per row, as the G-buffer's: edge pixels bunch in a few rows.
     let samples: Vec<(usize, PixelSamples)> = (0..h)
         .into_par_iter()
+        .with_max_len(1)
         .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
         .filter_map(|(x, y)| {
             let i = y as usize * w as usize + x as usize;
