@@ -45,11 +45,13 @@ pub struct EvaluateStats {
     /// Pixels whose cover triangle (the conservative shadow map) alone
     /// filled the mask: their triangle loop was skipped.
     pub shadow_map_early_outs: usize,
-    /// Survivor batches tested ([`super::survivor_batch`]: each runs the
-    /// vector kernels over all [`super::survivor_batch::LANES`] lanes).
+    /// Survivor batches tested ([`super::survivor_batch`]).
     pub survivor_batches: u64,
-    /// Of their lanes, those holding a candidate.
+    /// Their lanes holding a candidate.
     pub survivor_lanes: u64,
+    /// The lanes their kernels ran over
+    /// ([`super::survivor_batch::lanes_issued`]).
+    pub survivor_lanes_issued: u64,
 }
 
 impl EvaluateStats {
@@ -80,6 +82,7 @@ impl EvaluateStats {
         self.shadow_map_early_outs += s.shadow_map_early_outs;
         self.survivor_batches += s.survivor_batches;
         self.survivor_lanes += s.survivor_lanes;
+        self.survivor_lanes_issued += s.survivor_lanes_issued;
     }
 
     /// Tests over 32 × the longest pixel of each 8×4 group: the share of
@@ -109,7 +112,7 @@ impl EvaluateStats {
             levels: self.levels_visited as f64 / px,
             simd_efficiency: self.simd_efficiency(),
             batch_lanes_used: self.survivor_lanes as f64
-                / (self.survivor_batches as f64 * super::survivor_batch::LANES as f64).max(1.0),
+                / (self.survivor_lanes_issued as f64).max(1.0),
         }
     }
 }
@@ -133,8 +136,9 @@ pub struct WorkPerPixel {
     /// [`EvaluateStats::simd_efficiency`].
     pub simd_efficiency: f64,
     /// The CPU twin's vector lanes used over lanes issued: survivor
-    /// batches' lanes holding a candidate over all their lanes (partial
-    /// batches at the end of a pixel's walk leave the rest idle).
+    /// batches' lanes holding a candidate over the lanes their kernels ran
+    /// over (partial batches at the end of a pixel's walk leave the rest
+    /// idle).
     pub batch_lanes_used: f64,
 }
 

@@ -38,10 +38,13 @@ const ROW_MARGIN: f32 = 1.0 / 512.0;
 /// Edges a batch can ask for: three per lane.
 const SLOTS: usize = 3 * LANES;
 
+/// Slots per chunk of the kernel: a batch's LUT edges are few (most lanes
+/// are certified empty), so eight at a time, whatever the batch's width.
+const CHUNK: usize = 8;
+
 /// Per edge the lanes asked for (in slots, packed: `slot[k][lane]` says
 /// where edge k of lane `lane` went), what the LUT's cell needs
 /// ([`Self::mask`] finishes the cell where it is asked for).
-#[derive(Default)]
 pub struct LutCoordinates {
     slot: [[u8; LANES]; 3],
     /// The packed edges, kept from batch to batch: slots past those in
@@ -54,7 +57,6 @@ pub struct LutCoordinates {
 /// Per slot: whether the edge's line may cut the µQuad (else the mask is
 /// constant), which constant, and the estimated row and exact column
 /// coordinates.
-#[derive(Default)]
 struct Cells {
     /// 1 where the line may cut the µQuad (a `u32`, not a `bool`: LLVM
     /// vectorises the loop only so).
@@ -67,6 +69,22 @@ struct Cells {
     row_sure: [u32; SLOTS],
     /// The column coordinate's floor (exact).
     column: [f32; SLOTS],
+}
+
+impl Default for LutCoordinates {
+    fn default() -> Self {
+        LutCoordinates {
+            slot: [[0; LANES]; 3],
+            packed: [[0.0; SLOTS]; 3],
+            cells: Cells {
+                cuts: [0; SLOTS],
+                constant: [0; SLOTS],
+                row: [0.0; SLOTS],
+                row_sure: [0; SLOTS],
+                column: [0.0; SLOTS],
+            },
+        }
+    }
 }
 
 impl LutCoordinates {
@@ -123,7 +141,7 @@ pub fn lut_coordinates(
             used += 1;
         }
     }
-    let chunks = used.div_ceil(LANES);
+    let chunks = used.div_ceil(CHUNK);
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `path` is Avx512 only where the processor has AVX-512F
@@ -155,7 +173,7 @@ unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut
     kernel(lut, packed, chunks, out)
 }
 
-/// The coordinates of the first `chunks` × [`LANES`] slots:
+/// The coordinates of the first `chunks` × [`CHUNK`] slots:
 /// `EdgeLut::cell`'s operations up to the floors, the edge scaled by
 /// [`normalised_edge`], so that each loop is straight-line code over
 /// slots.
@@ -164,8 +182,8 @@ fn kernel(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
     const HALF_DIAGONAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
     let (angle_scale, distance_scale) = (lut.angle_scale_f32(), lut.distance_scale_f32());
     let [alphas, betas, gammas] = packed;
-    for chunk in 0..chunks.min(3) {
-        for l in chunk * LANES..(chunk + 1) * LANES {
+    for chunk in 0..chunks.min(SLOTS / CHUNK) {
+        for l in chunk * CHUNK..(chunk + 1) * CHUNK {
             let [alpha, beta, gamma] = normalised_edge([alphas[l], betas[l], gammas[l]]);
             let r = (beta * beta + gamma * gamma).sqrt();
             out.cuts[l] = u32::from(alpha.abs() < HALF_DIAGONAL * r);

@@ -100,9 +100,11 @@ pub(super) struct TestCounters {
     pub(super) depth_passed: u64,
     pub(super) saturated_masks: u64,
     pub(super) masks_nonempty: u64,
-    /// Survivor batches tested and their lanes holding a candidate.
+    /// Survivor batches tested, their lanes holding a candidate and the
+    /// lanes their kernels ran over.
     pub(super) survivor_batches: u64,
     pub(super) survivor_lanes: u64,
+    pub(super) survivor_lanes_issued: u64,
 }
 
 /// The AND of the masks of `count` edges (`edge(k)`, k < `count`), with

@@ -1,4 +1,4 @@
-//! The rest of the depth test and the edge functions, eight candidates at
+//! The rest of the depth test and the edge functions, sixteen candidates at
 //! a time: a pixel's candidates that pass the tangent-plane condition (a
 //! third of courtyard's tests, two thirds of its evaluate time) wait in a
 //! batch, and the batch computes for every lane whether P lies beyond the
@@ -26,8 +26,11 @@ use super::simd::SimdPath;
 use crate::frustum::{max3, LightRel, Vector, DEPTH_TOLERANCE_ROUNDING};
 use glam::Vec3;
 
-/// Candidates per batch.
-pub const LANES: usize = 8;
+/// Candidates per batch: one AVX-512 register of `f32`, two of AVX2.
+pub const LANES: usize = 16;
+
+/// A batch of at most this many runs the kernel over these lanes alone.
+const HALF: usize = LANES / 2;
 
 /// What the walk had done when a candidate joined the batch: what the
 /// counters are if the pixel's mask fills at that candidate.
@@ -122,38 +125,53 @@ impl SurvivorBatch {
             reach: rule.certificate_reach,
         };
         // A pixel's last batch often holds one or two candidates (city at
-        // 1080p: 1.2 lanes a batch); the vector kernel would test all
-        // eight.
+        // 1080p: 1.2 lanes a batch); the vector kernel would test them all.
         if self.len <= FEW_LANES {
             return match light {
                 LightRel::Toward(w) => kernel::<false>(self, &frame, w, out, self.len),
                 LightRel::At(l) => kernel::<true>(self, &frame, l, out, self.len),
             };
         }
-        match (rule.simd, light) {
+        match light {
+            LightRel::Toward(w) => self.vector_kernel::<false>(rule.simd, &frame, w, out),
+            LightRel::At(l) => self.vector_kernel::<true>(rule.simd, &frame, l, out),
+        }
+    }
+
+    /// [`Self::test`] on `simd`'s instruction set, over half the lanes
+    /// where the rest are empty (a pixel's last batch, and most of a
+    /// scene's where survivors are few: engine at 1080p has 2.1 a pixel).
+    fn vector_kernel<const POINT: bool>(
+        &self,
+        simd: SimdPath,
+        frame: &Frame,
+        light: Vec3,
+        out: &mut BatchTests,
+    ) {
+        match (simd, lanes_issued(self.len) == HALF) {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `rule.simd` is Avx512 only where the processor has
+            // SAFETY: `simd` is Avx512 only where the processor has
             // AVX-512F (`SimdPath::or_supported`).
-            (SimdPath::Avx512, LightRel::Toward(w)) => unsafe {
-                kernel_avx512::<false>(self, &frame, w, out)
+            (SimdPath::Avx512, true) => unsafe {
+                kernel_avx512::<POINT, HALF>(self, frame, light, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
-            (SimdPath::Avx512, LightRel::At(l)) => unsafe {
-                kernel_avx512::<true>(self, &frame, l, out)
+            (SimdPath::Avx512, false) => unsafe {
+                kernel_avx512::<POINT, LANES>(self, frame, light, out)
             },
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `rule.simd` is Avx2 only where the processor has AVX2.
-            (SimdPath::Avx2, LightRel::Toward(w)) => unsafe {
-                kernel_avx2::<false>(self, &frame, w, out)
+            // SAFETY: `simd` is Avx2 only where the processor has AVX2.
+            (SimdPath::Avx2, true) => unsafe {
+                kernel_avx2::<POINT, HALF>(self, frame, light, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
-            (SimdPath::Avx2, LightRel::At(l)) => unsafe {
-                kernel_avx2::<true>(self, &frame, l, out)
+            (SimdPath::Avx2, false) => unsafe {
+                kernel_avx2::<POINT, LANES>(self, frame, light, out)
             },
-            (_, LightRel::Toward(w)) => kernel::<false>(self, &frame, w, out, LANES),
-            (_, LightRel::At(l)) => kernel::<true>(self, &frame, l, out, LANES),
+            (_, true) => kernel::<POINT>(self, frame, light, out, HALF),
+            (_, false) => kernel::<POINT>(self, frame, light, out, LANES),
         }
     }
 }
@@ -171,33 +189,45 @@ struct Frame {
 /// The processor has AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn kernel_avx2<const POINT: bool>(
+unsafe fn kernel_avx2<const POINT: bool, const N: usize>(
     b: &SurvivorBatch,
     f: &Frame,
     light: Vec3,
     out: &mut BatchTests,
 ) {
-    kernel::<POINT>(b, f, light, out, LANES)
+    kernel::<POINT>(b, f, light, out, N)
 }
 
 /// # Safety
 /// The processor has AVX-512F.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn kernel_avx512<const POINT: bool>(
+unsafe fn kernel_avx512<const POINT: bool, const N: usize>(
     b: &SurvivorBatch,
     f: &Frame,
     light: Vec3,
     out: &mut BatchTests,
 ) {
-    kernel::<POINT>(b, f, light, out, LANES)
+    kernel::<POINT>(b, f, light, out, N)
 }
 
 /// Lanes at most this many are tested one by one ([`SurvivorBatch::test`]).
 const FEW_LANES: usize = 2;
 
-/// The first `lanes` lanes' tests (all [`LANES`], a constant, where the
-/// loop is to be vectorised); `POINT`: `light` is the point light's
+/// The lanes [`SurvivorBatch::test`] runs its kernel over for a batch of
+/// `len` candidates: each alone, [`HALF`] or all [`LANES`].
+pub fn lanes_issued(len: usize) -> usize {
+    if len <= FEW_LANES {
+        len
+    } else if len <= HALF {
+        HALF
+    } else {
+        LANES
+    }
+}
+
+/// The first `lanes` lanes' tests ([`LANES`] or [`HALF`], a constant,
+/// where the loop is to be vectorised); `POINT`: `light` is the point light's
 /// position minus P (`LightRel::At`), else the unit vector toward it.
 #[inline(always)]
 fn kernel<const POINT: bool>(

@@ -331,6 +331,7 @@ fn evaluate_pixel(
     stats.masks_nonempty += counters.masks_nonempty;
     stats.survivor_batches += counters.survivor_batches;
     stats.survivor_lanes += counters.survivor_lanes;
+    stats.survivor_lanes_issued += counters.survivor_lanes_issued;
     stats.cells_visited += cells;
     stats.levels_visited += levels;
     (mask, tests)
@@ -357,6 +358,7 @@ fn test_batch(
     batch.len = 0;
     counters.survivor_batches += 1;
     counters.survivor_lanes += len as u64;
+    counters.survivor_lanes_issued += super::survivor_batch::lanes_issued(len) as u64;
     // With the `saturated_edges` skip a lane whose edges provably leave
     // no sample inside takes mask 0 without the LUT, counted as a
     // saturated mask (`empty_certificate`).
