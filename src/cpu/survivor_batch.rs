@@ -30,7 +30,7 @@ use glam::Vec3;
 pub const LANES: usize = 16;
 
 /// A batch of at most this many runs the kernel over these lanes alone.
-const HALF: usize = LANES / 2;
+pub const HALF: usize = LANES / 2;
 
 /// What the walk had done when a candidate joined the batch: what the
 /// counters are if the pixel's mask fills at that candidate.
@@ -214,8 +214,8 @@ unsafe fn kernel_avx512<const POINT: bool, const N: usize>(
 /// Lanes at most this many are tested one by one ([`SurvivorBatch::test`]).
 const FEW_LANES: usize = 2;
 
-/// The lanes [`SurvivorBatch::test`] runs its kernel over for a batch of
-/// `len` candidates: each alone, [`HALF`] or all [`LANES`].
+/// The lanes a [`SurvivorBatch`] of `len` candidates has its kernel run
+/// over: each alone, [`HALF`] or all [`LANES`].
 pub fn lanes_issued(len: usize) -> usize {
     if len <= FEW_LANES {
         len
