@@ -124,54 +124,46 @@ impl SurvivorBatch {
             ey,
             reach: rule.certificate_reach,
         };
-        // A pixel's last batch often holds one or two candidates (city at
-        // 1080p: 1.2 lanes a batch); the vector kernel would test them all.
-        if self.len <= FEW_LANES {
-            return match light {
-                LightRel::Toward(w) => kernel::<false>(self, &frame, w, out, self.len),
-                LightRel::At(l) => kernel::<true>(self, &frame, l, out, self.len),
-            };
-        }
         match light {
-            LightRel::Toward(w) => self.vector_kernel::<false>(rule.simd, &frame, w, out),
-            LightRel::At(l) => self.vector_kernel::<true>(rule.simd, &frame, l, out),
+            LightRel::Toward(w) => self.kernel_on::<false>(rule.simd, &frame, w, out),
+            LightRel::At(l) => self.kernel_on::<true>(rule.simd, &frame, l, out),
         }
     }
 
-    /// [`Self::test`] on `simd`'s instruction set, over half the lanes
-    /// where the rest are empty (a pixel's last batch, and most of a
-    /// scene's where survivors are few: engine at 1080p has 2.1 a pixel).
-    fn vector_kernel<const POINT: bool>(
+    /// [`Self::test`] on `simd`'s instruction set, as wide as
+    /// [`kernel_width`] says for the batch's length.
+    fn kernel_on<const POINT: bool>(
         &self,
         simd: SimdPath,
         frame: &Frame,
         light: Vec3,
         out: &mut BatchTests,
     ) {
-        match (simd, lanes_issued(self.len) == HALF) {
+        match (kernel_width(self.len), simd) {
+            (KernelWidth::EachAlone, _) => kernel::<POINT>(self, frame, light, out, self.len),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `simd` is Avx512 only where the processor has
             // AVX-512F (`SimdPath::or_supported`).
-            (SimdPath::Avx512, true) => unsafe {
+            (KernelWidth::Half, SimdPath::Avx512) => unsafe {
                 kernel_avx512::<POINT, HALF>(self, frame, light, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
-            (SimdPath::Avx512, false) => unsafe {
+            (KernelWidth::Full, SimdPath::Avx512) => unsafe {
                 kernel_avx512::<POINT, LANES>(self, frame, light, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `simd` is Avx2 only where the processor has AVX2.
-            (SimdPath::Avx2, true) => unsafe {
+            (KernelWidth::Half, SimdPath::Avx2) => unsafe {
                 kernel_avx2::<POINT, HALF>(self, frame, light, out)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
-            (SimdPath::Avx2, false) => unsafe {
+            (KernelWidth::Full, SimdPath::Avx2) => unsafe {
                 kernel_avx2::<POINT, LANES>(self, frame, light, out)
             },
-            (_, true) => kernel::<POINT>(self, frame, light, out, HALF),
-            (_, false) => kernel::<POINT>(self, frame, light, out, LANES),
+            (KernelWidth::Half, _) => kernel::<POINT>(self, frame, light, out, HALF),
+            (KernelWidth::Full, _) => kernel::<POINT>(self, frame, light, out, LANES),
         }
     }
 }
@@ -211,18 +203,38 @@ unsafe fn kernel_avx512<const POINT: bool, const N: usize>(
     kernel::<POINT>(b, f, light, out, N)
 }
 
-/// Lanes at most this many are tested one by one ([`SurvivorBatch::test`]).
-const FEW_LANES: usize = 2;
+/// How wide a batch's kernel runs ([`kernel_width`]).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum KernelWidth {
+    /// Lane by lane, over the batch's candidates only: a pixel's last
+    /// batch often holds one or two (city at 1080p: 1.2 lanes a batch),
+    /// and a vector kernel would test all its lanes.
+    EachAlone,
+    /// Over [`HALF`] the lanes, the rest being empty (a pixel's last
+    /// batch, and most of a scene's where survivors are few: engine at
+    /// 1080p has 2.1 a pixel).
+    Half,
+    /// Over all [`LANES`].
+    Full,
+}
+
+/// The width of a batch of `len` candidates' kernel: the one place the
+/// thresholds between the widths are stated.
+fn kernel_width(len: usize) -> KernelWidth {
+    match len {
+        0..=2 => KernelWidth::EachAlone,
+        _ if len <= HALF => KernelWidth::Half,
+        _ => KernelWidth::Full,
+    }
+}
 
 /// The lanes a [`SurvivorBatch`] of `len` candidates has its kernel run
 /// over: each alone, [`HALF`] or all [`LANES`].
 pub fn lanes_issued(len: usize) -> usize {
-    if len <= FEW_LANES {
-        len
-    } else if len <= HALF {
-        HALF
-    } else {
-        LANES
+    match kernel_width(len) {
+        KernelWidth::EachAlone => len,
+        KernelWidth::Half => HALF,
+        KernelWidth::Full => LANES,
     }
 }
 
