@@ -182,6 +182,16 @@ impl Bins {
     pub fn cell_at(&self, c: usize) -> &[CellEntry] {
         &self.cell_triangles[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
     }
+
+    /// [`Self::cell_at`]'s entries, and every entry from its first on: the
+    /// cells of a row follow one another (`LevelCells::index`), so a walk
+    /// along the row reads on into the next cell's.
+    #[inline]
+    pub fn cell_and_following(&self, c: usize) -> (&[CellEntry], &[CellEntry]) {
+        let following = &self.cell_triangles[self.cell_start[c] as usize..];
+        let len = (self.cell_start[c + 1] - self.cell_start[c]) as usize;
+        (&following[..len], following)
+    }
 }
 
 /// Light NDC of a light-view triangle's vertices: `Err` with its placement

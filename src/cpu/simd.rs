@@ -69,3 +69,21 @@ impl Default for SimdPath {
         Self::detected()
     }
 }
+
+/// Asks the processor to bring `item` into its caches ahead of a read
+/// that depends on a load not yet done: evaluate's walk reads each cell
+/// entry's triangle by id, and the tangent-plane test's unpredictable
+/// branch keeps the out-of-order core from starting the next entry's load
+/// early. A hint only: no value changes, any address is allowed.
+#[inline(always)]
+pub fn prefetch<T>(item: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch reads nothing the program sees and never faults,
+    // whatever the address (Intel SDM, PREFETCHh).
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>(item.cast());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = item;
+}

@@ -275,7 +275,9 @@ fn evaluate_pixel(
         let batching = px.soft.is_none();
         batch.len = 0;
         let mut stopped: Option<WalkPoint> = None;
-        let mut walked = candidates_of(bins, px, ranges, |id, walked| {
+        let prefetch =
+            |id: u32| crate::cpu::simd::prefetch(triangles.as_ptr().wrapping_add(id as usize));
+        let mut walked = candidates_of(bins, px, ranges, prefetch, |id, walked| {
             if id == px.receiver || id == cover {
                 return false;
             }

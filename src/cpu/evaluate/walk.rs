@@ -112,8 +112,12 @@ pub fn for_each_candidate(
     let px = pixel_frustum(setup, g, i, ndc_box, &hard);
     let mut ranges = LevelRanges::default();
     level_ranges(setup, bins, &px, &mut ranges);
-    candidates_of(bins, &px, &ranges, |id, _| visit(id))
+    candidates_of(bins, &px, &ranges, |_| {}, |id, _| visit(id))
 }
+
+/// How many entries ahead of the one being tested the walk asks for a
+/// triangle ([`crate::cpu::simd::prefetch`]).
+const PREFETCH_AHEAD: usize = 8;
 
 /// [`for_each_candidate`]'s walk; `visit` also gets the cells and levels
 /// visited so far (what the walk returns if it stops there).
@@ -127,6 +131,7 @@ pub(super) fn candidates_of(
     bins: &Bins,
     px: &PixelFrustum,
     ranges: &LevelRanges,
+    prefetch: impl Fn(u32),
     mut visit: impl FnMut(u32, (u64, u64)) -> bool,
 ) -> (u64, u64) {
     let (mut cells, mut levels) = (0, 0);
@@ -142,14 +147,20 @@ pub(super) fn candidates_of(
         let [x0, y0, x1, y1] = range;
         for y in y0..=y1 {
             for x in x0..=x1 {
-                let list = match level_cells {
-                    None => &bins.overflow[px.cascade][..],
+                let (list, following) = match level_cells {
+                    None => (
+                        &bins.overflow[px.cascade][..],
+                        &bins.overflow[px.cascade][..],
+                    ),
                     Some(level_cells) => {
                         cells += 1;
-                        bins.cell_at(level_cells.index(x, y))
+                        bins.cell_and_following(level_cells.index(x, y))
                     }
                 };
-                for e in list {
+                for (k, e) in list.iter().enumerate() {
+                    if let Some(ahead) = following.get(k + PREFETCH_AHEAD) {
+                        prefetch(ahead.id);
+                    }
                     // A triangle in several of the visited cells is tested
                     // in the first of them (see `CellEntry`).
                     if e.tested_in(x, y, x0, y0) && visit(e.id, (cells, levels)) {
