@@ -180,7 +180,7 @@ impl Bins {
     /// Entries of the cell with index `c` in the cell arrays.
     #[inline]
     pub fn cell_at(&self, c: usize) -> &[CellEntry] {
-        &self.cell_triangles[self.cell_start[c] as usize..self.cell_start[c + 1] as usize]
+        self.cell_and_following(c).0
     }
 
     /// [`Self::cell_at`]'s entries, and every entry from its first on: the

@@ -218,11 +218,14 @@ enum KernelWidth {
     Full,
 }
 
+/// Batches of at most this many candidates are tested lane by lane.
+const FEW_LANES: usize = 2;
+
 /// The width of a batch of `len` candidates' kernel: the one place the
 /// thresholds between the widths are stated.
 fn kernel_width(len: usize) -> KernelWidth {
     match len {
-        0..=2 => KernelWidth::EachAlone,
+        0..=FEW_LANES => KernelWidth::EachAlone,
         _ if len <= HALF => KernelWidth::Half,
         _ => KernelWidth::Full,
     }

@@ -135,6 +135,7 @@ pub(super) fn candidates_of(
     mut visit: impl FnMut(u32, (u64, u64)) -> bool,
 ) -> (u64, u64) {
     let (mut cells, mut levels) = (0, 0);
+    let overflow = &bins.overflow[px.cascade][..];
     // `None`: the overflow list.
     for level in std::iter::once(None).chain(ranges.as_slice().iter().map(Some)) {
         let (range, level_cells) = match level {
@@ -148,10 +149,7 @@ pub(super) fn candidates_of(
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let (list, following) = match level_cells {
-                    None => (
-                        &bins.overflow[px.cascade][..],
-                        &bins.overflow[px.cascade][..],
-                    ),
+                    None => (overflow, overflow),
                     Some(level_cells) => {
                         cells += 1;
                         bins.cell_and_following(level_cells.index(x, y))
