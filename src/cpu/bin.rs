@@ -518,8 +518,10 @@ fn block_entries(
                 touched_above[..span.start].fill(false);
                 touched_above[span.end..].fill(false);
                 let mut touched_left = false;
+                let row = f.row(i64::from(y));
                 for (x, above) in (a..b).zip(touched_above[span].iter_mut()) {
-                    let touched = f.touches(i64::from(x), i64::from(y));
+                    let touched = row.touches(i64::from(x));
+                    debug_assert_eq!(touched, f.touches(i64::from(x), i64::from(y)));
                     let first = (!touched_left, !*above);
                     (touched_left, *above) = (touched, touched);
                     if !touched {

@@ -172,16 +172,23 @@ impl Footprint {
             if tame && self.edge_inside(k, [lo_x, lo_y, hi_x, hi_y]) >= 0.0 {
                 return true;
             }
-            let (inside, bound) = self.edge_at_corner(k, [lo_x, lo_y, hi_x, hi_y]);
-            if !(inside.is_finite() && bound.is_finite()) {
-                // Only where a product overflowed (a NaN at another corner
-                // needs two infinite products there, which the selected
-                // corner's then has too): the corners one by one.
-                let (a, b) = (self.v[k], self.v[(k + 1) % 3]);
-                return edge_touches_by_corners(self.orientation, a, b, [lo_x, lo_y, hi_x, hi_y]);
-            }
-            inside >= bound
+            self.edge_passes(k, [lo_x, lo_y, hi_x, hi_y])
         })
+    }
+
+    /// Whether the grown cell `cell` passes edge `k`: its value at the
+    /// selected corner is not below its rounding bound.
+    #[inline]
+    fn edge_passes(&self, k: usize, cell: [f32; 4]) -> bool {
+        let (inside, bound) = self.edge_at_corner(k, cell);
+        if !(inside.is_finite() && bound.is_finite()) {
+            // Only where a product overflowed (a NaN at another corner
+            // needs two infinite products there, which the selected
+            // corner's then has too): the corners one by one.
+            let (a, b) = (self.v[k], self.v[(k + 1) % 3]);
+            return edge_touches_by_corners(self.orientation, a, b, cell);
+        }
+        inside >= bound
     }
 
     /// The cells of row `y` of the rectangle that [`Self::touches`] can
@@ -301,6 +308,102 @@ impl Footprint {
     }
 }
 
+/// [`Footprint::touches_grown`] along one row of the rectangle, for the
+/// bin, which asks each cell of a row in turn: each edge's y term at its
+/// selected corner, the same for every cell of the row, is computed once,
+/// the same floats in the same order, so every verdict is
+/// `touches_grown`'s bit for bit. (Its rounding bound, needed only where
+/// the value is negative, is computed as `touches_grown` does.)
+pub struct FootprintRow<'a> {
+    f: &'a Footprint,
+    /// The row is one of the rectangle's.
+    in_rect: bool,
+    grow: Vec2,
+    /// The row's cells grown, along y.
+    lo_y: f32,
+    hi_y: f32,
+    tame: bool,
+    edges: [RowEdge; 3],
+}
+
+/// One edge's part of [`FootprintRow`]: its value at a cell's selected
+/// corner is `orientation · (y_term − dy · (qx − a_x))`.
+#[derive(Clone, Copy)]
+struct RowEdge {
+    /// dx · (qy − a.y), with qy the row's y the edge's gradient points to.
+    y_term: f32,
+    dy: f32,
+    a_x: f32,
+    /// The selected corner's x is the cell's high side.
+    high_x: bool,
+}
+
+impl Footprint {
+    /// [`Self::touches`] along row `y`.
+    pub fn row(&self, y: i64) -> FootprintRow<'_> {
+        self.row_grown(y, self.pad + CELL_PADDING)
+    }
+
+    /// [`Self::touches_grown`] along row `y`, cells grown by `grow`.
+    pub fn row_grown(&self, y: i64, grow: Vec2) -> FootprintRow<'_> {
+        let [_, y0, _, y1] = self.rect.map(i64::from);
+        let [_, lo_y, _, hi_y] = grown_corners(0, y, grow);
+        let edges = std::array::from_fn(|k| {
+            let (a, b) = (self.v[k], self.v[(k + 1) % 3]);
+            let (dx, dy) = (b.x - a.x, b.y - a.y);
+            // `edge_inside`'s corner.
+            let qy = if self.orientation * dx >= 0.0 {
+                hi_y
+            } else {
+                lo_y
+            };
+            RowEdge {
+                y_term: dx * (qy - a.y),
+                dy,
+                a_x: a.x,
+                high_x: self.orientation * dy <= 0.0,
+            }
+        });
+        FootprintRow {
+            f: self,
+            in_rect: (y0..=y1).contains(&y),
+            grow,
+            lo_y,
+            hi_y,
+            tame: self.tame && grow.max_element() < TAME_COORDINATE,
+            edges,
+        }
+    }
+}
+
+impl FootprintRow<'_> {
+    /// [`Footprint::touches_grown`] of cell `x` of the row.
+    #[inline]
+    pub fn touches(&self, x: i64) -> bool {
+        let f = self.f;
+        // `grown_cell`'s verdicts: outside the rectangle, untouched; a
+        // sliver, touched.
+        let [x0, _, x1, _] = f.rect.map(i64::from);
+        if x < x0 || x > x1 || !self.in_rect {
+            return false;
+        }
+        if f.orientation == 0.0 {
+            return true;
+        }
+        let [lo_x, _, hi_x, _] = grown_corners(x, 0, self.grow);
+        let cell = [lo_x, self.lo_y, hi_x, self.hi_y];
+        self.edges.iter().enumerate().all(|(k, e)| {
+            let qx = if e.high_x { hi_x } else { lo_x };
+            // `edge_inside`.
+            let inside = f.orientation * (e.y_term - e.dy * (qx - e.a_x));
+            if self.tame && inside >= 0.0 {
+                return true;
+            }
+            f.edge_passes(k, cell)
+        })
+    }
+}
+
 /// Cell (`x`, `y`) grown by `grow`, as `[lo_x, lo_y, hi_x, hi_y]`.
 #[inline(always)]
 fn grown_corners(x: i64, y: i64, grow: Vec2) -> [f32; 4] {
@@ -393,7 +496,8 @@ mod tests {
     /// random triangles (a third slivers, some with exactly axis-aligned
     /// edges) at scales 2⁻¹⁰ to 2²⁰ cells, against every cell of their
     /// rectangle grown by one, under random growths, and on triangles with
-    /// coordinates near `f32::MAX`, where products overflow.
+    /// coordinates near `f32::MAX`, where products overflow; and
+    /// [`FootprintRow`] gives them too.
     #[test]
     fn the_selected_corner_decides_like_every_corner() {
         let mut random = crate::cpu::test_random::XorShift::new(0x2545_F491_4F6C_DD1D);
@@ -418,6 +522,8 @@ mod tests {
                 for x in x0 - 1..=x1 + 1 {
                     let expected = f.touches_grown_by_corners(x, y, grow);
                     assert_eq!(f.touches_grown(x, y, grow), expected, "{f:?} cell {x}, {y}");
+                    let by_row = f.row_grown(y, grow).touches(x);
+                    assert_eq!(by_row, expected, "{f:?} cell {x}, {y} along its row");
                     checked += 1;
                     touched += expected as usize;
                 }
