@@ -13,7 +13,7 @@ use izb::cpu::bin::{
 };
 use izb::cpu::evaluate::{for_each_candidate, triangle_mask_for_pixel};
 use izb::cpu::light_setup::level_scale;
-use izb::cpu::receivers::receiver_reach;
+use izb::cpu::receivers::{cull_box, receiver_reach};
 use izb::cpu::{
     eye_relative_f32, is_receiver, light_setup, CascadeCount, GridRequest, IzbSettings, MaskRule,
     ReceiverCull, SampleMode, Skips,
@@ -202,6 +202,8 @@ fn point_light_grid_offers_every_occluder() {
 /// edge surface's box spans only the samples it covers and can leave P
 /// cells away (`receivers::reach_box`); the grown cell must still hold it.
 /// Counts the registrations where the box's own reach would not have.
+/// Also holds each registered cell's precomputed cull box to its
+/// definition.
 #[test]
 fn every_receiver_centre_lies_in_its_cells_reach() {
     let mut scenes: Vec<Scene> = ["default", "grazing", "wires", "city"]
@@ -246,8 +248,16 @@ fn every_receiver_centre_lies_in_its_cells_reach() {
                     let c = centre * s;
                     for y in y0..=y1 {
                         for x in x0..=x1 {
-                            let r = receivers.reach[tables[k][level as usize].index(x, y)] as f32
-                                + CELL_PADDING;
+                            let cell = tables[k][level as usize].index(x, y);
+                            // The cull's box, computed once per cell, is
+                            // the one of this cell and its reach.
+                            assert_eq!(
+                                receivers.cull_box[cell],
+                                cull_box(grid, level, (x, y), receivers.reach[cell]),
+                                "{}: cull box of cell ({x}, {y}) of level {level}",
+                                scene.name
+                            );
+                            let r = receivers.reach[cell] as f32 + CELL_PADDING;
                             let within = |r: f32| {
                                 (x as f32 - r..=x as f32 + 1.0 + r).contains(&c.x)
                                     && (y as f32 - r..=y as f32 + 1.0 + r).contains(&c.y)

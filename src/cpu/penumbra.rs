@@ -6,7 +6,7 @@
 
 use super::footprint::{Footprint, CELL_PADDING};
 use super::light_setup::{level_scale, CascadeGrid, LightSetup, Projection};
-use super::receivers::CellReceivers;
+use super::receivers::{cull_box, CellReceivers};
 use glam::{Vec2, Vec3};
 
 /// Relative margin on a penumbra pad (2⁻¹⁰): ~10⁴ times the `f32`
@@ -148,11 +148,13 @@ fn sphere_pad_in_cell(
 ) -> Option<f32> {
     let grow = 1.0 + PENUMBRA_MARGIN;
     let r = setup.light_radius;
-    // The cell grown by its reach, in light NDC (level l to level 0: × 2^l).
-    let around = receivers.reach[c] as f32 + CELL_PADDING;
-    let up = (1u32 << level) as f32;
-    let lo = grid.ndc_of_grid(Vec2::new(x as f32 - around, y as f32 - around) * up);
-    let hi = grid.ndc_of_grid(Vec2::new(x as f32 + 1.0 + around, y as f32 + 1.0 + around) * up);
+    // The cell grown by its reach, in light NDC (unset for a cell without
+    // receivers, whose infinite depth answers `None` below).
+    let [lo, hi] = receivers.cull_box[c];
+    debug_assert!(
+        receivers.z_min[c] == f32::INFINITY
+            || [lo, hi] == cull_box(grid, level, (x, y), receivers.reach[c])
+    );
     let rho_cell = lo.abs().max(hi.abs()).length();
     let depth = -receivers.z_min[c];
     let far = depth * (1.0 + rho_cell * rho_cell).sqrt() * grow;

@@ -24,6 +24,12 @@ pub struct CellReceivers {
     /// axis, [`receiver_key`]); +∞ where no receiver touches the cell.
     pub z_min: Vec<f32>,
     pub reach: Vec<u32>,
+    /// Each cell grown by its reach and [`CELL_PADDING`], in light NDC, as
+    /// `[lo, hi]`: the box [`TriangleCull::behind`] tests every triangle
+    /// touching the cell against ([`cull_box`]), computed once per cell
+    /// rather than once per (triangle, cell) pair (about three calls per
+    /// cell on engine). Unset (zero) where no receiver touches the cell.
+    pub cull_box: Vec<[Vec2; 2]>,
     pub projection: Projection,
 }
 
@@ -43,6 +49,7 @@ impl CellReceivers {
         CellReceivers {
             z_min: vec![f32::INFINITY; cells],
             reach: vec![0; cells],
+            cull_box: Vec::new(),
             projection,
         }
     }
@@ -170,7 +177,55 @@ pub fn cell_receivers(
             || CellReceivers::empty(cells, projection),
             CellReceivers::merge,
         );
-    Some(receivers)
+    Some(receivers.with_cull_boxes(setup, &wanted_levels, level_cells))
+}
+
+impl CellReceivers {
+    /// Fills [`Self::cull_box`] for the cells of `wanted_levels` (per
+    /// cascade: level, scale, sides) that a receiver touches.
+    fn with_cull_boxes(
+        mut self,
+        setup: &LightSetup,
+        wanted_levels: &[Vec<(u32, f32, [u32; 2])>],
+        level_cells: &[Vec<LevelCells>],
+    ) -> CellReceivers {
+        let mut boxes = vec![[Vec2::ZERO; 2]; self.z_min.len()];
+        for (k, grid) in setup.cascades.iter().enumerate() {
+            for &(level, _, [w, h]) in &wanted_levels[k] {
+                let cells = level_cells[k][level as usize];
+                let range = cells.start..cells.start + (w * h) as usize;
+                boxes[range.clone()]
+                    .par_chunks_mut(w.max(1) as usize)
+                    .zip(self.z_min[range.clone()].par_chunks(w.max(1) as usize))
+                    .zip(self.reach[range].par_chunks(w.max(1) as usize))
+                    .enumerate()
+                    .for_each(|(y, ((row, z_min), reach))| {
+                        for (x, b) in row.iter_mut().enumerate() {
+                            if z_min[x] != f32::INFINITY {
+                                *b = cull_box(grid, level, (x as u32, y as u32), reach[x]);
+                            }
+                        }
+                    });
+            }
+        }
+        self.cull_box = boxes;
+        self
+    }
+}
+
+/// Cell (`x`, `y`) of level `level` of `grid`, grown by `reach` cells and
+/// [`CELL_PADDING`], in light NDC, as `[lo, hi]`: the box whose pyramid
+/// (point light) or column (directional) [`TriangleCull::behind`] tests.
+#[inline]
+pub fn cull_box(grid: &CascadeGrid, level: u32, (x, y): (u32, u32), reach: u32) -> [Vec2; 2] {
+    let r = reach as f32 + CELL_PADDING;
+    // Level-l grid coordinates to level 0: times 2^l, exact.
+    let up = (1u32 << level) as f32;
+    let (g_lo, g_hi) = (
+        Vec2::new(x as f32 - r, y as f32 - r) * up,
+        Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r) * up,
+    );
+    [grid.ndc_of_grid(g_lo), grid.ndc_of_grid(g_hi)]
 }
 
 /// Entries per block when the receivers are shared out between threads.
@@ -356,14 +411,8 @@ impl<'a> TriangleCull<'a> {
         if !self.light_side {
             return false;
         }
-        let r = receivers.reach[c] as f32 + CELL_PADDING;
-        // Level-l grid coordinates to level 0: times 2^l, exact.
-        let up = (1u32 << level) as f32;
-        let (g_lo, g_hi) = (
-            Vec2::new(x as f32 - r, y as f32 - r) * up,
-            Vec2::new(x as f32 + 1.0 + r, y as f32 + 1.0 + r) * up,
-        );
-        let (lo, hi) = (grid.ndc_of_grid(g_lo), grid.ndc_of_grid(g_hi));
+        let [lo, hi] = receivers.cull_box[c];
+        debug_assert_eq!([lo, hi], cull_box(grid, level, (x, y), receivers.reach[c]));
         debug_assert_eq!(self.projection, receivers.projection);
         match &self.plane {
             PlaneParts::Below(parts) => plane_below_box(self.tri, parts, lo, hi, z_min),
