@@ -27,8 +27,8 @@ pub struct CellReceivers {
     /// Each cell grown by its reach and [`CELL_PADDING`], in light NDC, as
     /// `[lo, hi]`: the box [`TriangleCull::behind`] tests every triangle
     /// touching the cell against ([`cull_box`]), computed once per cell
-    /// rather than once per (triangle, cell) pair (about three calls per
-    /// cell on engine). Unset (zero) where no receiver touches the cell.
+    /// rather than once per (triangle, cell) pair (engine at 960×540: 472 k
+    /// calls for 14 725 cells). Unset (zero) where no receiver touches the cell.
     pub cull_box: Vec<[Vec2; 2]>,
     pub projection: Projection,
 }
