@@ -194,10 +194,11 @@ impl CellReceivers {
             for &(level, _, [w, h]) in &wanted_levels[k] {
                 let cells = level_cells[k][level as usize];
                 let range = cells.start..cells.start + (w * h) as usize;
+                let row_len = w.max(1) as usize;
                 boxes[range.clone()]
-                    .par_chunks_mut(w.max(1) as usize)
-                    .zip(self.z_min[range.clone()].par_chunks(w.max(1) as usize))
-                    .zip(self.reach[range].par_chunks(w.max(1) as usize))
+                    .par_chunks_mut(row_len)
+                    .zip(self.z_min[range.clone()].par_chunks(row_len))
+                    .zip(self.reach[range].par_chunks(row_len))
                     .enumerate()
                     .for_each(|(y, ((row, z_min), reach))| {
                         for (x, b) in row.iter_mut().enumerate() {
