@@ -220,7 +220,7 @@ void main() {
     vec3 p = g_position[i];
     vec2 lo, hi;
     receiver_grid_box(k, i, p, g_axis_x[i], g_axis_y[i], lo, hi);
-    // bin::receiver_key: z toward a directional light, −depth for a point
+    // receivers::receiver_key: z toward a directional light, −depth for a point
     // light: the lowest is the farthest.
     vec3 p_light = to_light_view(p);
     uint z = ordered_bits(light.projection == 0u ? p_light.z : -p_light.z);

@@ -2,11 +2,11 @@
 // pyramid and which cells keep it, for the bin's steps (bin.comp): its
 // placement and footprint (cpu::footprint, cpu::bin::place), whether its
 // projection touches a cell (Footprint::touches), the behind-receivers
-// cull (cpu::receivers), the conservative shadow map's cover floor and
-// the area light's penumbra bounds (cpu::penumbra). Include after the
-// bindings, light_view.glsl and loop_budget.glsl.
+// cull (cpu::receivers, cpu::receiver_cull), the conservative shadow
+// map's cover floor and the area light's penumbra bounds (cpu::penumbra).
+// Include after the bindings, light_view.glsl and loop_budget.glsl.
 
-// bin::upward_normal: the plane normal turned toward the light (+z);
+// receiver_cull::upward_normal: the plane normal turned toward the light (+z);
 // false when the light sees the triangle edge-on (or it is NaN).
 bool upward_normal(Triangle t, out vec3 n) {
     precise vec3 m = cross(t.b - t.a, t.c - t.a);
@@ -20,7 +20,7 @@ float plane_height(Triangle t, vec3 n, vec2 q) {
     return h;
 }
 
-// bin::plane_beyond_pyramid: the four corners at `depth` of the pyramid
+// receiver_cull::plane_beyond_pyramid: the four corners at `depth` of the pyramid
 // from the point light (the origin) through NDC [lo, hi] lie on the
 // light's side of t's plane by a margin.
 bool plane_beyond_pyramid(Triangle t, vec2 lo, vec2 hi, float depth) {
@@ -39,7 +39,7 @@ bool plane_beyond_pyramid(Triangle t, vec2 lo, vec2 hi, float depth) {
         && side * dot(n, q2 - t.a) > margin && side * dot(n, q3 - t.a) > margin;
 }
 
-// receivers::beyond_every_light_sample: under an area light, the cull
+// receiver_cull::beyond_every_light_sample: under an area light, the cull
 // also needs every light sample on the receivers' side of the plane.
 bool beyond_every_light_sample(Triangle t) {
     precise float grow = 1.0 + BEHIND_MARGIN;
@@ -54,7 +54,7 @@ bool beyond_every_light_sample(Triangle t) {
     return abs(dot(n, t.a)) > r * grow * length(n);
 }
 
-// bin::behind_receivers: whether triangle t (light view) lies behind every
+// receiver_cull::behind_receivers: whether triangle t (light view) lies behind every
 // receiver that can test it in cell `cell` = (x, y) of level `level` of
 // cascade k, so the cell need not list it: a directional light's plane
 // below the receivers' box, a point light's plane beyond their pyramid.
@@ -95,7 +95,7 @@ bool strictly_inside(vec2 a, vec2 b, vec2 c, float w, vec2 q) {
     return s0 > 0.0 && s1 > 0.0 && s2 > 0.0;
 }
 
-// bin::cover_floor: when t's light-space projection contains cell (x, y)
+// shadow_map_cover::cover_floor: when t's light-space projection contains cell (x, y)
 // of level `level` of cascade k, the lowest height of its plane over the cell (as ordered
 // bits, never 0); else 0. Only with the shadow-map skip and a directional
 // light.
@@ -205,7 +205,7 @@ bool touches(Footprint f, int x, int y) {
     return touches_grown(f, x, y, grow);
 }
 
-// bin::penumbra_reaches_cell: a directional area light's per-cell bound,
+// penumbra::penumbra_reaches_cell: a directional area light's per-cell bound,
 // from the cell's lowest receiver and its reach (behind-receivers skip).
 // penumbra::sphere_pad_in_cell: a sphere light's pad for the receivers
 // of cell c = (x, y) of level `level`; false keeps the frame-wide pad.
@@ -257,7 +257,7 @@ bool penumbra_reaches_cell(Triangle t, uint k, Footprint f, uint c, uint x, uint
 // PLACEMENT_CELLS with the footprint.
 #define PLACEMENT_CELLS 0u
 
-// bin::penumbra_pad: how far beyond its projection (light NDC) the
+// penumbra::penumbra_pad: how far beyond its projection (light NDC) the
 // triangle may hide part of an area light; false: it overflows.
 bool penumbra_pad(Triangle t, vec2 n0, vec2 n1, vec2 n2, out float pad) {
     float r = frame.light_radius;

@@ -7,7 +7,7 @@
 // Grid functions take the cascade `k` whose grid they work in.
 #define LIGHT_VIEW_GLSL
 
-// bin::CELL_PADDING: cell rectangles grow by 1/64 cell on every side, far
+// footprint::CELL_PADDING: cell rectangles grow by 1/64 cell on every side, far
 // above the f32 rounding of a grid coordinate.
 
 // rotation · (p − origin); `precise` keeps the compiler from fusing

@@ -32,7 +32,7 @@ pub struct Skips {
     /// A cell does not list a triangle that lies behind (farther from the
     /// light than) every receiver that can test it there, nor anything at
     /// all when no receiver touches it (Wyman et al. 2015, §5.4): see
-    /// [`crate::cpu::receivers::behind_receivers`]; directional and point lights.
+    /// [`crate::cpu::receiver_cull::behind_receivers`]; directional and point lights.
     pub behind_receivers: bool,
     /// The conservative shadow-map early-out (Tokuyoshi 2018, [Compute IZB]),
     /// exact by construction: the bin pass records per cell the triangle

@@ -24,6 +24,7 @@ pub mod light_setup;
 pub mod lut_batch;
 mod mask_rule;
 pub mod penumbra;
+pub mod receiver_cull;
 pub mod receivers;
 mod shadow_map_cover;
 pub mod simd;

@@ -4,7 +4,7 @@
 //! whole with the highest floor, and `evaluate` tests that one first.
 
 use super::light_setup::CascadeGrid;
-use super::receivers::{plane_height, upward_normal};
+use super::receiver_cull::{plane_height, upward_normal};
 use glam::{Vec2, Vec3};
 
 /// The conservative shadow map's test (Tokuyoshi 2018, [Compute IZB], made a
