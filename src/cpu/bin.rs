@@ -9,7 +9,7 @@
 
 use super::counting_sort::{sort_into_cells, BlockEntry, CellLists};
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
-use super::footprint::{footprint, Footprint};
+use super::footprint::{footprint, level_and_rect, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
 pub use super::receiver_cull::behind_receivers;
@@ -42,6 +42,17 @@ pub enum Placement {
 }
 
 impl Placement {
+    /// In the cells of `rect` (`[x0, y0, x1, y1]`) at level `level`.
+    fn of_cells(level: u32, [x0, y0, x1, y1]: [u32; 4]) -> Placement {
+        Placement::Cells {
+            level,
+            x0,
+            y0,
+            x1,
+            y1,
+        }
+    }
+
     /// The level and rectangle (`[x0, y0, x1, y1]`) of a placement in
     /// cells.
     pub fn cells(&self) -> Option<(u32, [u32; 4])> {
@@ -227,18 +238,22 @@ pub fn place(
     };
     match footprint(grid, g, pad) {
         None => (Placement::Culled, None),
-        Some(f) => {
-            let [x0, y0, x1, y1] = f.rect;
-            let level = f.level;
-            let cells = Placement::Cells {
-                level,
-                x0,
-                y0,
-                x1,
-                y1,
-            };
-            (cells, Some(f))
-        }
+        Some(f) => (Placement::of_cells(f.level, f.rect), Some(f)),
+    }
+}
+
+/// [`place`]'s placement alone, without the footprint's edges (the
+/// bin's first pass, which keeps only this).
+fn placement(setup: &LightSetup, grid: &CascadeGrid, tri: &[Vec3; 3]) -> Placement {
+    if setup.grid_disabled {
+        return Placement::Overflow;
+    }
+    match grid_coords_and_pad(setup, grid, tri) {
+        Ok((g, pad)) => match level_and_rect(grid, g, pad) {
+            None => Placement::Culled,
+            Some((level, rect)) => Placement::of_cells(level, rect),
+        },
+        Err(p) => p,
     }
 }
 
@@ -315,7 +330,7 @@ pub fn bin(
         .map(|grid| {
             triangles
                 .par_iter()
-                .map(|t| match place(setup, grid, &light_view_of(setup, t)).0 {
+                .map(|t| match placement(setup, grid, &light_view_of(setup, t)) {
                     Placement::Culled if !skips.outside_bounds => Placement::Overflow,
                     p => p,
                 })

@@ -110,15 +110,21 @@ const TAME_COORDINATE: f32 = (1u64 << 40) as f32;
 /// does). `pad` (level-0 cells along x and y; zero for a point-like
 /// light) grows the projection by the penumbra the triangle may cast.
 pub fn footprint(grid: &CascadeGrid, g: [Vec2; 3], pad: Vec2) -> Option<Footprint> {
+    let (level, rect) = level_and_rect(grid, g, pad)?;
+    Some(Footprint::at_level(level, rect, g, pad))
+}
+
+/// [`footprint`]'s level and rectangle alone: all the bin's placement
+/// pass keeps (the rest is computed again where the entries are).
+pub fn level_and_rect(grid: &CascadeGrid, g: [Vec2; 3], pad: Vec2) -> Option<(u32, [u32; 4])> {
     let lo = g[0].min(g[1]).min(g[2]) - pad;
     let hi = g[0].max(g[1]).max(g[2]) + pad;
     cell_range(grid, lo, hi)?;
     let top = grid.levels.saturating_sub(1);
     let limit = u64::from(grid.level_cells.max(1));
-    let (level, rect) = (0..grid.levels)
+    (0..grid.levels)
         .filter_map(|l| cell_range_at(grid, l, lo, hi).map(|r| (l, r)))
-        .find(|&(l, r)| l == top || range_area(r) <= limit)?;
-    Some(Footprint::at_level(level, rect, g, pad))
+        .find(|&(l, r)| l == top || range_area(r) <= limit)
 }
 
 impl Footprint {
