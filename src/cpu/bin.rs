@@ -339,17 +339,20 @@ pub fn bin(
         .collect();
     // The levels that hold placements: the only ones a pixel visits, and
     // the only ones whose receivers the cull needs.
-    let levels: Vec<u32> = placed
+    let (levels, rectangle_cells): (Vec<u32>, Vec<Vec<u64>>) = setup
+        .cascades
         .iter()
-        .map(|p| {
-            p.iter().fold(0, |m, e| match *e {
-                Placement::Cells { level, .. } => m | 1 << level,
-                _ => m,
-            })
-        })
-        .collect();
+        .zip(&placed)
+        .map(|(grid, placed)| placed_levels(grid, placed))
+        .unzip();
     let level_cells = setup.level_tables();
-    let density = rectangle_cells_per_cell(setup, &placed);
+    // The densest cascade's rectangle cells per cell.
+    let density = setup
+        .cascades
+        .iter()
+        .zip(&rectangle_cells)
+        .map(|(grid, cells)| grid.rectangle_cells_per_cell(cells))
+        .fold(0.0, f64::max);
     let receivers = cull_behind
         .filter(|c| c.when.culls(setup.light_radius, density))
         .and_then(|c| {
@@ -458,13 +461,28 @@ impl BinStats {
     }
 }
 
-/// [`CascadeGrid::rectangle_cells_per_cell`] of the placed rectangles, in
-/// the densest cascade.
-fn rectangle_cells_per_cell(setup: &LightSetup, placed: &[Vec<Placement>]) -> f64 {
-    let per_cascade = setup.cascades.iter().zip(placed).map(|(grid, placed)| {
-        grid.rectangle_cells_per_cell(placed.iter().filter_map(Placement::cells))
-    });
-    per_cascade.fold(0.0, f64::max)
+/// One cascade's placements, in one parallel pass: the levels that hold
+/// one (bit l = level l) and the cells of their rectangles on each level.
+fn placed_levels(grid: &CascadeGrid, placed: &[Placement]) -> (u32, Vec<u64>) {
+    let levels = grid.levels as usize;
+    let add = |(mask, mut cells): (u32, Vec<u64>), p: &Placement| {
+        if let Some((level, [x0, y0, x1, y1])) = p.cells() {
+            cells[level as usize] += u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1);
+            return (mask | 1 << level, cells);
+        }
+        (mask, cells)
+    };
+    placed
+        .par_iter()
+        .with_min_len(TRIANGLE_BLOCK)
+        .fold(|| (0, vec![0; levels]), add)
+        .reduce(
+            || (0, vec![0; levels]),
+            |(a, mut x), (b, y)| {
+                x.iter_mut().zip(&y).for_each(|(x, y)| *x += y);
+                (a | b, x)
+            },
+        )
 }
 
 /// The entries of triangles `ids` in every cascade: each cell of its

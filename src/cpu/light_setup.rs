@@ -93,17 +93,11 @@ impl CascadeGrid {
         }
     }
 
-    /// The cells of `rectangles` ((level, inclusive cell range)) per cell
-    /// of their level, summed over the levels (a pixel visits each): a
-    /// bound on the entries of a pixel's cells on average.
-    pub fn rectangle_cells_per_cell(
-        &self,
-        rectangles: impl Iterator<Item = (u32, [u32; 4])>,
-    ) -> f64 {
-        let mut cells = vec![0u64; self.levels as usize];
-        for (level, [x0, y0, x1, y1]) in rectangles {
-            cells[level as usize] += u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1);
-        }
+    /// The cells of a set of rectangles (`cells[l]`: the cells of those
+    /// at level l) per cell of their level, summed over the levels (a
+    /// pixel visits each): a bound on the entries of a pixel's cells on
+    /// average.
+    pub fn rectangle_cells_per_cell(&self, cells: &[u64]) -> f64 {
         let per_cell = |(l, &c): (usize, &u64)| {
             let [w, h] = self.level_dims(l as u32);
             c as f64 / (f64::from(w) * f64::from(h)).max(1.0)
