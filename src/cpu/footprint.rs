@@ -119,10 +119,16 @@ pub fn footprint(grid: &CascadeGrid, g: [Vec2; 3], pad: Vec2) -> Option<Footprin
 pub fn level_and_rect(grid: &CascadeGrid, g: [Vec2; 3], pad: Vec2) -> Option<(u32, [u32; 4])> {
     let lo = g[0].min(g[1]).min(g[2]) - pad;
     let hi = g[0].max(g[1]).max(g[2]) + pad;
-    cell_range(grid, lo, hi)?;
     let top = grid.levels.saturating_sub(1);
     let limit = u64::from(grid.level_cells.max(1));
-    (0..grid.levels)
+    // Level 0's range is `cell_range_at(grid, 0, ..)` (its scale is 1):
+    // most triangles stop there, and the search goes on above it. (A grid
+    // without levels has no cells: its range is `None`.)
+    let level_0 = cell_range(grid, lo, hi)?;
+    if top == 0 || range_area(level_0) <= limit {
+        return Some((0, level_0));
+    }
+    (1..grid.levels)
         .filter_map(|l| cell_range_at(grid, l, lo, hi).map(|r| (l, r)))
         .find(|&(l, r)| l == top || range_area(r) <= limit)
 }
