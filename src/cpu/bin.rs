@@ -9,7 +9,7 @@
 
 use super::counting_sort::{sort_into_cells, BlockEntry, CellLists};
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
-use super::footprint::{footprint, level_and_rect, Footprint};
+use super::footprint::{level_and_rect, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
 pub use super::receiver_cull::behind_receivers;
@@ -229,17 +229,11 @@ pub fn place(
     grid: &CascadeGrid,
     tri: &[Vec3; 3],
 ) -> (Placement, Option<Footprint>) {
-    if setup.grid_disabled {
-        return (Placement::Overflow, None);
-    }
-    let (g, pad) = match grid_coords_and_pad(setup, grid, tri) {
-        Ok(found) => found,
-        Err(p) => return (p, None),
-    };
-    match footprint(grid, g, pad) {
-        None => (Placement::Culled, None),
-        Some(f) => (Placement::of_cells(f.level, f.rect), Some(f)),
-    }
+    let p = placement(setup, grid, tri);
+    let f = p
+        .cells()
+        .map(|(level, rect)| placed_footprint(setup, grid, tri, level, rect));
+    (p, f)
 }
 
 /// [`place`]'s placement alone, without the footprint's edges (the
