@@ -252,9 +252,9 @@ fn evaluate_pixel(
     // grid offers every triangle that can shadow a sample), so ORing it in
     // and skipping it in the loop leaves the mask as it was; when it fills
     // the mask alone, the loop is skipped.
+    level_ranges(setup, bins, px, ranges);
     // A bin without covers (a point light's, or a directional one whose
     // triangles cover no cell whole) has only `NO_COVER` to read.
-    level_ranges(setup, bins, px, ranges);
     let cover = if rule.skips.shadow_map && bins.stats.covered_cells > 0 {
         cover_of(bins, px, ranges)
     } else {
