@@ -16,7 +16,7 @@ pub use super::receiver_cull::behind_receivers;
 use super::receiver_cull::{upward_normal, TriangleCull};
 pub use super::receivers::{cell_receivers, CellReceivers};
 pub use super::shadow_map_cover::cover_floor;
-use super::shadow_map_cover::cover_floor_below;
+use super::shadow_map_cover::{cover_floor_below, CoverGate};
 use super::{ReceiverCull, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -523,6 +523,7 @@ fn block_entries(
             } else {
                 None
             };
+            let cover_gate = cover_normal.map_or(CoverGate::NO_CELL, |_| CoverGate::new(&f));
             let cull = receivers.map(|r| {
                 let t = TriangleCull::new(&light_view, setup.projection, setup.light_radius);
                 (r, t)
@@ -546,6 +547,7 @@ fn block_entries(
                 touched_above[span.end..].fill(false);
                 let mut touched_left = false;
                 let row = f.row(i64::from(y));
+                let cover_row = cover_gate.row(y);
                 for (x, above) in (a..b).zip(touched_above[span].iter_mut()) {
                     let touched = row.touches(i64::from(x));
                     debug_assert_eq!(touched, f.touches(i64::from(x), i64::from(y)));
@@ -571,6 +573,7 @@ fn block_entries(
                     }
                     listed = true;
                     let floor = cover_normal
+                        .filter(|_| cover_row.may_cover(x))
                         .and_then(|n| cover_floor_below(grid, &light_view, n, level, x, y))
                         .unwrap_or(f32::NEG_INFINITY);
                     let entry = CellEntry {

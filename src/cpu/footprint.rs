@@ -158,6 +158,12 @@ impl Footprint {
         }
     }
 
+    /// The vertices in this level's grid coordinates and their
+    /// orientation (+1 or −1; 0 for a sliver).
+    pub fn projection(&self) -> ([Vec2; 3], f32) {
+        (self.v, self.orientation)
+    }
+
     /// Whether the triangle's projection touches the padded box of cell
     /// (`x`, `y`) of its level (false outside its rectangle): no edge has
     /// every corner of the box outside it by more than its rounding.

@@ -57,9 +57,10 @@ struct PixelFrustum {
     cascade: usize,
     /// The µQuad's level-0 grid box, when it touches the grid.
     grid_box: Option<(Vec2, Vec2)>,
-    /// Level-0 grid coordinates of the µQuad centre (the conservative
-    /// shadow map's texel), when it has any.
-    centre: Option<Vec2>,
+    /// The level-0 grid cell of the µQuad centre (the conservative shadow
+    /// map's texel; a negative coordinate as 0), when it has one: a
+    /// coarser level's cell is this one shifted right by the level.
+    centre: Option<[u32; 2]>,
     /// The light's disk seen from P, when the light has a size: the mask
     /// is then over the light's samples (`light_samples`).
     soft: Option<LightView>,
@@ -93,9 +94,10 @@ fn pixel_frustum(
         let (lo, hi) = (grid.grid_coords(ndc_box.0), grid.grid_coords(ndc_box.1));
         if cell_range(grid, lo, hi).is_some() {
             grid_box = Some((lo, hi));
-            centre = setup
-                .ndc(setup.to_light_view(p))
-                .map(|n| grid.grid_coords(n));
+            centre = setup.ndc(setup.to_light_view(p)).map(|n| {
+                let c = grid.grid_coords(n);
+                [c.x.max(0.0) as u32, c.y.max(0.0) as u32]
+            });
         }
     }
     let soft = rule

@@ -5,7 +5,7 @@
 
 use super::{pixel_frustum, MaskRule, PixelFrustum};
 use crate::cpu::bin::{cell_range_at, Bins, NO_COVER};
-use crate::cpu::light_setup::{level_scale, LevelCells, LightSetup};
+use crate::cpu::light_setup::{LevelCells, LightSetup};
 use crate::cpu::{SampleMode, Skips};
 use crate::gbuffer::GBuffer;
 /// One pyramid level's cells under a pixel's µQuad: the level, its place
@@ -68,14 +68,16 @@ pub(super) fn level_ranges(
 /// at a coarse level covers the fine cells inside it too), or
 /// [`NO_COVER`].
 pub(super) fn cover_of(bins: &Bins, px: &PixelFrustum, ranges: &LevelRanges) -> u32 {
-    let Some(c) = px.centre else {
+    let Some([cx, cy]) = px.centre else {
         return NO_COVER;
     };
     for r in ranges.as_slice() {
         let [x0, y0, x1, y1] = r.range;
-        let c = c * level_scale(r.level);
-        let x = (c.x.max(0.0) as u32).clamp(x0, x1);
-        let y = (c.y.max(0.0) as u32).clamp(y0, y1);
+        // ⌊c · 2⁻ˡ⌋ = ⌊⌊c⌋ / 2ˡ⌋ for c ≥ 0: the level's cell from the
+        // level-0 one, without a cast per level (a saturated ⌊c⌋ is past
+        // every level's last cell, as the scaled cast's would be).
+        let x = (cx >> r.level).clamp(x0, x1);
+        let y = (cy >> r.level).clamp(y0, y1);
         let cover = bins.cover[r.cells.index(x, y)];
         if cover != NO_COVER {
             return cover;
