@@ -13,10 +13,10 @@ use super::footprint::{level_and_rect, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
 pub use super::receiver_cull::behind_receivers;
-use super::receiver_cull::{upward_normal, TriangleCull};
+use super::receiver_cull::TriangleCull;
 pub use super::receivers::{cell_receivers, CellReceivers};
 pub use super::shadow_map_cover::cover_floor;
-use super::shadow_map_cover::{cover_floor_below, CoverGate};
+use super::shadow_map_cover::set_cover_floors;
 use super::{ReceiverCull, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -516,14 +516,7 @@ fn block_entries(
             stats.per_level[level as usize] += 1;
             let [x0, y0, x1, y1] = rect;
             let cells = grid.level(level);
-            // The cover test's normal, once per triangle (`None`: no
-            // cover, the light sees it edge-on).
-            let cover_normal = if covers {
-                upward_normal(&light_view)
-            } else {
-                None
-            };
-            let cover_gate = cover_normal.map_or(CoverGate::NO_CELL, |_| CoverGate::new(&f));
+            let first_entry = out.entries.len();
             let cull = receivers.map(|r| {
                 let t = TriangleCull::new(&light_view, setup.projection, setup.light_radius);
                 (r, t)
@@ -547,7 +540,6 @@ fn block_entries(
                 touched_above[span.end..].fill(false);
                 let mut touched_left = false;
                 let row = f.row(i64::from(y));
-                let cover_row = cover_gate.row(y);
                 for (x, above) in (a..b).zip(touched_above[span].iter_mut()) {
                     let touched = row.touches(i64::from(x));
                     debug_assert_eq!(touched, f.touches(i64::from(x), i64::from(y)));
@@ -572,20 +564,20 @@ fn block_entries(
                         continue;
                     }
                     listed = true;
-                    let floor = cover_normal
-                        .filter(|_| cover_row.may_cover(x))
-                        .and_then(|n| cover_floor_below(grid, &light_view, n, level, x, y))
-                        .unwrap_or(f32::NEG_INFINITY);
                     let entry = CellEntry {
                         id: id as u32,
                         first_column: first.0,
                         first_row: first.1,
                     };
                     debug_assert_eq!(entry, CellEntry::new(id as u32, &f, x, y));
-                    out.entries.push((c as u32, entry, floor));
+                    out.entries.push((c as u32, entry, f32::NEG_INFINITY));
                 }
             }
             stats.triangles_behind_receivers += !listed as usize;
+            if covers {
+                let entries = &mut out.entries[first_entry..];
+                set_cover_floors(grid, &f, &light_view, cells, entries);
+            }
         }
         if overflows != 0 {
             out.overflow.push(OverflowEntry {
