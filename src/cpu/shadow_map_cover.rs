@@ -3,8 +3,8 @@
 //! directional light: each cell keeps the triangle whose shadow covers it
 //! whole with the highest floor, and `evaluate` tests that one first.
 
-use super::footprint::Footprint;
 use super::counting_sort::BlockEntry;
+use super::footprint::Footprint;
 use super::light_setup::{CascadeGrid, LevelCells};
 use super::receiver_cull::{plane_height, upward_normal};
 use glam::{Vec2, Vec3};

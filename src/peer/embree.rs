@@ -14,7 +14,7 @@
 //! Only the handful of Embree 3 entry points used are declared here
 //! (`rtcore.h` of Embree 3.13, the version Debian ships).
 
-use super::shadow_rays::trace_pixels;
+use super::shadow_rays::{trace_pixels, ShadowRay};
 use crate::gbuffer::GBuffer;
 use crate::scene::Scene;
 use glam::Vec3;
@@ -186,11 +186,11 @@ impl EmbreeScene {
         }
     }
 
-    /// Which of 16 rays (origins `org`, directions `dir`, over
-    /// `[tnear, tfar]`, lanes beyond `count` inactive) hit something: bit
-    /// i set = ray i occluded.
-    fn occluded16(&self, org: &[Vec3], dir: &[Vec3], tnear: &[f32], tfar: &[f32]) -> u32 {
-        let count = org.len().min(16);
+    /// Which of up to 16 rays `rays` (lanes beyond them inactive) hit
+    /// something: bit i set = ray i occluded. The packet is filled straight
+    /// from the rays, with no copies in between.
+    fn occluded16(&self, rays: &[ShadowRay]) -> u32 {
+        let count = rays.len().min(16);
         let mut ray = RtcRay16 {
             org_x: [0.0; 16],
             org_y: [0.0; 16],
@@ -206,12 +206,12 @@ impl EmbreeScene {
             flags: [0; 16],
         };
         let mut valid = [0 as c_int; 16];
-        for i in 0..count {
+        for (i, r) in rays.iter().take(count).enumerate() {
             valid[i] = -1;
-            (ray.org_x[i], ray.org_y[i], ray.org_z[i]) = (org[i].x, org[i].y, org[i].z);
-            (ray.dir_x[i], ray.dir_y[i], ray.dir_z[i]) = (dir[i].x, dir[i].y, dir[i].z);
-            ray.tnear[i] = tnear[i];
-            ray.tfar[i] = tfar[i];
+            (ray.org_x[i], ray.org_y[i], ray.org_z[i]) = r.origin.into();
+            (ray.dir_x[i], ray.dir_y[i], ray.dir_z[i]) = r.direction.into();
+            ray.tnear[i] = r.t_near;
+            ray.tfar[i] = r.t_far;
             ray.id[i] = i as u32;
         }
         let mut context = RtcIntersectContext {
@@ -250,11 +250,6 @@ pub fn rt32_embree_masks(
     pattern: &[[f32; 2]; 32],
 ) -> Vec<u32> {
     trace_pixels(scene, g, pattern, |rays| {
-        let org = rays.map(|r| r.origin);
-        let dir = rays.map(|r| r.direction);
-        let tnear = rays.map(|r| r.t_near);
-        let tfar = rays.map(|r| r.t_far);
-        embree.occluded16(&org[..16], &dir[..16], &tnear[..16], &tfar[..16])
-            | embree.occluded16(&org[16..], &dir[16..], &tnear[16..], &tfar[16..]) << 16
+        embree.occluded16(&rays[..16]) | embree.occluded16(&rays[16..]) << 16
     })
 }
