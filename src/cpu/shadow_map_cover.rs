@@ -224,5 +224,6 @@ impl CoverGateRow {
     }
 }
 
-#[cfg(test)]
+// On real scenes, whose G-buffer is ray cast (the `cli` feature).
+#[cfg(all(test, feature = "cli"))]
 mod tests;
