@@ -1,7 +1,8 @@
 //! The conservative shadow map's test (Tokuyoshi 2018, [Compute IZB]),
-//! which the bin runs on every cell it lists a triangle in under a
-//! directional light: each cell keeps the triangle whose shadow covers it
-//! whole with the highest floor, and `evaluate` tests that one first.
+//! which the bin runs, behind a cheap gate, on the cells it lists a
+//! triangle in under a directional light: each cell keeps the triangle
+//! whose shadow covers it whole with the highest floor, and `evaluate`
+//! tests that one first.
 
 use super::counting_sort::BlockEntry;
 use super::footprint::Footprint;
@@ -99,9 +100,8 @@ pub(super) fn set_cover_floors(
 /// footprint's grid coordinates from the cover test's NDC ones; so the
 /// gate never turns away a cell the cover test would take, and the covers
 /// are the same with it as without (`the_gate_keeps_every_covered_cell`
-/// holds the gate against the test cell by cell). Most listed cells fail it (ficus at
-/// 1080p: 6.7 k of 662 k pass, 6.4 k of them covered).
-
+/// holds the gate against the test cell by cell). Most listed cells fail
+/// it (ficus at 1080p: 6.7 k of 662 k pass, 6.4 k of them covered).
 #[derive(Clone, Copy)]
 pub(super) struct CoverGate {
     v: [Vec2; 3],
