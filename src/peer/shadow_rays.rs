@@ -31,6 +31,12 @@ pub struct ShadowRay {
     pub t_far: f32,
 }
 
+/// How far along its way to the light a sample's ray starts, for a µQuad
+/// with axes `ex`, `ey`: 2⁻⁸ of its longer axis.
+pub fn ray_offset(ex: Vec3, ey: Vec3) -> f32 {
+    DEPTH_TOLERANCE_MICROQUAD as f32 * ex.length().max(ey.length())
+}
+
 /// The 32 shadow rays of a pixel with µQuad centre `p` and axes `ex`, `ey`
 /// (eye-relative `f32`) toward `light` (eye-relative), in `pattern` order.
 pub fn sample_rays(
@@ -40,7 +46,7 @@ pub fn sample_rays(
     ey: Vec3,
     pattern: &[[f32; 2]; 32],
 ) -> [ShadowRay; 32] {
-    let offset = DEPTH_TOLERANCE_MICROQUAD as f32 * ex.length().max(ey.length());
+    let offset = ray_offset(ex, ey);
     let origin = |s: [f32; 2]| p + (s[0] - 0.5) * ex + (s[1] - 0.5) * ey;
     // The light's case once per pixel, not per sample: with the match
     // inside the map, how LLVM laid the 32 samples out changed from build
@@ -75,13 +81,12 @@ pub fn sample_rays(
 }
 
 /// The 32-sample masks of every pixel of `g` (0 where not shadow-tested),
-/// `trace` turning one pixel's [`sample_rays`] into its mask, pixels in
-/// parallel.
+/// `trace` turning one pixel's eye-relative light, µQuad centre and axes
+/// into its mask (by [`sample_rays`] or lane by lane), pixels in parallel.
 pub fn trace_pixels(
     scene: &Scene,
     g: &GBuffer,
-    pattern: &[[f32; 2]; 32],
-    trace: impl Fn(&[ShadowRay; 32]) -> u32 + Sync,
+    trace: impl Fn(&Light, Vec3, Vec3, Vec3) -> u32 + Sync,
 ) -> Vec<u32> {
     let light = scene.light.relative_to(scene.camera.eye);
     (0..g.flags.len())
@@ -91,13 +96,7 @@ pub fn trace_pixels(
             if g.flags[i] & flags::SHADOW_TESTED == 0 {
                 return 0;
             }
-            trace(&sample_rays(
-                &light,
-                g.position[i],
-                g.axis_x[i],
-                g.axis_y[i],
-                pattern,
-            ))
+            trace(&light, g.position[i], g.axis_x[i], g.axis_y[i])
         })
         .collect()
 }
@@ -111,16 +110,19 @@ pub fn shadow_rays(
     g: &GBuffer,
     pattern: &[[f32; 2]; 32],
 ) -> Vec<u32> {
-    trace_pixels(scene, g, pattern, |rays| {
-        rays.iter().enumerate().fold(0, |mask, (k, r)| {
-            let hit = bvh.any_hit(
-                r.origin.as_dvec3(),
-                r.direction.as_dvec3(),
-                f64::from(r.t_near),
-                f64::from(r.t_far),
-                |_| true,
-            );
-            mask | (u32::from(hit) << k)
-        })
+    trace_pixels(scene, g, |light, p, ex, ey| {
+        sample_rays(light, p, ex, ey, pattern)
+            .iter()
+            .enumerate()
+            .fold(0, |mask, (k, r)| {
+                let hit = bvh.any_hit(
+                    r.origin.as_dvec3(),
+                    r.direction.as_dvec3(),
+                    f64::from(r.t_near),
+                    f64::from(r.t_far),
+                    |_| true,
+                );
+                mask | (u32::from(hit) << k)
+            })
     })
 }
