@@ -63,6 +63,13 @@ struct RtcRay16 {
     flags: [c_uint; 16],
 }
 
+/// The packet's valid mask (−1: lane active), 64-byte aligned like the
+/// packet: Embree's 16-wide kernels load it as one aligned vector, so a
+/// mask on a 4-byte boundary faulted (a probe build whose constant mask
+/// landed off a 64-byte boundary crashed on every scene, session 37).
+#[repr(C, align(64))]
+struct ValidMask16([c_int; 16]);
+
 #[link(name = "embree3")]
 extern "C" {
     fn rtcNewDevice(config: *const c_char) -> RtcDevice;
@@ -192,7 +199,7 @@ impl EmbreeScene {
     /// Which of the 16 rays of `ray` hit something: bit i set = lane i
     /// occluded.
     fn occluded16(&self, ray: &mut RtcRay16) -> u32 {
-        let valid = [-1 as c_int; 16];
+        let valid = ValidMask16([-1; 16]);
         let mut context = RtcIntersectContext {
             flags: RTC_INTERSECT_CONTEXT_FLAG_COHERENT,
             filter: std::ptr::null(),
@@ -200,8 +207,9 @@ impl EmbreeScene {
         };
         // SAFETY: the scene is committed and alive (`&self`); `valid`,
         // `context` and `ray` are live, correctly laid out (`repr(C)`,
-        // 64-byte aligned packet) and exclusively borrowed for the call.
-        unsafe { rtcOccluded16(valid.as_ptr(), self.scene, &mut context, ray) };
+        // packet and valid mask 64-byte aligned) and exclusively borrowed
+        // for the call.
+        unsafe { rtcOccluded16(valid.0.as_ptr(), self.scene, &mut context, ray) };
         // Embree marks an occluded ray by setting its tfar to −∞.
         (0..16).fold(0, |m, i| {
             m | (u32::from(ray.tfar[i] == f32::NEG_INFINITY) << i)
