@@ -64,9 +64,10 @@ struct RtcRay16 {
 }
 
 /// The packet's valid mask (−1: lane active), 64-byte aligned like the
-/// packet: Embree's 16-wide kernels load it as one aligned vector, so a
-/// mask on a 4-byte boundary faulted (a probe build whose constant mask
-/// landed off a 64-byte boundary crashed on every scene, session 37).
+/// packet. Embree's manual asks alignment of the packet only, but its
+/// 16-wide kernels read the mask as one vector: a probe build whose
+/// `[c_int; 16]` mask landed off a 64-byte boundary crashed on each of the
+/// four scenes it ran (session 37); earlier builds were aligned by luck.
 #[repr(C, align(64))]
 struct ValidMask16([c_int; 16]);
 
@@ -240,10 +241,11 @@ impl RtcRay16 {
     /// Packet `half` of [`sample_rays`]`(light, p, ex, ey, pattern)`, bit
     /// for bit (the same operations in the same order, see the unit
     /// test), written lane by lane so that the compiler computes sixteen
-    /// rays per instruction: with the rays built one at a time and then
-    /// copied into the packet, our setup was 20–43 % of `rt32-embree`'s
-    /// time at 1920×1080 (session 36), a handicap no renderer feeding
-    /// Embree would carry.
+    /// rays per instruction. Built one ray at a time and then copied into
+    /// the packet, our setup was 20–43 % of `rt32-embree`'s time at
+    /// 1920×1080 (session 36), a handicap no renderer feeding Embree would
+    /// carry; built so, everything but Embree's call is 9–22 % (session
+    /// 37: the G-buffer's reads, the packet, the mask).
     fn sample_rays(
         light: &Light,
         p: Vec3,
