@@ -80,6 +80,9 @@ pub(super) fn set_cover_floors(
         return;
     }
     let w = cells.dims[0] as usize;
+    // The row's gate is set up again for every entry on purpose: kept
+    // across a row's entries (an `Option` carried through the loop) it
+    // cost ficus's 1080p bin 33–34 → 35–36.5 ms on one thread (session 37).
     for (c, _, floor) in entries {
         let i = *c as usize - cells.start;
         let (x, y) = ((i % w) as u32, (i / w) as u32);

@@ -48,10 +48,9 @@ pub fn sample_rays(
 ) -> [ShadowRay; 32] {
     let offset = ray_offset(ex, ey);
     let origin = |s: [f32; 2]| p + (s[0] - 0.5) * ex + (s[1] - 0.5) * ey;
-    // The light's case once per pixel, not per sample: with the match
-    // inside the map, how LLVM laid the 32 samples out changed from build
-    // to build, and with it `rt32-embree`'s time by up to 1.9× on the same
-    // rays (deckchair 1080p: 0.345 s against 0.181 s; session 36).
+    // The light's case once per pixel, not per sample. This is the
+    // definition `rt32-embree`'s packets reproduce lane by lane, bit for
+    // bit (`RtcRay16::sample_rays`, feature `embree`).
     match *light {
         Light::Directional { direction } => {
             let direction = -direction.as_vec3();
