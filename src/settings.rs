@@ -119,6 +119,11 @@ pub struct IzbSettings {
     /// widest this processor has, capped by `IZB_SIMD`); masks and
     /// counters do not depend on it.
     pub simd: crate::cpu::simd::SimdPath,
+    /// The CPU twin's bin writes its cell lists' vertices in cell order
+    /// (`crate::cpu::cell_vertices`) and evaluate reads them sixteen at a
+    /// time; off, each candidate is read by id. Masks and counters do not
+    /// depend on it.
+    pub vertex_cache: bool,
 }
 
 impl IzbSettings {
@@ -185,6 +190,7 @@ impl Default for IzbSettings {
             receiver_cull: ReceiverCull::WhereDense,
             edge_surfaces: false,
             simd: crate::cpu::simd::SimdPath::detected(),
+            vertex_cache: true,
         }
     }
 }

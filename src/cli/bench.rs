@@ -93,6 +93,10 @@ pub struct BenchArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// The CPU twin reads each candidate triangle by id instead of from
+    /// the bin's vertex cache in cell order (the same masks).
+    #[arg(long)]
+    no_vertex_cache: bool,
 }
 
 pub fn run_bench(args: BenchArgs) -> Result<()> {
@@ -119,6 +123,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
                 skips,
                 cascades,
                 edge_surfaces: true,
+                vertex_cache: !args.no_vertex_cache,
                 ..Default::default()
             };
             for mut m in bench::parse_methods(&args.methods, &args.map_sides, izb)

@@ -79,6 +79,11 @@ pub struct GridArgs {
     /// rectangles cover at least 20 cells per cell).
     #[arg(long, value_enum, default_value_t = ReceiverCull::WhereDense)]
     receiver_cull: ReceiverCull,
+    /// The CPU twin reads each candidate triangle by id instead of from
+    /// the bin's vertex cache in cell order (the same masks; for timing
+    /// the cache against the walk without it).
+    #[arg(long)]
+    no_vertex_cache: bool,
 }
 
 impl GridArgs {
@@ -98,6 +103,7 @@ impl GridArgs {
             cascades: self.cascades,
             split_lambda: self.split_lambda,
             receiver_cull: self.receiver_cull,
+            vertex_cache: !self.no_vertex_cache,
             ..settings
         })
     }

@@ -12,6 +12,7 @@
 //! The G-buffer (pass 0) comes from [`crate::gbuffer`].
 
 pub mod bin;
+pub mod cell_vertices;
 mod counting_sort;
 pub mod empty_certificate;
 pub mod evaluate;
@@ -251,7 +252,12 @@ pub fn render_cpu_with(
         covered_only,
         when: settings.receiver_cull,
     });
-    let bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
+    let mut bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
+    // The vertex cache serves the walk that batches its survivors: a
+    // point-like light's.
+    if settings.vertex_cache && !soft {
+        bins.cache_vertices(triangles);
+    }
     let boxes = match stored_boxes.get() {
         Some(stored) => ReceiverBoxes::Stored(stored),
         None => ReceiverBoxes::PerBand { covered_only },

@@ -3,15 +3,20 @@
 //! first; and the conservative shadow map's cover triangle under its
 //! centre.
 
-use super::{pixel_frustum, MaskRule, PixelFrustum};
+use super::{pixel_frustum, test_batch, MaskRule, PixelFrustum, TestCounters};
 use crate::cpu::bin::{cell_range_at, Bins, NO_COVER};
+use crate::cpu::cell_vertices::{tangent_chunk, CellVertices, ChunkQuery, ChunkTests};
+use crate::cpu::simd::SimdPath;
+use crate::cpu::survivor_batch::{BatchTests, SurvivorBatch};
+
 use crate::cpu::light_setup::{LevelCells, LightSetup};
+use crate::cpu::survivor_batch::{WalkPoint, LANES};
 use crate::cpu::{SampleMode, Skips};
 use crate::gbuffer::GBuffer;
 /// One pyramid level's cells under a pixel's µQuad: the level, its place
 /// in the cell arrays and the inclusive cell range `[x0, y0, x1, y1]`.
 #[derive(Clone, Copy, Default)]
-struct LevelRange {
+pub(super) struct LevelRange {
     level: u32,
     cells: LevelCells,
     range: [u32; 4],
@@ -29,7 +34,7 @@ pub(super) struct LevelRanges {
 }
 
 impl LevelRanges {
-    fn as_slice(&self) -> &[LevelRange] {
+    pub(super) fn as_slice(&self) -> &[LevelRange] {
         &self.ranges[..self.len]
     }
 }
@@ -114,7 +119,7 @@ pub fn for_each_candidate(
     let px = pixel_frustum(setup, g, i, ndc_box, &hard);
     let mut ranges = LevelRanges::default();
     level_ranges(setup, bins, &px, &mut ranges);
-    candidates_of(bins, &px, &ranges, |_| {}, |id, _| visit(id))
+    candidates_of(bins, &px, ranges.as_slice(), |_| {}, |id, _| visit(id))
 }
 
 /// How many entries ahead of the one being tested the walk asks for a
@@ -132,14 +137,14 @@ const PREFETCH_AHEAD: usize = 8;
 pub(super) fn candidates_of(
     bins: &Bins,
     px: &PixelFrustum,
-    ranges: &LevelRanges,
+    ranges: &[LevelRange],
     prefetch: impl Fn(u32),
     mut visit: impl FnMut(u32, (u64, u64)) -> bool,
 ) -> (u64, u64) {
     let (mut cells, mut levels) = (0, 0);
     let overflow = &bins.overflow[px.cascade][..];
     // `None`: the overflow list.
-    for level in std::iter::once(None).chain(ranges.as_slice().iter().map(Some)) {
+    for level in std::iter::once(None).chain(ranges.iter().map(Some)) {
         let (range, level_cells) = match level {
             None => ([0; 4], None),
             Some(r) => {
@@ -171,4 +176,151 @@ pub(super) fn candidates_of(
         }
     }
     (cells, levels)
+}
+
+/// What the chunked walk adds to as it goes: the pixel's mask, its tests
+/// and their counters, and the survivor batch they fill.
+pub(super) struct WalkTally<'a> {
+    pub mask: &'a mut u32,
+    pub tests: &'a mut u64,
+    pub counters: &'a mut TestCounters,
+    pub batch: &'a mut SurvivorBatch,
+    pub batch_tests: &'a mut BatchTests,
+    pub chunk: &'a mut ChunkTests,
+}
+
+/// [`candidates_of`]'s walk over the levels (the overflow list apart) for
+/// a batching pixel, each cell's entries read from the vertex cache
+/// sixteen at a time and asked the tangent-plane condition together
+/// ([`tangent_chunk`]); the survivors join the batch in the walk's order,
+/// so the batch is tested, and the walk stops, at the same candidate as
+/// one entry at a time. Returns the cells and levels visited, and the
+/// candidate at which the mask filled when it did. Compiled once per
+/// instruction set, chosen by the rule's `simd`.
+pub(super) fn survivors_in_chunks(
+    bins: &Bins,
+    cache: &CellVertices,
+    px: &PixelFrustum,
+    walk: (&LevelRanges, u32),
+    rule: &MaskRule,
+    tally: WalkTally<'_>,
+) -> ((u64, u64), Option<WalkPoint>) {
+    match rule.simd {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `simd` is Avx512 only where the processor has AVX-512F
+        // (`SimdPath::or_supported`).
+        SimdPath::Avx512 => unsafe { chunks_avx512(bins, cache, px, walk, rule, tally) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `simd` is Avx2 only where the processor has AVX2.
+        SimdPath::Avx2 => unsafe { chunks_avx2(bins, cache, px, walk, rule, tally) },
+        _ => chunks(bins, cache, px, walk, rule, tally),
+    }
+}
+
+/// # Safety
+/// The processor has AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn chunks_avx512(
+    bins: &Bins,
+    cache: &CellVertices,
+    px: &PixelFrustum,
+    walk: (&LevelRanges, u32),
+    rule: &MaskRule,
+    tally: WalkTally<'_>,
+) -> ((u64, u64), Option<WalkPoint>) {
+    chunks(bins, cache, px, walk, rule, tally)
+}
+
+/// # Safety
+/// The processor has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn chunks_avx2(
+    bins: &Bins,
+    cache: &CellVertices,
+    px: &PixelFrustum,
+    walk: (&LevelRanges, u32),
+    rule: &MaskRule,
+    tally: WalkTally<'_>,
+) -> ((u64, u64), Option<WalkPoint>) {
+    chunks(bins, cache, px, walk, rule, tally)
+}
+
+/// [`survivors_in_chunks`] on the instruction set it is inlined into.
+#[inline(always)]
+fn chunks(
+    bins: &Bins,
+    cache: &CellVertices,
+    px: &PixelFrustum,
+    (ranges, cover): (&LevelRanges, u32),
+    rule: &MaskRule,
+    tally: WalkTally<'_>,
+) -> ((u64, u64), Option<WalkPoint>) {
+    let (mut cells, mut levels) = (0, 0);
+    let stop_when_full = rule.skips.full_mask;
+    let WalkTally {
+        mask,
+        tests,
+        counters,
+        batch,
+        batch_tests,
+        chunk,
+    } = tally;
+    let mut query = ChunkQuery {
+        p: px.p,
+        normal: px.normal,
+        microquad_part: px.microquad_part,
+        receiver: px.receiver,
+        cover,
+        need: 0,
+    };
+    for r in ranges.as_slice() {
+        levels += 1;
+        let [x0, y0, x1, y1] = r.range;
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                cells += 1;
+                let c = r.cells.index(x, y);
+                let (start, end) = (bins.cell_start[c] as usize, bins.cell_start[c + 1] as usize);
+                query.need = ChunkQuery::flags_needed(x, y, x0, y0);
+                let mut first = start;
+                while first < end {
+                    // The next chunk: this list's, or the next cell's along
+                    // the row, whose entries follow these.
+                    cache.prefetch(first + LANES);
+                    tangent_chunk(cache, first, (end - first).min(LANES), &query, chunk);
+                    let mut above = chunk.above;
+                    while above != 0 {
+                        let l = above.trailing_zeros() as usize;
+                        above &= above - 1;
+                        counters.tangent_passed += 1;
+                        let point = WalkPoint {
+                            // The tests up to and including lane l.
+                            tests: *tests + u64::from((chunk.tested & ((2 << l) - 1)).count_ones()),
+                            tangent_passed: counters.tangent_passed,
+                            walked: (cells, levels),
+                        };
+                        let t = cache.triangle_minus(first + l, px.p);
+                        if batch.push(&t, chunk.height[l], point) {
+                            let stopped = test_batch(
+                                px,
+                                rule,
+                                (&mut *batch, &mut *batch_tests),
+                                mask,
+                                counters,
+                                stop_when_full,
+                            );
+                            if stopped.is_some() {
+                                return ((cells, levels), stopped);
+                            }
+                        }
+                    }
+                    *tests += u64::from(chunk.tested.count_ones());
+                    first += LANES;
+                }
+            }
+        }
+    }
+    ((cells, levels), None)
 }
