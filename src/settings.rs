@@ -119,11 +119,8 @@ pub struct IzbSettings {
     /// widest this processor has, capped by `IZB_SIMD`); masks and
     /// counters do not depend on it.
     pub simd: crate::cpu::simd::SimdPath,
-    /// The CPU twin's bin writes its cell lists' vertices in cell order
-    /// (`crate::cpu::cell_vertices`) and evaluate reads them sixteen at a
-    /// time; off, each candidate is read by id. Masks and counters do not
-    /// depend on it.
-    pub vertex_cache: bool,
+    /// When the CPU twin's bin writes its vertex cache.
+    pub vertex_cache: VertexCache,
 }
 
 impl IzbSettings {
@@ -190,7 +187,39 @@ impl Default for IzbSettings {
             receiver_cull: ReceiverCull::WhereDense,
             edge_surfaces: false,
             simd: crate::cpu::simd::SimdPath::detected(),
-            vertex_cache: true,
+            vertex_cache: VertexCache::WhereLong,
+        }
+    }
+}
+
+/// Whether the CPU twin's bin writes its cell lists' vertices in cell
+/// order for evaluate to read sixteen at a time
+/// ([`crate::cpu::cell_vertices`]). Masks and counters do not depend on
+/// it; only the time does.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum VertexCache {
+    /// Under a point-like light, every frame.
+    Always,
+    /// Under a point-like light, where an entry's cell list is on average
+    /// at least [`crate::cpu::cell_vertices::LONG_LISTS`] long.
+    #[default]
+    WhereLong,
+    /// Never: every candidate is read by id.
+    Never,
+}
+
+impl VertexCache {
+    /// Whether the cache is written for cell lists whose entries sit in
+    /// lists of `list_length_per_entry` on average.
+    pub fn pays(self, list_length_per_entry: f64) -> bool {
+        match self {
+            VertexCache::Always => true,
+            VertexCache::WhereLong => {
+                list_length_per_entry >= crate::cpu::cell_vertices::LONG_LISTS
+            }
+            VertexCache::Never => false,
         }
     }
 }

@@ -19,6 +19,7 @@ use izb::cpu::simd::SimdPath;
 use izb::cpu::{is_receiver, receiver_flags, render_cpu, IzbSettings, SampleMode, Skips};
 use izb::gbuffer::{flags, gbuffer_with};
 use izb::scene::{self, Scene};
+use izb::settings::VertexCache;
 
 const RESOLUTION: [u32; 2] = [64, 36];
 
@@ -76,7 +77,11 @@ fn every_simd_path_gives_the_scalar_masks_and_counters() {
         let bvh = SceneBvh::build(&scene);
         for (mode, area_light) in MODES {
             let scene = if area_light { &area } else { &scene };
-            let render = |simd, vertex_cache| {
+            let render = |simd, vertex_cache: bool| {
+                let vertex_cache = match vertex_cache {
+                    true => VertexCache::Always,
+                    false => VertexCache::Never,
+                };
                 let settings = IzbSettings {
                     mode,
                     edge_surfaces: true,

@@ -13,7 +13,7 @@ use crate::cascades::CascadeCount;
 use crate::gpu::{GpuOptions, GpuRenderer};
 use crate::output::write_json;
 use crate::reference::ReferenceSettings;
-use crate::settings::IzbSettings;
+use crate::settings::{IzbSettings, VertexCache};
 use crate::skips::Skips;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -93,10 +93,10 @@ pub struct BenchArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// The CPU twin reads each candidate triangle by id instead of from
-    /// the bin's vertex cache in cell order (the same masks).
-    #[arg(long)]
-    no_vertex_cache: bool,
+    /// When the CPU twin writes its vertex cache: where-long, always or
+    /// never (the same masks; `izb render --help`).
+    #[arg(long, value_enum, default_value_t = VertexCache::WhereLong)]
+    vertex_cache: VertexCache,
 }
 
 pub fn run_bench(args: BenchArgs) -> Result<()> {
@@ -123,7 +123,7 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
                 skips,
                 cascades,
                 edge_surfaces: true,
-                vertex_cache: !args.no_vertex_cache,
+                vertex_cache: args.vertex_cache,
                 ..Default::default()
             };
             for mut m in bench::parse_methods(&args.methods, &args.map_sides, izb)

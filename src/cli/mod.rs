@@ -14,7 +14,7 @@ use crate::bvh::SceneBvh;
 use crate::cascades::CascadeCount;
 use crate::reference::{reference, ReferenceImage, ReferenceSettings};
 use crate::scene::{self, Scene};
-use crate::settings::{IzbSettings, ReceiverCull};
+use crate::settings::{IzbSettings, ReceiverCull, VertexCache};
 use anyhow::Result;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -79,11 +79,12 @@ pub struct GridArgs {
     /// rectangles cover at least 20 cells per cell).
     #[arg(long, value_enum, default_value_t = ReceiverCull::WhereDense)]
     receiver_cull: ReceiverCull,
-    /// The CPU twin reads each candidate triangle by id instead of from
-    /// the bin's vertex cache in cell order (the same masks; for timing
-    /// the cache against the walk without it).
-    #[arg(long)]
-    no_vertex_cache: bool,
+    /// When the CPU twin's bin writes its vertex cache in cell order for
+    /// evaluate to read sixteen entries at a time: where-long (where cell
+    /// lists are long enough for it to pay), always or never (each
+    /// candidate read by id). The masks are the same.
+    #[arg(long, value_enum, default_value_t = VertexCache::WhereLong)]
+    vertex_cache: VertexCache,
 }
 
 impl GridArgs {
@@ -103,7 +104,7 @@ impl GridArgs {
             cascades: self.cascades,
             split_lambda: self.split_lambda,
             receiver_cull: self.receiver_cull,
-            vertex_cache: !self.no_vertex_cache,
+            vertex_cache: self.vertex_cache,
             ..settings
         })
     }

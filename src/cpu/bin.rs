@@ -146,6 +146,9 @@ pub struct BinStats {
     /// Whether the receivers were registered and the `behind_receivers`
     /// skip taken.
     pub receivers_culled_against: bool,
+    /// The mean length of the cell list an entry sits in (Σ len² / Σ len
+    /// over the cells; 0 where the vertex cache was not asked for).
+    pub list_length_per_entry: f64,
     /// Bytes of the vertex cache ([`Bins::cache_vertices`]; 0 without):
     /// 40 per entry (a key and nine floats) and a little padding.
     pub vertex_cache_bytes: usize,
@@ -179,7 +182,7 @@ pub struct Bins {
     /// [`NO_COVER`]. Only filled with the `shadow_map` skip.
     pub cover: Vec<u32>,
     /// The cell lists' vertex cache, where evaluate's walk reads them
-    /// sixteen at a time ([`Bins::cache_vertices`]).
+    /// sixteen at a time ([`Bins::cache_vertices`], in `cell_vertices`).
     pub vertices: Option<super::cell_vertices::CellVertices>,
     pub stats: BinStats,
 }
@@ -188,13 +191,6 @@ pub struct Bins {
 pub const NO_COVER: u32 = izb_contract::word::NO_COVER;
 
 impl Bins {
-    /// Writes the vertex cache of the cell lists of `triangles` (the ones
-    /// binned), for a walk that batches its survivors (a point-like light).
-    pub fn cache_vertices(&mut self, triangles: &[[Vec3; 3]]) {
-        self.vertices = super::cell_vertices::CellVertices::new(&self.cell_triangles, triangles);
-        self.stats.vertex_cache_bytes = self.vertices.as_ref().map_or(0, |v| v.bytes());
-    }
-
     /// Entries of cell (x, y) of pyramid level `level` of `grid`.
     #[inline]
     pub fn cell(&self, grid: &CascadeGrid, level: u32, x: u32, y: u32) -> &[CellEntry] {

@@ -6,23 +6,56 @@
 //! GPU). A triangle's floats are copied, not recomputed, so a lane's
 //! vertices are the scalar walk's bit for bit.
 //!
-//! The planes are cut into segments of [`SEGMENT`] entries, each holding
+//! The planes are cut into segments of `SEGMENT` entries, each holding
 //! the [`LANES`] entries after it too: a chunk of sixteen starting
 //! anywhere in a segment is then one contiguous read per plane, and the
 //! segments are filled in parallel without sharing a slice.
 //!
 //! One block for all segments, its memory handed from frame to frame
-//! ([`SPARE`]). Fresh memory each frame cost the bin its page faults
+//! (`SPARE`). Fresh memory each frame cost the bin its page faults
 //! (courtyard at 960×540: 18 ms for a 59 MB cache, 9 ms reused); a
 //! segment per allocation, which the allocator would recycle by itself,
 //! made evaluate slower (courtyard 0.25 → 0.32 s, ficus 0.077 → 0.095 s;
 //! not understood).
 
-use super::bin::CellEntry;
+use super::bin::{Bins, CellEntry};
 use super::survivor_batch::LANES;
 use crate::frustum::max3;
+use crate::settings::VertexCache;
 use glam::Vec3;
 use rayon::prelude::*;
+
+/// The mean length of the list an entry sits in from which the vertex
+/// cache pays ([`Bins::cache_vertices`]). Measured at 1920×1080 (two
+/// threads, shadow pass with the cache over without): hairball (36 per
+/// entry) 0.91, ficus (145) 0.93, courtyard (289) 0.99 with the bin's 30 ms
+/// more, tablefan (26) 1.00; engine (19) 1.00–1.05, and where lists are
+/// shorter the cache cost up to a fifth (wires (17) 1.18, deckchair (16)
+/// 1.20, default (7) 1.18, analytic (1) 1.31): a chunk costs its sixteen
+/// lanes and ten cache lines however few entries it holds.
+pub const LONG_LISTS: f64 = 24.0;
+
+impl Bins {
+    /// Writes the vertex cache of the cell lists of `triangles` (the ones
+    /// binned), for a walk that batches its survivors (a point-like
+    /// light), where `when` says it pays.
+    pub fn cache_vertices(&mut self, triangles: &[[Vec3; 3]], when: VertexCache) {
+        let (entries, squares) = self
+            .cell_start
+            .par_windows(2)
+            .map(|w| {
+                let len = u64::from(w[1] - w[0]);
+                (len, len * len)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        self.stats.list_length_per_entry = squares as f64 / entries.max(1) as f64;
+        if !when.pays(self.stats.list_length_per_entry) {
+            return;
+        }
+        self.vertices = CellVertices::new(&self.cell_triangles, triangles);
+        self.stats.vertex_cache_bytes = self.vertices.as_ref().map_or(0, |v| v.bytes());
+    }
+}
 
 /// Entries per segment of the planes.
 const SEGMENT: usize = 4096;

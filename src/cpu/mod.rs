@@ -36,7 +36,9 @@ pub mod translate_vertices;
 
 // The settings the CPU twins take, declared below both backends.
 pub use crate::cascades::CascadeCount;
-pub use crate::settings::{IzbSettings, PassSeconds, PassTimes, ReceiverCull, SampleMode};
+pub use crate::settings::{
+    IzbSettings, PassSeconds, PassTimes, ReceiverCull, SampleMode, VertexCache,
+};
 pub use crate::skips::Skips;
 pub use evaluate::{MaskRule, FULL};
 pub use export_images::{export_images, ExportedImages};
@@ -255,8 +257,8 @@ pub fn render_cpu_with(
     let mut bins = bin::bin(&setup, triangles, settings.skips, cull_behind);
     // The vertex cache serves the walk that batches its survivors: a
     // point-like light's.
-    if settings.vertex_cache && !soft {
-        bins.cache_vertices(triangles);
+    if !soft {
+        bins.cache_vertices(triangles, settings.vertex_cache);
     }
     let boxes = match stored_boxes.get() {
         Some(stored) => ReceiverBoxes::Stored(stored),

@@ -330,8 +330,14 @@ fn evaluate_pixel(
                 batch_tests: &mut *batch_tests,
                 chunk: &mut *chunk,
             };
-            (walked, stopped) =
-                walk::survivors_in_chunks(bins, cache, px, (ranges, cover), rule, tally);
+            (walked, stopped) = walk::survivors_in_chunks(
+                bins,
+                (cache, triangles),
+                px,
+                (ranges, cover),
+                rule,
+                tally,
+            );
         }
         if stopped.is_none() {
             stopped = test_batch(

@@ -7,6 +7,11 @@ use super::{pixel_frustum, test_batch, MaskRule, PixelFrustum, TestCounters};
 use crate::cpu::bin::{cell_range_at, Bins, NO_COVER};
 use crate::cpu::cell_vertices::{tangent_chunk, CellVertices, ChunkQuery, ChunkTests};
 use crate::cpu::simd::SimdPath;
+use crate::frustum::above_tangent_plane;
+use glam::Vec3;
+
+/// Cell lists shorter than this are read by id, not from the vertex cache.
+const MIN_CHUNK: usize = 4;
 use crate::cpu::survivor_batch::{BatchTests, SurvivorBatch};
 
 use crate::cpu::light_setup::{LevelCells, LightSetup};
@@ -199,7 +204,7 @@ pub(super) struct WalkTally<'a> {
 /// instruction set, chosen by the rule's `simd`.
 pub(super) fn survivors_in_chunks(
     bins: &Bins,
-    cache: &CellVertices,
+    data: (&CellVertices, &[[Vec3; 3]]),
     px: &PixelFrustum,
     walk: (&LevelRanges, u32),
     rule: &MaskRule,
@@ -209,11 +214,11 @@ pub(super) fn survivors_in_chunks(
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `simd` is Avx512 only where the processor has AVX-512F
         // (`SimdPath::or_supported`).
-        SimdPath::Avx512 => unsafe { chunks_avx512(bins, cache, px, walk, rule, tally) },
+        SimdPath::Avx512 => unsafe { chunks_avx512(bins, data, px, walk, rule, tally) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `simd` is Avx2 only where the processor has AVX2.
-        SimdPath::Avx2 => unsafe { chunks_avx2(bins, cache, px, walk, rule, tally) },
-        _ => chunks(bins, cache, px, walk, rule, tally),
+        SimdPath::Avx2 => unsafe { chunks_avx2(bins, data, px, walk, rule, tally) },
+        _ => chunks(bins, data, px, walk, rule, tally),
     }
 }
 
@@ -223,13 +228,13 @@ pub(super) fn survivors_in_chunks(
 #[target_feature(enable = "avx512f")]
 unsafe fn chunks_avx512(
     bins: &Bins,
-    cache: &CellVertices,
+    data: (&CellVertices, &[[Vec3; 3]]),
     px: &PixelFrustum,
     walk: (&LevelRanges, u32),
     rule: &MaskRule,
     tally: WalkTally<'_>,
 ) -> ((u64, u64), Option<WalkPoint>) {
-    chunks(bins, cache, px, walk, rule, tally)
+    chunks(bins, data, px, walk, rule, tally)
 }
 
 /// # Safety
@@ -238,25 +243,26 @@ unsafe fn chunks_avx512(
 #[target_feature(enable = "avx2")]
 unsafe fn chunks_avx2(
     bins: &Bins,
-    cache: &CellVertices,
+    data: (&CellVertices, &[[Vec3; 3]]),
     px: &PixelFrustum,
     walk: (&LevelRanges, u32),
     rule: &MaskRule,
     tally: WalkTally<'_>,
 ) -> ((u64, u64), Option<WalkPoint>) {
-    chunks(bins, cache, px, walk, rule, tally)
+    chunks(bins, data, px, walk, rule, tally)
 }
 
 /// [`survivors_in_chunks`] on the instruction set it is inlined into.
 #[inline(always)]
 fn chunks(
     bins: &Bins,
-    cache: &CellVertices,
+    data: (&CellVertices, &[[Vec3; 3]]),
     px: &PixelFrustum,
     (ranges, cover): (&LevelRanges, u32),
     rule: &MaskRule,
     tally: WalkTally<'_>,
 ) -> ((u64, u64), Option<WalkPoint>) {
+    let (cache, triangles) = data;
     let (mut cells, mut levels) = (0, 0);
     let stop_when_full = rule.skips.full_mask;
     let WalkTally {
@@ -284,6 +290,42 @@ fn chunks(
                 let c = r.cells.index(x, y);
                 let (start, end) = (bins.cell_start[c] as usize, bins.cell_start[c + 1] as usize);
                 query.need = ChunkQuery::flags_needed(x, y, x0, y0);
+                if end - start < MIN_CHUNK {
+                    // A short list read by id, as `candidates_of` reads it:
+                    // a chunk costs its sixteen lanes and ten planes' lines
+                    // however few entries it holds.
+                    for e in &bins.cell_triangles[start..end] {
+                        if !e.tested_in(x, y, x0, y0) || e.id == px.receiver || e.id == cover {
+                            continue;
+                        }
+                        *tests += 1;
+                        let t = triangles[e.id as usize].map(|v| v - px.p);
+                        let Some(height) = above_tangent_plane(&t, px.normal, px.microquad_part)
+                        else {
+                            continue;
+                        };
+                        counters.tangent_passed += 1;
+                        let point = WalkPoint {
+                            tests: *tests,
+                            tangent_passed: counters.tangent_passed,
+                            walked: (cells, levels),
+                        };
+                        if batch.push(&t, height, point) {
+                            let stopped = test_batch(
+                                px,
+                                rule,
+                                (&mut *batch, &mut *batch_tests),
+                                mask,
+                                counters,
+                                stop_when_full,
+                            );
+                            if stopped.is_some() {
+                                return ((cells, levels), stopped);
+                            }
+                        }
+                    }
+                    continue;
+                }
                 let mut first = start;
                 while first < end {
                     // The next chunk: this list's, or the next cell's along
