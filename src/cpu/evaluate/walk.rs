@@ -6,18 +6,19 @@
 use super::{pixel_frustum, test_batch, MaskRule, PixelFrustum, TestCounters};
 use crate::cpu::bin::{cell_range_at, Bins, NO_COVER};
 use crate::cpu::cell_vertices::{tangent_chunk, CellVertices, ChunkQuery, ChunkTests};
+use crate::cpu::light_setup::{LevelCells, LightSetup};
 use crate::cpu::simd::SimdPath;
+use crate::cpu::survivor_batch::{BatchTests, SurvivorBatch, WalkPoint, LANES};
+use crate::cpu::{SampleMode, Skips};
 use crate::frustum::above_tangent_plane;
+use crate::gbuffer::GBuffer;
 use glam::Vec3;
 
-/// Cell lists shorter than this are read by id, not from the vertex cache.
+/// Cell lists shorter than this are read by id in the chunked walk, not
+/// from the vertex cache: a chunk costs its sixteen lanes and ten planes'
+/// cache lines however few entries it holds.
 const MIN_CHUNK: usize = 4;
-use crate::cpu::survivor_batch::{BatchTests, SurvivorBatch};
 
-use crate::cpu::light_setup::{LevelCells, LightSetup};
-use crate::cpu::survivor_batch::{WalkPoint, LANES};
-use crate::cpu::{SampleMode, Skips};
-use crate::gbuffer::GBuffer;
 /// One pyramid level's cells under a pixel's µQuad: the level, its place
 /// in the cell arrays and the inclusive cell range `[x0, y0, x1, y1]`.
 #[derive(Clone, Copy, Default)]
@@ -273,6 +274,22 @@ fn chunks(
         batch_tests,
         chunk,
     } = tally;
+    // A candidate above the tangent plane joins the batch, the tests up
+    // to and including it being `tests_so_far`; returns where the mask
+    // filled when the batch it completed fills it.
+    let mut join = |t: &[Vec3; 3], height: f32, tests_so_far: u64, walked: (u64, u64)| {
+        counters.tangent_passed += 1;
+        let point = WalkPoint {
+            tests: tests_so_far,
+            tangent_passed: counters.tangent_passed,
+            walked,
+        };
+        if !batch.push(t, height, point) {
+            return None;
+        }
+        let batch = (&mut *batch, &mut *batch_tests);
+        test_batch(px, rule, batch, mask, counters, stop_when_full)
+    };
     let mut query = ChunkQuery {
         p: px.p,
         normal: px.normal,
@@ -289,43 +306,24 @@ fn chunks(
                 cells += 1;
                 let c = r.cells.index(x, y);
                 let (start, end) = (bins.cell_start[c] as usize, bins.cell_start[c + 1] as usize);
-                query.need = ChunkQuery::flags_needed(x, y, x0, y0);
                 if end - start < MIN_CHUNK {
-                    // A short list read by id, as `candidates_of` reads it:
-                    // a chunk costs its sixteen lanes and ten planes' lines
-                    // however few entries it holds.
+                    // As `candidates_of` reads a list.
                     for e in &bins.cell_triangles[start..end] {
                         if !e.tested_in(x, y, x0, y0) || e.id == px.receiver || e.id == cover {
                             continue;
                         }
                         *tests += 1;
                         let t = triangles[e.id as usize].map(|v| v - px.p);
-                        let Some(height) = above_tangent_plane(&t, px.normal, px.microquad_part)
-                        else {
-                            continue;
-                        };
-                        counters.tangent_passed += 1;
-                        let point = WalkPoint {
-                            tests: *tests,
-                            tangent_passed: counters.tangent_passed,
-                            walked: (cells, levels),
-                        };
-                        if batch.push(&t, height, point) {
-                            let stopped = test_batch(
-                                px,
-                                rule,
-                                (&mut *batch, &mut *batch_tests),
-                                mask,
-                                counters,
-                                stop_when_full,
-                            );
-                            if stopped.is_some() {
-                                return ((cells, levels), stopped);
+                        let above = above_tangent_plane(&t, px.normal, px.microquad_part);
+                        if let Some(height) = above {
+                            if let Some(point) = join(&t, height, *tests, (cells, levels)) {
+                                return ((cells, levels), Some(point));
                             }
                         }
                     }
                     continue;
                 }
+                query.need = ChunkQuery::flags_needed(x, y, x0, y0);
                 let mut first = start;
                 while first < end {
                     // The next chunk: this list's, or the next cell's along
@@ -336,26 +334,13 @@ fn chunks(
                     while above != 0 {
                         let l = above.trailing_zeros() as usize;
                         above &= above - 1;
-                        counters.tangent_passed += 1;
-                        let point = WalkPoint {
-                            // The tests up to and including lane l.
-                            tests: *tests + u64::from((chunk.tested & ((2 << l) - 1)).count_ones()),
-                            tangent_passed: counters.tangent_passed,
-                            walked: (cells, levels),
-                        };
+                        let tests_so_far =
+                            *tests + u64::from((chunk.tested & ((2 << l) - 1)).count_ones());
                         let t = cache.triangle_minus(first + l, px.p);
-                        if batch.push(&t, chunk.height[l], point) {
-                            let stopped = test_batch(
-                                px,
-                                rule,
-                                (&mut *batch, &mut *batch_tests),
-                                mask,
-                                counters,
-                                stop_when_full,
-                            );
-                            if stopped.is_some() {
-                                return ((cells, levels), stopped);
-                            }
+                        if let Some(point) =
+                            join(&t, chunk.height[l], tests_so_far, (cells, levels))
+                        {
+                            return ((cells, levels), Some(point));
                         }
                     }
                     *tests += u64::from(chunk.tested.count_ones());
