@@ -203,7 +203,7 @@ pub enum VertexCache {
     /// Under a point-like light, every frame.
     Always,
     /// Under a point-like light, where an entry's cell list is on average
-    /// at least [`crate::cpu::cell_vertices::LONG_LISTS`] long.
+    /// at least 24 entries long (`cpu::cell_vertices::LONG_LISTS`).
     #[default]
     WhereLong,
     /// Never: every candidate is read by id.
