@@ -181,8 +181,7 @@ pub struct Bins {
     /// covers the whole cell with the highest floor ([`cover_floor`]), or
     /// [`NO_COVER`]. Only filled with the `shadow_map` skip.
     pub cover: Vec<u32>,
-    /// The cell lists' vertex cache, where evaluate's walk reads them
-    /// sixteen at a time ([`Bins::cache_vertices`], in `cell_vertices`).
+    /// The cell lists' vertex cache, when written ([`Bins::cache_vertices`]).
     pub vertices: Option<super::cell_vertices::CellVertices>,
     pub stats: BinStats,
 }

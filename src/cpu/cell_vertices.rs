@@ -40,6 +40,9 @@ impl Bins {
     /// binned), for a walk that batches its survivors (a point-like
     /// light), where `when` says it pays.
     pub fn cache_vertices(&mut self, triangles: &[[Vec3; 3]], when: VertexCache) {
+        if when == VertexCache::Never {
+            return;
+        }
         let (entries, squares) = self
             .cell_start
             .par_windows(2)

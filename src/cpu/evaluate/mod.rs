@@ -290,44 +290,33 @@ fn evaluate_pixel(
         let mut stopped: Option<WalkPoint> = None;
         let prefetch =
             |id: u32| crate::cpu::simd::prefetch(triangles.as_ptr().wrapping_add(id as usize));
+        let mut sink = walk::BatchSink {
+            mask: &mut mask,
+            counters: &mut counters,
+            batch: &mut *batch,
+            batch_tests: &mut *batch_tests,
+        };
         let mut walked = candidates_of(bins, px, scalar_ranges, prefetch, |id, walked| {
             if id == px.receiver || id == cover {
                 return false;
             }
             tests += 1;
             if !batching {
-                mask |= unbatched_mask(px, &triangles[id as usize], rule, &mut counters);
-                return stop_when_full && full(mask);
+                let tri = &triangles[id as usize];
+                *sink.mask |= unbatched_mask(px, tri, rule, sink.counters);
+                return stop_when_full && full(*sink.mask);
             }
             let t = triangles[id as usize].map(|v| v - px.p);
             let Some(height) = above_tangent_plane(&t, px.normal, px.microquad_part) else {
                 return false;
             };
-            counters.tangent_passed += 1;
-            let point = WalkPoint {
-                tests,
-                tangent_passed: counters.tangent_passed,
-                walked,
-            };
-            if batch.push(&t, height, point) {
-                stopped = test_batch(
-                    px,
-                    rule,
-                    (&mut *batch, &mut *batch_tests),
-                    &mut mask,
-                    &mut counters,
-                    stop_when_full,
-                );
-            }
+            stopped = sink.join((px, rule), &t, height, tests, walked);
             stopped.is_some()
         });
         if let (Some(cache), None) = (chunked, stopped) {
             let tally = walk::WalkTally {
-                mask: &mut mask,
+                sink,
                 tests: &mut tests,
-                counters: &mut counters,
-                batch: &mut *batch,
-                batch_tests: &mut *batch_tests,
                 chunk: &mut *chunk,
             };
             (walked, stopped) = walk::survivors_in_chunks(

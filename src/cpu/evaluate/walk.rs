@@ -184,14 +184,56 @@ pub(super) fn candidates_of(
     (cells, levels)
 }
 
-/// What the chunked walk adds to as it goes: the pixel's mask, its tests
-/// and their counters, and the survivor batch they fill.
-pub(super) struct WalkTally<'a> {
+/// Where a pixel's candidates above the tangent plane go: the survivor
+/// batch, and the mask and counters its tests add to.
+pub(super) struct BatchSink<'a> {
     pub mask: &'a mut u32,
-    pub tests: &'a mut u64,
     pub counters: &'a mut TestCounters,
     pub batch: &'a mut SurvivorBatch,
     pub batch_tests: &'a mut BatchTests,
+}
+
+impl BatchSink<'_> {
+    /// A candidate above the tangent plane by `height` (`t`: its vertices
+    /// minus P) joins the batch, the walk's tests up to and including it
+    /// being `tests` and its cells and levels `walked`; the batch is tested
+    /// when this fills it. Returns the candidate at which the mask filled,
+    /// when it did.
+    #[inline(always)]
+    pub fn join(
+        &mut self,
+        (px, rule): (&PixelFrustum, &MaskRule),
+        t: &[Vec3; 3],
+        height: f32,
+        tests: u64,
+        walked: (u64, u64),
+    ) -> Option<WalkPoint> {
+        self.counters.tangent_passed += 1;
+        let point = WalkPoint {
+            tests,
+            tangent_passed: self.counters.tangent_passed,
+            walked,
+        };
+        if !self.batch.push(t, height, point) {
+            return None;
+        }
+        let batch = (&mut *self.batch, &mut *self.batch_tests);
+        test_batch(
+            px,
+            rule,
+            batch,
+            self.mask,
+            self.counters,
+            rule.skips.full_mask,
+        )
+    }
+}
+
+/// What the chunked walk adds to as it goes: the batch, the pixel's tests
+/// and the chunk's results.
+pub(super) struct WalkTally<'a> {
+    pub sink: BatchSink<'a>,
+    pub tests: &'a mut u64,
     pub chunk: &'a mut ChunkTests,
 }
 
@@ -265,31 +307,11 @@ fn chunks(
 ) -> ((u64, u64), Option<WalkPoint>) {
     let (cache, triangles) = data;
     let (mut cells, mut levels) = (0, 0);
-    let stop_when_full = rule.skips.full_mask;
     let WalkTally {
-        mask,
+        mut sink,
         tests,
-        counters,
-        batch,
-        batch_tests,
         chunk,
     } = tally;
-    // A candidate above the tangent plane joins the batch, the tests up
-    // to and including it being `tests_so_far`; returns where the mask
-    // filled when the batch it completed fills it.
-    let mut join = |t: &[Vec3; 3], height: f32, tests_so_far: u64, walked: (u64, u64)| {
-        counters.tangent_passed += 1;
-        let point = WalkPoint {
-            tests: tests_so_far,
-            tangent_passed: counters.tangent_passed,
-            walked,
-        };
-        if !batch.push(t, height, point) {
-            return None;
-        }
-        let batch = (&mut *batch, &mut *batch_tests);
-        test_batch(px, rule, batch, mask, counters, stop_when_full)
-    };
     let mut query = ChunkQuery {
         p: px.p,
         normal: px.normal,
@@ -316,7 +338,9 @@ fn chunks(
                         let t = triangles[e.id as usize].map(|v| v - px.p);
                         let above = above_tangent_plane(&t, px.normal, px.microquad_part);
                         if let Some(height) = above {
-                            if let Some(point) = join(&t, height, *tests, (cells, levels)) {
+                            if let Some(point) =
+                                sink.join((px, rule), &t, height, *tests, (cells, levels))
+                            {
                                 return ((cells, levels), Some(point));
                             }
                         }
@@ -337,8 +361,9 @@ fn chunks(
                         let tests_so_far =
                             *tests + u64::from((chunk.tested & ((2 << l) - 1)).count_ones());
                         let t = cache.triangle_minus(first + l, px.p);
-                        if let Some(point) =
-                            join(&t, chunk.height[l], tests_so_far, (cells, levels))
+                        let height = chunk.height[l];
+                        let walked = (cells, levels);
+                        if let Some(point) = sink.join((px, rule), &t, height, tests_so_far, walked)
                         {
                             return ((cells, levels), Some(point));
                         }
