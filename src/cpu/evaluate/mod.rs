@@ -306,11 +306,7 @@ fn evaluate_pixel(
                 *sink.mask |= unbatched_mask(px, tri, rule, sink.counters);
                 return stop_when_full && full(*sink.mask);
             }
-            let t = triangles[id as usize].map(|v| v - px.p);
-            let Some(height) = above_tangent_plane(&t, px.normal, px.microquad_part) else {
-                return false;
-            };
-            stopped = sink.join((px, rule), &t, height, tests, walked);
+            stopped = sink.offer((px, rule), &triangles[id as usize], tests, walked);
             stopped.is_some()
         });
         if let (Some(cache), None) = (chunked, stopped) {

@@ -194,6 +194,22 @@ pub(super) struct BatchSink<'a> {
 }
 
 impl BatchSink<'_> {
+    /// A candidate read by id (`triangle`, eye-relative): the tangent-plane
+    /// condition, then [`Self::join`] where it passes. Returns the
+    /// candidate at which the mask filled, when it did.
+    #[inline(always)]
+    pub fn offer(
+        &mut self,
+        (px, rule): (&PixelFrustum, &MaskRule),
+        triangle: &[Vec3; 3],
+        tests: u64,
+        walked: (u64, u64),
+    ) -> Option<WalkPoint> {
+        let t = triangle.map(|v| v - px.p);
+        let height = above_tangent_plane(&t, px.normal, px.microquad_part)?;
+        self.join((px, rule), &t, height, tests, walked)
+    }
+
     /// A candidate above the tangent plane by `height` (`t`: its vertices
     /// minus P) joins the batch, the walk's tests up to and including it
     /// being `tests` and its cells and levels `walked`; the batch is tested
@@ -335,14 +351,11 @@ fn chunks(
                             continue;
                         }
                         *tests += 1;
-                        let t = triangles[e.id as usize].map(|v| v - px.p);
-                        let above = above_tangent_plane(&t, px.normal, px.microquad_part);
-                        if let Some(height) = above {
-                            if let Some(point) =
-                                sink.join((px, rule), &t, height, *tests, (cells, levels))
-                            {
-                                return ((cells, levels), Some(point));
-                            }
+                        let triangle = &triangles[e.id as usize];
+                        if let Some(point) =
+                            sink.offer((px, rule), triangle, *tests, (cells, levels))
+                        {
+                            return ((cells, levels), Some(point));
                         }
                     }
                     continue;
