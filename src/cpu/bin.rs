@@ -8,66 +8,24 @@
 //! plane, and every triangle when the grid is disabled.
 
 use super::counting_sort::{sort_into_cells, BlockEntry, CellLists};
+use super::footprint::Footprint;
 pub use super::footprint::{cell_range, cell_range_at, CELL_PADDING};
-use super::footprint::{level_and_rect, Footprint};
 use super::light_setup::{CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection};
 pub use super::penumbra::{ndc_pad_in_cells, penumbra_pad, penumbra_reaches_cell};
+use super::placement::{lane_footprint, placements};
+pub use super::placement::{place, Placement};
 pub use super::receiver_cull::behind_receivers;
 use super::receiver_cull::TriangleCull;
 pub use super::receivers::{cell_receivers, CellReceivers};
 pub use super::shadow_map_cover::cover_floor;
 use super::shadow_map_cover::set_cover_floors;
+use super::triangle_lanes::{TriangleLanes, LANES};
 use super::{ReceiverCull, Skips};
+use crate::cascades::MAX_CASCADES;
 use crate::gbuffer::GBuffer;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 use std::cell::OnceCell;
-
-/// Where one triangle went in one cascade's grid.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Placement {
-    /// Not binned: its shadow cannot reach any receiver of the cascade.
-    Culled,
-    /// In the overflow list.
-    Overflow,
-    /// At pyramid level `level`, in the cells of `[x0, x1] × [y0, y1]`
-    /// (inclusive) that its projection touches.
-    Cells {
-        level: u32,
-        x0: u32,
-        y0: u32,
-        x1: u32,
-        y1: u32,
-    },
-}
-
-impl Placement {
-    /// In the cells of `rect` (`[x0, y0, x1, y1]`) at level `level`.
-    fn of_cells(level: u32, [x0, y0, x1, y1]: [u32; 4]) -> Placement {
-        Placement::Cells {
-            level,
-            x0,
-            y0,
-            x1,
-            y1,
-        }
-    }
-
-    /// The level and rectangle (`[x0, y0, x1, y1]`) of a placement in
-    /// cells.
-    pub fn cells(&self) -> Option<(u32, [u32; 4])> {
-        match *self {
-            Placement::Cells {
-                level,
-                x0,
-                y0,
-                x1,
-                y1,
-            } => Some((level, [x0, y0, x1, y1])),
-            _ => None,
-        }
-    }
-}
 
 /// One entry of a cell's list: the triangle and whether it does *not*
 /// touch the cell to the left / below (at the same level). A pixel tests
@@ -213,82 +171,6 @@ impl Bins {
     }
 }
 
-/// Light NDC of a light-view triangle's vertices: `Err` with its placement
-/// when it has none (wholly behind a point light: culled; crossing its
-/// image plane: overflow).
-fn triangle_ndc(setup: &LightSetup, tri: &[Vec3; 3]) -> Result<[Vec2; 3], Placement> {
-    match setup.projection {
-        Projection::Orthographic => Ok(tri.map(|v| Vec2::new(v.x, v.y))),
-        Projection::Perspective => match tri.iter().filter(|v| v.z > 0.0).count() {
-            // A sphere light's samples reach z = −R behind its image plane:
-            // a segment from a receiver to one of them passes there.
-            0 if tri.iter().any(|v| v.z > -setup.light_radius) => Err(Placement::Overflow),
-            0 => Err(Placement::Culled),
-            3 => Ok(tri.map(|v| Vec2::new(v.x / v.z, v.y / v.z))),
-            _ => Err(Placement::Overflow),
-        },
-    }
-}
-
-/// Where triangle `tri` (light view) goes in `grid`, and its footprint
-/// there when it is binned in cells.
-pub fn place(
-    setup: &LightSetup,
-    grid: &CascadeGrid,
-    tri: &[Vec3; 3],
-) -> (Placement, Option<Footprint>) {
-    let p = placement(setup, grid, tri);
-    let f = p
-        .cells()
-        .map(|(level, rect)| placed_footprint(setup, grid, tri, level, rect));
-    (p, f)
-}
-
-/// [`place`]'s placement alone, without the footprint's edges (the
-/// bin's first pass, which keeps only this).
-fn placement(setup: &LightSetup, grid: &CascadeGrid, tri: &[Vec3; 3]) -> Placement {
-    if setup.grid_disabled {
-        return Placement::Overflow;
-    }
-    match grid_coords_and_pad(setup, grid, tri) {
-        Ok((g, pad)) => match level_and_rect(grid, g, pad) {
-            None => Placement::Culled,
-            Some((level, rect)) => Placement::of_cells(level, rect),
-        },
-        Err(p) => p,
-    }
-}
-
-/// A triangle's level-0 grid coordinates and penumbra pad (cells) in
-/// `grid`, or the placement it gets without them.
-fn grid_coords_and_pad(
-    setup: &LightSetup,
-    grid: &CascadeGrid,
-    tri: &[Vec3; 3],
-) -> Result<([Vec2; 3], Vec2), Placement> {
-    let ndc = triangle_ndc(setup, tri)?;
-    let pad = penumbra_pad(setup, tri, &ndc).ok_or(Placement::Overflow)?;
-    Ok((
-        ndc.map(|n| grid.grid_coords(n)),
-        ndc_pad_in_cells(grid, pad),
-    ))
-}
-
-/// The footprint [`place`] found for a triangle it placed at `level` in
-/// `rect`, computed again from its vertices without the level search.
-fn placed_footprint(
-    setup: &LightSetup,
-    grid: &CascadeGrid,
-    tri: &[Vec3; 3],
-    level: u32,
-    rect: [u32; 4],
-) -> Footprint {
-    match grid_coords_and_pad(setup, grid, tri) {
-        Ok((g, pad)) => Footprint::at_level(level, rect, g, pad),
-        Err(_) => unreachable!("a placed triangle has grid coordinates"),
-    }
-}
-
 /// The receivers (and µQuad boxes) the `behind_receivers` skip culls
 /// against, and when to take it.
 #[derive(Clone, Copy)]
@@ -329,15 +211,7 @@ pub fn bin(
     let placed: Vec<Vec<Placement>> = setup
         .cascades
         .iter()
-        .map(|grid| {
-            triangles
-                .par_iter()
-                .map(|t| match placement(setup, grid, &light_view_of(setup, t)) {
-                    Placement::Culled if !skips.outside_bounds => Placement::Overflow,
-                    p => p,
-                })
-                .collect()
-        })
+        .map(|grid| placements(setup, grid, triangles, skips))
         .collect();
     // The levels that hold placements: the only ones a pixel visits, and
     // the only ones whose receivers the cull needs.
@@ -424,15 +298,6 @@ pub fn bin(
     }
 }
 
-/// A triangle's light-view vertices: for placing it and culling its
-/// entries only (evaluate tests in eye space), computed where needed rather
-/// than kept (the GPU recomputes them in the scatter with the same
-/// arithmetic).
-#[inline]
-fn light_view_of(setup: &LightSetup, tri: &[Vec3; 3]) -> [Vec3; 3] {
-    tri.map(|v| setup.to_light_view(v))
-}
-
 /// Triangles per parallel block of the bin.
 const TRIANGLE_BLOCK: usize = 1024;
 
@@ -498,6 +363,7 @@ fn block_entries(
     covers: bool,
     ids: std::ops::Range<usize>,
 ) -> BlockEntries {
+    let (first, end) = (ids.start, ids.end);
     let mut out = BlockEntries {
         entries: Vec::new(),
         overflow: Vec::new(),
@@ -505,8 +371,15 @@ fn block_entries(
     };
     let stats = &mut out.stats;
     let mut touched_above = Vec::new();
+    let mut lanes = [TriangleLanes::default(); MAX_CASCADES];
     for id in ids {
-        let light_view = light_view_of(setup, &triangles[id]);
+        let l = (id - first) % LANES;
+        if l == 0 {
+            let chunk = &triangles[id..(id + LANES).min(end)];
+            for (grid, lanes) in setup.cascades.iter().zip(&mut lanes) {
+                lanes.fill(setup, grid, setup.simd, chunk);
+            }
+        }
         let mut overflows = 0u8;
         let mut placed_anywhere = false;
         for (k, grid) in setup.cascades.iter().enumerate() {
@@ -516,7 +389,8 @@ fn block_entries(
                 }
                 continue;
             };
-            let f = placed_footprint(setup, grid, &light_view, level, rect);
+            let light_view = lanes[k].light_view(l);
+            let f = lane_footprint(setup, grid, (&lanes[k], l), level, rect);
             placed_anywhere = true;
             stats.binned += 1;
             if stats.per_level.len() <= level as usize {

@@ -25,6 +25,7 @@ pub mod light_setup;
 pub mod lut_batch;
 mod mask_rule;
 pub mod penumbra;
+mod placement;
 pub mod receiver_cull;
 pub mod receivers;
 mod shadow_map_cover;
@@ -33,6 +34,7 @@ pub mod survivor_batch;
 #[cfg(test)]
 mod test_random;
 pub mod translate_vertices;
+pub mod triangle_lanes;
 
 // The settings the CPU twins take, declared below both backends.
 pub use crate::cascades::CascadeCount;
