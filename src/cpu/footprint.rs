@@ -44,26 +44,52 @@ pub const SLIVER_RATIO: f32 = izb_contract::tolerance::SLIVER_RATIO;
 /// Inclusive integer cell range of a `dims` grid covered by the continuous
 /// box `[lo, hi]` (in that grid's cells), grown by [`CELL_PADDING`], or
 /// `None` if it misses the grid (always for a grid without cells).
+#[inline]
 pub fn cell_range_in(dims: [u32; 2], lo: Vec2, hi: Vec2) -> Option<[u32; 4]> {
     let (w, h) = (dims[0] as f32, dims[1] as f32);
     let (lo, hi) = (lo - CELL_PADDING, hi + CELL_PADDING);
-    if hi.x < 0.0 || hi.y < 0.0 || lo.x >= w || lo.y >= h || lo.x.is_nan() || hi.x.is_nan() {
-        return None;
+    // Without a branch before the end, so that the bin's loops over
+    // sixteen lanes (`triangle_lanes`, `registration_lanes`) vectorise.
+    let miss = (hi.x < 0.0) | (hi.y < 0.0) | (lo.x >= w) | (lo.y >= h);
+    let miss = miss | lo.x.is_nan() | hi.x.is_nan();
+    let x0 = as_u32(lo.x.max(0.0));
+    let y0 = as_u32(lo.y.max(0.0));
+    let x1 = as_u32(hi.x.min(w - 1.0));
+    let y1 = as_u32(hi.y.min(h - 1.0));
+    (!miss).then_some([x0, y0, x1.max(x0), y1.max(y0)])
+}
+
+/// `v as u32` for every `f32` (NaN and negatives 0, at least 2³² the
+/// largest `u32`), in operations a loop over lanes vectorises: LLVM
+/// turns the saturating cast into one scalar conversion per lane
+/// (`vcvttss2si`), an unchecked one on clamped values into `vcvttps2udq`.
+#[inline(always)]
+pub fn as_u32(v: f32) -> u32 {
+    // The largest `f32` below 2³².
+    const BELOW_2_32: f32 = 4_294_967_040.0;
+    // NaN → 0 (`max` ignores it), then within 0..=BELOW_2_32; `clamp`
+    // would keep the NaN, which the unchecked cast must not see.
+    #[allow(clippy::manual_clamp)]
+    let clamped = v.max(0.0).min(BELOW_2_32);
+    // SAFETY: `clamped` is finite and in 0..2³², so truncated it fits a
+    // `u32`.
+    let t: u32 = unsafe { clamped.to_int_unchecked() };
+    if v >= 4_294_967_296.0 {
+        u32::MAX
+    } else {
+        t
     }
-    let x0 = lo.x.max(0.0) as u32;
-    let y0 = lo.y.max(0.0) as u32;
-    let x1 = (hi.x.min(w - 1.0)) as u32;
-    let y1 = (hi.y.min(h - 1.0)) as u32;
-    Some([x0, y0, x1.max(x0), y1.max(y0)])
 }
 
 /// [`cell_range_in`] level 0 of `grid`.
+#[inline]
 pub fn cell_range(grid: &CascadeGrid, lo: Vec2, hi: Vec2) -> Option<[u32; 4]> {
     cell_range_in(grid.cells, lo, hi)
 }
 
 /// The cell range at pyramid level `level` of a box given in level-0 grid
 /// coordinates.
+#[inline]
 pub fn cell_range_at(grid: &CascadeGrid, level: u32, lo: Vec2, hi: Vec2) -> Option<[u32; 4]> {
     let s = level_scale(level);
     cell_range_in(grid.level_dims(level), lo * s, hi * s)

@@ -28,6 +28,7 @@ pub mod penumbra;
 mod placement;
 pub mod receiver_cull;
 pub mod receivers;
+pub mod registration_lanes;
 mod shadow_map_cover;
 pub mod simd;
 pub mod survivor_batch;

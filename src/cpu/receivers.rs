@@ -10,6 +10,7 @@ use super::footprint::{cell_range_in, CELL_PADDING};
 use super::light_setup::{
     level_scale, CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection,
 };
+use super::registration_lanes::{RegistrationLanes, LANES};
 use super::{is_receiver, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -52,6 +53,19 @@ impl CellReceivers {
             reach: vec![0; cells],
             cull_box: Vec::new(),
             projection,
+        }
+    }
+
+    /// Registers a receiver of key `z` and reach `reach` in the cells
+    /// `[x0, y0, x1, y1]` of one level (`cells`).
+    #[inline]
+    fn register(&mut self, cells: LevelCells, [x0, y0, x1, y1]: [u32; 4], z: f32, reach: u32) {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let c = cells.index(x, y);
+                self.z_min[c] = self.z_min[c].min(z);
+                self.reach[c] = self.reach[c].max(reach);
+            }
         }
     }
 
@@ -139,6 +153,43 @@ pub fn cell_receivers(
         .into_par_iter()
         .map(|share| {
             let mut out = CellReceivers::empty(cells, projection);
+            if let [grid] = &setup.cascades[..] {
+                // One cascade: sixteen receivers' arithmetic at a time.
+                // Gathered sixteen receivers at a time: the sky and the
+                // pixels a skip leaves out would idle most lanes of a run
+                // of G-buffer entries on some scenes (engine).
+                let mut lanes = Box::<RegistrationLanes>::default();
+                let (wanted, level_cells) = (&wanted_levels[0][..], &level_cells[0][..]);
+                let mut run = (Vec::with_capacity(LANES), Vec::with_capacity(LANES));
+                let mut register = |run: &mut (Vec<Vec3>, Vec<(Vec2, Vec2)>)| {
+                    lanes.fill((setup, grid), setup.simd, (&run.0, &run.1), wanted);
+                    for lane in 0..run.0.len() {
+                        for (w, &(level, ..)) in wanted.iter().enumerate() {
+                            let Some((range, reach)) = lanes.level(w, lane) else {
+                                break;
+                            };
+                            let z = lanes.key[lane];
+                            out.register(level_cells[level as usize], range, z, reach);
+                        }
+                    }
+                    run.0.clear();
+                    run.1.clear();
+                };
+                for (l, range, _) in share {
+                    let (g, boxes) = layers[*l];
+                    for i in range.clone().filter(|&i| is_receiver(g.flags[i], skips)) {
+                        run.0.push(g.position[i]);
+                        run.1.push(boxes.ndc[i]);
+                        if run.0.len() == LANES {
+                            register(&mut run);
+                        }
+                    }
+                }
+                if !run.0.is_empty() {
+                    register(&mut run);
+                }
+                return out;
+            }
             let receivers = share.iter().flat_map(|(l, range, _)| {
                 range
                     .clone()
@@ -161,15 +212,7 @@ pub fn cell_receivers(
                         break;
                     };
                     let reach = receiver_reach(reach_lo * s, reach_hi * s);
-                    let [x0, y0, x1, y1] = range;
-                    let cells = level_cells[k][level as usize];
-                    for y in y0..=y1 {
-                        for x in x0..=x1 {
-                            let c = cells.index(x, y);
-                            out.z_min[c] = out.z_min[c].min(z);
-                            out.reach[c] = out.reach[c].max(reach);
-                        }
-                    }
+                    out.register(level_cells[k][level as usize], range, z, reach);
                 }
             }
             out
@@ -263,5 +306,5 @@ pub fn reach_box(
 /// padding.
 #[inline]
 pub fn receiver_reach(lo: Vec2, hi: Vec2) -> u32 {
-    ((hi - lo).max_element().ceil() as u32).saturating_add(1)
+    super::footprint::as_u32((hi - lo).max_element().ceil()).saturating_add(1)
 }

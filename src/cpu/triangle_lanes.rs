@@ -232,7 +232,7 @@ mod tests {
             if point {
                 let target = scene.camera.target;
                 scene.light = crate::scene::Light::Point {
-                    position: target + glam::DVec3::new(0.5, 6.0, 0.3),
+                    position: target + glam::DVec3::new(20.0, 60.0, 10.0),
                 };
             }
             let bvh = crate::bvh::SceneBvh::build(&scene);
@@ -245,6 +245,7 @@ mod tests {
                 simd: SimdPath::detected(),
             };
             let setup = light_setup(&scene, &g, request);
+            assert!(!setup.grid_disabled && setup.cascades[0].cells[0] > 1);
             assert_eq!(setup.projection == Projection::Perspective, point);
             // The scene's triangles, then some around the light's origin.
             let mut rng = XorShift::new(0x07a1_a9e5);

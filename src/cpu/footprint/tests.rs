@@ -133,3 +133,39 @@ fn a_row_span_leaves_out_only_untouched_cells() {
     assert!(touched > checked / 20, "{touched} touched");
     assert!(rows > 50_000, "{rows} rows");
 }
+
+/// `as_u32` is `as u32` on special values, near every power of two and
+/// on random bit patterns (every class of `f32`).
+#[test]
+fn as_u32_is_the_saturating_cast() {
+    let mut values = vec![
+        f32::NAN,
+        -f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        0.0,
+        -0.0,
+        f32::MIN_POSITIVE,
+        f32::MAX,
+        f32::MIN,
+        0.999_999_94,
+        4_294_967_040.0,
+        4_294_967_296.0,
+    ];
+    for e in 0..40 {
+        let p = (2.0f64).powi(e) as f32;
+        for v in [p, -p] {
+            values.extend([
+                v,
+                f32::from_bits(v.to_bits() - 1),
+                f32::from_bits(v.to_bits() + 1),
+            ]);
+        }
+    }
+    let mut rng = crate::cpu::test_random::XorShift::new(0xa5_u32 as u64);
+    values.extend((0..1_000_000).map(|_| f32::from_bits(rng.next_u64() as u32)));
+    for &v in &values {
+        assert_eq!(as_u32(v), v as u32, "{v:e} ({:#010x})", v.to_bits());
+    }
+    assert!(values.len() > 1_000_000, "{} values", values.len());
+}
