@@ -371,6 +371,9 @@ fn block_entries(
     };
     let stats = &mut out.stats;
     let mut touched_above = Vec::new();
+    // The block's triangles sixteen at a time, in each cascade: their
+    // light-view vertices and grid coordinates, as the placement pass
+    // computed them (`TriangleLanes`), not again one by one.
     let mut lanes = [TriangleLanes::default(); MAX_CASCADES];
     for id in ids {
         let l = (id - first) % LANES;

@@ -175,7 +175,8 @@ fn lane_placement(
     lanes: &TriangleLanes,
     l: usize,
 ) -> Placement {
-    // `penumbra_pad` is 0 without a light radius.
+    // The lanes' range and grid coordinates hold without a penumbra pad
+    // (`penumbra_pad` is 0 without a light radius).
     if setup.grid_disabled || setup.light_radius != 0.0 {
         return placement(setup, grid, &lanes.light_view(l));
     }

@@ -218,34 +218,33 @@ fn level_lanes(
     }
 }
 
-/// [`RegistrationLanes::fill`]'s one-receiver counterpart, as
-/// `cell_receivers` computed it: the key, then the range and reach on each
-/// level up to the first the box misses.
-#[cfg(test)]
-fn one_receiver(
-    (setup, grid): (&LightSetup, &CascadeGrid),
-    (position, ndc): (Vec3, (Vec2, Vec2)),
-    levels: &[WantedLevel],
-) -> (f32, Vec<([u32; 4], u32)>) {
-    let (lo, hi) = (grid.grid_coords(ndc.0), grid.grid_coords(ndc.1));
-    let p = setup.to_light_view(position);
-    let (reach_lo, reach_hi) = super::receivers::reach_box(setup, grid, p, (lo, hi));
-    let mut out = Vec::new();
-    for &(_, s, dims) in levels {
-        let Some(range) = cell_range_in(dims, lo * s, hi * s) else {
-            break;
-        };
-        out.push((range, receiver_reach(reach_lo * s, reach_hi * s)));
-    }
-    (receiver_key(setup.projection, p), out)
-}
-
 // The scene's G-buffer (ray-cast) comes with the `cli` feature.
 #[cfg(all(test, feature = "cli"))]
 mod tests {
     use super::*;
     use crate::cpu::light_setup::level_scale;
     use crate::cpu::{light_setup, CascadeCount, GridRequest, Skips};
+
+    /// [`RegistrationLanes::fill`]'s one-receiver counterpart, as
+    /// `cell_receivers` computed it: the key, then the range and reach on each
+    /// level up to the first the box misses.
+    fn one_receiver(
+        (setup, grid): (&LightSetup, &CascadeGrid),
+        (position, ndc): (Vec3, (Vec2, Vec2)),
+        levels: &[WantedLevel],
+    ) -> (f32, Vec<([u32; 4], u32)>) {
+        let (lo, hi) = (grid.grid_coords(ndc.0), grid.grid_coords(ndc.1));
+        let p = setup.to_light_view(position);
+        let (reach_lo, reach_hi) = crate::cpu::receivers::reach_box(setup, grid, p, (lo, hi));
+        let mut out = Vec::new();
+        for &(_, s, dims) in levels {
+            let Some(range) = cell_range_in(dims, lo * s, hi * s) else {
+                break;
+            };
+            out.push((range, receiver_reach(reach_lo * s, reach_hi * s)));
+        }
+        (receiver_key(setup.projection, p), out)
+    }
 
     /// Every path, on full and partial chunks, under a directional and a
     /// point light, on every level of the pyramid, against the
