@@ -10,7 +10,7 @@ use super::footprint::{cell_range_in, CELL_PADDING};
 use super::light_setup::{
     level_scale, CascadeGrid, LevelCells, LightSetup, MicroquadBoxes, Projection,
 };
-use super::registration_lanes::{RegistrationLanes, LANES};
+use super::registration_lanes::{RegistrationLanes, WantedLevel, LANES};
 use super::{is_receiver, Skips};
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -138,7 +138,7 @@ pub fn cell_receivers(
     }
     // Per cascade, the levels to register on, finest first, with their
     // scale and sides.
-    let wanted_levels: Vec<Vec<(u32, f32, [u32; 2])>> = setup
+    let wanted_levels: Vec<Vec<WantedLevel>> = setup
         .cascades
         .iter()
         .zip(levels)
@@ -154,40 +154,8 @@ pub fn cell_receivers(
         .map(|share| {
             let mut out = CellReceivers::empty(cells, projection);
             if let [grid] = &setup.cascades[..] {
-                // One cascade: sixteen receivers' arithmetic at a time.
-                // Gathered sixteen receivers at a time: the sky and the
-                // pixels a skip leaves out would idle most lanes of a run
-                // of G-buffer entries on some scenes (engine).
-                let mut lanes = Box::<RegistrationLanes>::default();
-                let (wanted, level_cells) = (&wanted_levels[0][..], &level_cells[0][..]);
-                let mut run = (Vec::with_capacity(LANES), Vec::with_capacity(LANES));
-                let mut register = |run: &mut (Vec<Vec3>, Vec<(Vec2, Vec2)>)| {
-                    lanes.fill((setup, grid), setup.simd, (&run.0, &run.1), wanted);
-                    for lane in 0..run.0.len() {
-                        for (w, &(level, ..)) in wanted.iter().enumerate() {
-                            let Some((range, reach)) = lanes.level(w, lane) else {
-                                break;
-                            };
-                            let z = lanes.key[lane];
-                            out.register(level_cells[level as usize], range, z, reach);
-                        }
-                    }
-                    run.0.clear();
-                    run.1.clear();
-                };
-                for (l, range, _) in share {
-                    let (g, boxes) = layers[*l];
-                    for i in range.clone().filter(|&i| is_receiver(g.flags[i], skips)) {
-                        run.0.push(g.position[i]);
-                        run.1.push(boxes.ndc[i]);
-                        if run.0.len() == LANES {
-                            register(&mut run);
-                        }
-                    }
-                }
-                if !run.0.is_empty() {
-                    register(&mut run);
-                }
+                let one = (setup, grid, &wanted_levels[0][..], &level_cells[0][..]);
+                register_gathered(&mut out, one, &layers, share, skips);
                 return out;
             }
             let receivers = share.iter().flat_map(|(l, range, _)| {
@@ -224,13 +192,56 @@ pub fn cell_receivers(
     Some(receivers.with_cull_boxes(setup, &wanted_levels, level_cells))
 }
 
+/// The receivers of `share` (blocks of `layers`' entries) registered in
+/// `out` under one cascade (`grid`, its wanted levels and their cells),
+/// sixteen gathered receivers' arithmetic at a time
+/// ([`RegistrationLanes`]): runs of G-buffer entries would idle most
+/// lanes where few pixels are receivers (engine), as the sky or a skip
+/// leaves them.
+fn register_gathered(
+    out: &mut CellReceivers,
+    (setup, grid, wanted, level_cells): (&LightSetup, &CascadeGrid, &[WantedLevel], &[LevelCells]),
+    layers: &[(&GBuffer, &MicroquadBoxes)],
+    share: &[(usize, std::ops::Range<usize>, usize)],
+    skips: Skips,
+) {
+    let mut lanes = Box::<RegistrationLanes>::default();
+    let (mut position, mut ndc) = (Vec::with_capacity(LANES), Vec::with_capacity(LANES));
+    let mut register = |position: &mut Vec<Vec3>, ndc: &mut Vec<(Vec2, Vec2)>| {
+        lanes.fill((setup, grid), setup.simd, (position, ndc), wanted);
+        for lane in 0..position.len() {
+            for (w, &(level, ..)) in wanted.iter().enumerate() {
+                let Some((range, reach)) = lanes.level(w, lane) else {
+                    break;
+                };
+                out.register(level_cells[level as usize], range, lanes.key[lane], reach);
+            }
+        }
+        position.clear();
+        ndc.clear();
+    };
+    for (l, range, _) in share {
+        let (g, boxes) = layers[*l];
+        for i in range.clone().filter(|&i| is_receiver(g.flags[i], skips)) {
+            position.push(g.position[i]);
+            ndc.push(boxes.ndc[i]);
+            if position.len() == LANES {
+                register(&mut position, &mut ndc);
+            }
+        }
+    }
+    if !position.is_empty() {
+        register(&mut position, &mut ndc);
+    }
+}
+
 impl CellReceivers {
     /// Fills [`Self::cull_box`] for the cells of `wanted_levels` (per
     /// cascade: level, scale, sides) that a receiver touches.
     fn with_cull_boxes(
         mut self,
         setup: &LightSetup,
-        wanted_levels: &[Vec<(u32, f32, [u32; 2])>],
+        wanted_levels: &[Vec<WantedLevel>],
         level_cells: &[Vec<LevelCells>],
     ) -> CellReceivers {
         let mut boxes = vec![[Vec2::ZERO; 2]; self.z_min.len()];

@@ -24,7 +24,7 @@ use super::receivers::{receiver_key, receiver_reach};
 use super::simd::SimdPath;
 #[cfg(doc)]
 use crate::cpu::light_setup::MicroquadBoxes;
-use glam::{Mat3, Vec2, Vec3};
+use glam::{Vec2, Vec3};
 
 /// G-buffer entries per kernel call.
 pub const LANES: usize = 16;
@@ -81,8 +81,6 @@ impl RegistrationLanes {
         let lanes = position.len();
         assert!(lanes <= LANES && ndc.len() == lanes && levels.len() <= MAX_LEVELS);
         let frame = Frame {
-            rotation: &setup.rotation,
-            origin: setup.origin,
             setup,
             grid,
             levels,
@@ -113,8 +111,6 @@ impl RegistrationLanes {
 /// What the kernels read of the light setup.
 #[derive(Clone, Copy)]
 struct Frame<'a> {
-    rotation: &'a Mat3,
-    origin: Vec3,
     setup: &'a LightSetup,
     grid: &'a CascadeGrid,
     levels: &'a [WantedLevel],
@@ -158,8 +154,6 @@ fn fill<const PERSPECTIVE: bool>(
     lanes: usize,
 ) {
     let Frame {
-        rotation,
-        origin,
         setup,
         grid,
         levels,
@@ -169,7 +163,8 @@ fn fill<const PERSPECTIVE: bool>(
     for l in 0..lanes {
         // `MicroquadBoxes::grid_box`.
         let (lo, hi) = (grid.grid_coords(ndc[l].0), grid.grid_coords(ndc[l].1));
-        let p = *rotation * (position[l] - origin);
+        // `LightSetup::to_light_view`.
+        let p = setup.rotation * (position[l] - setup.origin);
         out.key[l] = receiver_key(setup.projection, p);
         // `reach_box`, its NDC of P taken in every lane.
         let (n, has_ndc) = if PERSPECTIVE {
