@@ -396,7 +396,7 @@ pub fn light_setup_for(
     // Receivers' eye-relative bounds centre: the light-view origin of a
     // directional light, the aim of a point light. View depth range: the
     // cascade splits.
-    // A path this processor runs: the kernels' `unsafe` rests on it.
+    // The path this processor runs, as the setup records it.
     let simd = request.simd.or_supported();
     let bounds = receiver_bounds::view_bounds(gbuffer, view_forward, simd);
     let (lo, hi, near, far) = (bounds.lo, bounds.hi, bounds.near, bounds.far);

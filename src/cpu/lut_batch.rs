@@ -25,7 +25,7 @@
 //! LUT's `atan2f`, floors and cell code having been a third of it
 //! (`paper-notes/performance.md`).
 
-use super::simd::SimdPath;
+use super::simd::{Kernel, SimdPath};
 use super::survivor_batch::LANES;
 use crate::frustum::normalised_edge;
 use izb_lut::EdgeLut;
@@ -142,35 +142,31 @@ pub fn lut_coordinates(
         }
     }
     let chunks = used.div_ceil(CHUNK);
-    match path {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `path` is Avx512 only where the processor has AVX-512F
-        // (`SimdPath::or_supported`).
-        SimdPath::Avx512 => unsafe { kernel_avx512(lut, &out.packed, chunks, &mut out.cells) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `path` is Avx2 only where the processor has AVX2.
-        SimdPath::Avx2 => unsafe { kernel_avx2(lut, &out.packed, chunks, &mut out.cells) },
-        _ => kernel(lut, &out.packed, chunks, &mut out.cells),
-    }
+    let kernel = CoordinateKernel {
+        lut,
+        packed: &out.packed,
+        chunks,
+    };
+    path.dispatch(kernel, &mut out.cells);
 }
 
 /// Packed edges, `[component][slot]`.
 type Packed = [[f32; SLOTS]; 3];
 
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn kernel_avx2(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
-    kernel(lut, packed, chunks, out)
+/// [`kernel`]'s arguments, as a [`Kernel`].
+struct CoordinateKernel<'a> {
+    lut: &'a EdgeLut,
+    packed: &'a Packed,
+    chunks: usize,
 }
 
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn kernel_avx512(lut: &EdgeLut, packed: &Packed, chunks: usize, out: &mut Cells) {
-    kernel(lut, packed, chunks, out)
+impl Kernel for CoordinateKernel<'_> {
+    type Out = Cells;
+    type Output = ();
+    #[inline(always)]
+    fn run(self, out: &mut Cells) {
+        kernel(self.lut, self.packed, self.chunks, out)
+    }
 }
 
 /// The coordinates of the first `chunks` × [`CHUNK`] slots:

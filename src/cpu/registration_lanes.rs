@@ -21,7 +21,7 @@
 use super::footprint::cell_range_in;
 use super::light_setup::{CascadeGrid, LightSetup, Projection};
 use super::receivers::{receiver_key, receiver_reach};
-use super::simd::SimdPath;
+use super::simd::{Kernel, SimdPath};
 #[cfg(doc)]
 use crate::cpu::light_setup::MicroquadBoxes;
 use glam::{Vec2, Vec3};
@@ -70,7 +70,7 @@ impl RegistrationLanes {
     /// Fills the first `position.len()` lanes (at most [`LANES`]) for the
     /// receivers at eye-relative `position` with µQuad light-NDC boxes
     /// `ndc`, all in `grid`, on `levels` (at most 32); a full chunk runs
-    /// the `simd` path's kernel where the processor has it.
+    /// on the `simd` path ([`SimdPath::dispatch`]).
     pub fn fill(
         &mut self,
         (setup, grid): (&LightSetup, &CascadeGrid),
@@ -87,23 +87,17 @@ impl RegistrationLanes {
         };
         let perspective = setup.projection == Projection::Perspective;
         let quads = (position, ndc);
-        match (lanes == LANES, simd.or_supported(), perspective) {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `or_supported` returns Avx512 only where the
-            // processor has AVX-512F.
-            (true, SimdPath::Avx512, false) => unsafe { fill_avx512::<false>(frame, quads, self) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            (true, SimdPath::Avx512, true) => unsafe { fill_avx512::<true>(frame, quads, self) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `or_supported` returns Avx2 only where the processor
-            // has AVX2.
-            (true, SimdPath::Avx2, false) => unsafe { fill_avx2::<false>(frame, quads, self) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            (true, SimdPath::Avx2, true) => unsafe { fill_avx2::<true>(frame, quads, self) },
-            (_, _, false) => fill::<false>(frame, quads, self, lanes),
-            (_, _, true) => fill::<true>(frame, quads, self, lanes),
+        match (lanes == LANES, perspective) {
+            (true, _) => {
+                let kernel = FillKernel {
+                    frame,
+                    quads,
+                    perspective,
+                };
+                simd.dispatch(kernel, self)
+            }
+            (false, false) => fill::<false>(frame, quads, self, lanes),
+            (false, true) => fill::<true>(frame, quads, self, lanes),
         }
     }
 }
@@ -118,28 +112,28 @@ struct Frame<'a> {
 
 type Quads<'a> = (&'a [Vec3], &'a [(Vec2, Vec2)]);
 
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn fill_avx2<const PERSPECTIVE: bool>(
-    frame: Frame<'_>,
-    quads: Quads<'_>,
-    out: &mut RegistrationLanes,
-) {
-    fill::<PERSPECTIVE>(frame, quads, out, LANES)
+/// [`fill`]'s arguments over all [`LANES`], as a [`Kernel`].
+struct FillKernel<'a> {
+    frame: Frame<'a>,
+    quads: Quads<'a>,
+    perspective: bool,
 }
 
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn fill_avx512<const PERSPECTIVE: bool>(
-    frame: Frame<'_>,
-    quads: Quads<'_>,
-    out: &mut RegistrationLanes,
-) {
-    fill::<PERSPECTIVE>(frame, quads, out, LANES)
+impl Kernel for FillKernel<'_> {
+    type Out = RegistrationLanes;
+    type Output = ();
+    #[inline(always)]
+    fn run(self, out: &mut RegistrationLanes) {
+        let FillKernel {
+            frame,
+            quads,
+            perspective,
+        } = self;
+        match perspective {
+            false => fill::<false>(frame, quads, out, LANES),
+            true => fill::<true>(frame, quads, out, LANES),
+        }
+    }
 }
 
 /// The first `lanes` lanes of [`RegistrationLanes`] (all [`LANES`], a

@@ -22,7 +22,7 @@
 
 use super::empty_certificate::no_sample_inside_lanes;
 use super::mask_rule::MaskRule;
-use super::simd::SimdPath;
+use super::simd::{Kernel, SimdPath};
 use crate::frustum::{max3, LightRel, Vector, DEPTH_TOLERANCE_ROUNDING};
 use glam::Vec3;
 
@@ -139,31 +139,17 @@ impl SurvivorBatch {
         light: Vec3,
         out: &mut BatchTests,
     ) {
-        match (kernel_width(self.len), simd) {
-            (KernelWidth::EachAlone, _) => kernel::<POINT>(self, frame, light, out, self.len),
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `simd` is Avx512 only where the processor has
-            // AVX-512F (`SimdPath::or_supported`).
-            (KernelWidth::Half, SimdPath::Avx512) => unsafe {
-                kernel_avx512::<POINT, HALF>(self, frame, light, out)
-            },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            (KernelWidth::Full, SimdPath::Avx512) => unsafe {
-                kernel_avx512::<POINT, LANES>(self, frame, light, out)
-            },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `simd` is Avx2 only where the processor has AVX2.
-            (KernelWidth::Half, SimdPath::Avx2) => unsafe {
-                kernel_avx2::<POINT, HALF>(self, frame, light, out)
-            },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            (KernelWidth::Full, SimdPath::Avx2) => unsafe {
-                kernel_avx2::<POINT, LANES>(self, frame, light, out)
-            },
-            (KernelWidth::Half, _) => kernel::<POINT>(self, frame, light, out, HALF),
-            (KernelWidth::Full, _) => kernel::<POINT>(self, frame, light, out, LANES),
+        match kernel_width(self.len) {
+            KernelWidth::EachAlone => kernel::<POINT>(self, frame, light, out, self.len),
+            width => {
+                let kernel = BatchKernel::<POINT> {
+                    batch: self,
+                    frame,
+                    light,
+                    half: width == KernelWidth::Half,
+                };
+                simd.dispatch(kernel, out)
+            }
         }
     }
 }
@@ -177,30 +163,30 @@ struct Frame {
     reach: f32,
 }
 
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn kernel_avx2<const POINT: bool, const N: usize>(
-    b: &SurvivorBatch,
-    f: &Frame,
+/// [`kernel`]'s arguments over [`HALF`] or all [`LANES`], as a [`Kernel`].
+struct BatchKernel<'a, const POINT: bool> {
+    batch: &'a SurvivorBatch,
+    frame: &'a Frame,
     light: Vec3,
-    out: &mut BatchTests,
-) {
-    kernel::<POINT>(b, f, light, out, N)
+    half: bool,
 }
 
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn kernel_avx512<const POINT: bool, const N: usize>(
-    b: &SurvivorBatch,
-    f: &Frame,
-    light: Vec3,
-    out: &mut BatchTests,
-) {
-    kernel::<POINT>(b, f, light, out, N)
+impl<const POINT: bool> Kernel for BatchKernel<'_, POINT> {
+    type Out = BatchTests;
+    type Output = ();
+    #[inline(always)]
+    fn run(self, out: &mut BatchTests) {
+        let BatchKernel {
+            batch,
+            frame,
+            light,
+            half,
+        } = self;
+        match half {
+            true => kernel::<POINT>(batch, frame, light, out, HALF),
+            false => kernel::<POINT>(batch, frame, light, out, LANES),
+        }
+    }
 }
 
 /// How wide a batch's kernel runs ([`kernel_width`]).

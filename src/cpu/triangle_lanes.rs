@@ -23,7 +23,7 @@
 use super::footprint::cell_range;
 use super::light_setup::{CascadeGrid, LightSetup, Projection};
 use super::penumbra::ndc_pad_in_cells;
-use super::simd::SimdPath;
+use super::simd::{Kernel, SimdPath};
 use glam::{Mat3, Vec2, Vec3};
 
 /// Triangles per kernel call.
@@ -87,7 +87,7 @@ impl TriangleLanes {
 
     /// Fills the first `tris.len()` lanes (at most [`LANES`]) from the
     /// eye-relative triangles `tris`, with grid coordinates in `grid`; a
-    /// full chunk runs the `simd` path's kernel when the processor has it.
+    /// full chunk runs on the `simd` path ([`SimdPath::dispatch`]).
     pub fn fill(
         &mut self,
         setup: &LightSetup,
@@ -103,23 +103,17 @@ impl TriangleLanes {
         let lanes = tris.len();
         assert!(lanes <= LANES, "at most {LANES} triangles per call");
         let perspective = setup.projection == Projection::Perspective;
-        match (lanes == LANES, simd.or_supported(), perspective) {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `or_supported` returns Avx512 only where the
-            // processor has AVX-512F.
-            (true, SimdPath::Avx512, false) => unsafe { fill_avx512::<false>(frame, tris, self) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            (true, SimdPath::Avx512, true) => unsafe { fill_avx512::<true>(frame, tris, self) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `or_supported` returns Avx2 only where the processor
-            // has AVX2.
-            (true, SimdPath::Avx2, false) => unsafe { fill_avx2::<false>(frame, tris, self) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            (true, SimdPath::Avx2, true) => unsafe { fill_avx2::<true>(frame, tris, self) },
-            (_, _, false) => fill::<false>(frame, tris, self, lanes),
-            (_, _, true) => fill::<true>(frame, tris, self, lanes),
+        match (lanes == LANES, perspective) {
+            (true, _) => {
+                let kernel = FillKernel {
+                    frame,
+                    tris,
+                    perspective,
+                };
+                simd.dispatch(kernel, self)
+            }
+            (false, false) => fill::<false>(frame, tris, self, lanes),
+            (false, true) => fill::<true>(frame, tris, self, lanes),
         }
     }
 }
@@ -132,28 +126,28 @@ struct Frame<'a> {
     grid: &'a CascadeGrid,
 }
 
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn fill_avx2<const PERSPECTIVE: bool>(
-    frame: Frame<'_>,
-    tris: &[[Vec3; 3]],
-    out: &mut TriangleLanes,
-) {
-    fill::<PERSPECTIVE>(frame, tris, out, LANES)
+/// [`fill`]'s arguments over all [`LANES`], as a [`Kernel`].
+struct FillKernel<'a> {
+    frame: Frame<'a>,
+    tris: &'a [[Vec3; 3]],
+    perspective: bool,
 }
 
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn fill_avx512<const PERSPECTIVE: bool>(
-    frame: Frame<'_>,
-    tris: &[[Vec3; 3]],
-    out: &mut TriangleLanes,
-) {
-    fill::<PERSPECTIVE>(frame, tris, out, LANES)
+impl Kernel for FillKernel<'_> {
+    type Out = TriangleLanes;
+    type Output = ();
+    #[inline(always)]
+    fn run(self, out: &mut TriangleLanes) {
+        let FillKernel {
+            frame,
+            tris,
+            perspective,
+        } = self;
+        match perspective {
+            false => fill::<false>(frame, tris, out, LANES),
+            true => fill::<true>(frame, tris, out, LANES),
+        }
+    }
 }
 
 /// The first `lanes` lanes of [`TriangleLanes`] (all [`LANES`], a

@@ -7,7 +7,7 @@ use super::{pixel_frustum, test_batch, MaskRule, PixelFrustum, TestCounters};
 use crate::cpu::bin::{cell_range_at, Bins, NO_COVER};
 use crate::cpu::cell_vertices::{tangent_chunk, CellVertices, ChunkQuery, ChunkTests};
 use crate::cpu::light_setup::{LevelCells, LightSetup};
-use crate::cpu::simd::SimdPath;
+use crate::cpu::simd::Kernel;
 use crate::cpu::survivor_batch::{BatchTests, SurvivorBatch, WalkPoint, LANES};
 use crate::cpu::{SampleMode, Skips};
 use crate::frustum::above_tangent_plane;
@@ -269,46 +269,43 @@ pub(super) fn survivors_in_chunks(
     rule: &MaskRule,
     tally: WalkTally<'_>,
 ) -> ((u64, u64), Option<WalkPoint>) {
-    match rule.simd {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `simd` is Avx512 only where the processor has AVX-512F
-        // (`SimdPath::or_supported`).
-        SimdPath::Avx512 => unsafe { chunks_avx512(bins, data, px, walk, rule, tally) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `simd` is Avx2 only where the processor has AVX2.
-        SimdPath::Avx2 => unsafe { chunks_avx2(bins, data, px, walk, rule, tally) },
-        _ => chunks(bins, data, px, walk, rule, tally),
+    let WalkTally { sink, tests, chunk } = tally;
+    let kernel = ChunkWalk {
+        bins,
+        data,
+        px,
+        walk,
+        rule,
+        tally: (sink, tests),
+    };
+    rule.simd.dispatch(kernel, chunk)
+}
+
+/// [`chunks`]' arguments, as a [`Kernel`].
+struct ChunkWalk<'a> {
+    bins: &'a Bins,
+    data: (&'a CellVertices, &'a [[Vec3; 3]]),
+    px: &'a PixelFrustum,
+    walk: (&'a LevelRanges, u32),
+    rule: &'a MaskRule<'a>,
+    tally: (BatchSink<'a>, &'a mut u64),
+}
+
+impl Kernel for ChunkWalk<'_> {
+    type Out = ChunkTests;
+    type Output = ((u64, u64), Option<WalkPoint>);
+    #[inline(always)]
+    fn run(self, chunk: &mut ChunkTests) -> Self::Output {
+        let ChunkWalk {
+            bins,
+            data,
+            px,
+            walk,
+            rule,
+            tally,
+        } = self;
+        chunks(bins, data, px, walk, rule, tally, chunk)
     }
-}
-
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn chunks_avx512(
-    bins: &Bins,
-    data: (&CellVertices, &[[Vec3; 3]]),
-    px: &PixelFrustum,
-    walk: (&LevelRanges, u32),
-    rule: &MaskRule,
-    tally: WalkTally<'_>,
-) -> ((u64, u64), Option<WalkPoint>) {
-    chunks(bins, data, px, walk, rule, tally)
-}
-
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn chunks_avx2(
-    bins: &Bins,
-    data: (&CellVertices, &[[Vec3; 3]]),
-    px: &PixelFrustum,
-    walk: (&LevelRanges, u32),
-    rule: &MaskRule,
-    tally: WalkTally<'_>,
-) -> ((u64, u64), Option<WalkPoint>) {
-    chunks(bins, data, px, walk, rule, tally)
 }
 
 /// [`survivors_in_chunks`] on the instruction set it is inlined into.
@@ -319,15 +316,11 @@ fn chunks(
     px: &PixelFrustum,
     (ranges, cover): (&LevelRanges, u32),
     rule: &MaskRule,
-    tally: WalkTally<'_>,
+    (mut sink, tests): (BatchSink<'_>, &mut u64),
+    chunk: &mut ChunkTests,
 ) -> ((u64, u64), Option<WalkPoint>) {
     let (cache, triangles) = data;
     let (mut cells, mut levels) = (0, 0);
-    let WalkTally {
-        mut sink,
-        tests,
-        chunk,
-    } = tally;
     let mut query = ChunkQuery {
         p: px.p,
         normal: px.normal,

@@ -82,8 +82,7 @@ impl LightSetup {
     }
 
     fn boxes_of(&self, g: &GBuffer, skips: Skips, coverage: Option<&[u32]>) -> Vec<(Vec2, Vec2)> {
-        // A path this processor runs: the kernels' `unsafe` rests on it.
-        let simd = self.simd.or_supported();
+        let simd = self.simd;
         let receiver_flags = crate::cpu::receiver_flags(skips);
         let n = g.flags.len();
         let mut boxes = Vec::with_capacity(n);
@@ -114,7 +113,7 @@ struct ChunkQuads {
 
 impl ChunkQuads {
     /// The boxes of `g`'s entries `c` (at most [`LANES`]) into
-    /// `self.boxes`, non-receivers' too; `simd` one this processor runs.
+    /// `self.boxes`, non-receivers' too, on the `simd` path.
     fn project(
         &mut self,
         setup: &LightSetup,
@@ -251,8 +250,7 @@ impl ReceiverBoxes<'_> {
             return;
         };
         let coverage = coverage.filter(|_| covered_only);
-        // A path this processor runs: the kernels' `unsafe` rests on it.
-        let simd = setup.simd.or_supported();
+        let simd = setup.simd;
         out.first = band.start;
         out.ndc.clear();
         let BandBoxes { ndc, lanes, .. } = out;

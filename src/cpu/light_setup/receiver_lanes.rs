@@ -21,7 +21,7 @@
 
 use super::{microquad_corners, LightSetup, Projection};
 use crate::cascades::MAX_CASCADES;
-use crate::cpu::simd::SimdPath;
+use crate::cpu::simd::{Kernel, SimdPath};
 use crate::gbuffer::flags;
 use glam::{Mat3, Vec2, Vec3};
 
@@ -53,9 +53,8 @@ impl CornerBoxes {
 }
 
 /// [`CornerBoxes`] of the µQuads `(p[l], ex[l], ey[l])`, `l < p.len()`
-/// (at most [`LANES`]; a full chunk runs the `simd` path's kernel, which
-/// the caller made one this processor runs with
-/// [`SimdPath::or_supported`], as for every kernel here).
+/// (at most [`LANES`]; a full chunk runs on the `simd` path,
+/// [`SimdPath::dispatch`]).
 pub(super) fn corner_boxes(
     setup: &LightSetup,
     simd: SimdPath,
@@ -65,51 +64,42 @@ pub(super) fn corner_boxes(
     let frame = (&setup.rotation, setup.origin);
     let lanes = p.len();
     let perspective = setup.projection == Projection::Perspective;
-    match (lanes == LANES, simd, perspective) {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `simd` is Avx512 only where the processor has AVX-512F
-        // (the callers pass `SimdPath::or_supported` paths).
-        (true, SimdPath::Avx512, false) => unsafe {
-            corners_avx512::<false>(frame, (p, ex, ey), out)
-        },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
-        (true, SimdPath::Avx512, true) => unsafe {
-            corners_avx512::<true>(frame, (p, ex, ey), out)
-        },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `simd` is Avx2 only where the processor has AVX2.
-        (true, SimdPath::Avx2, false) => unsafe { corners_avx2::<false>(frame, (p, ex, ey), out) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
-        (true, SimdPath::Avx2, true) => unsafe { corners_avx2::<true>(frame, (p, ex, ey), out) },
-        (_, _, false) => corners::<false>(frame, (p, ex, ey), out, lanes),
-        (_, _, true) => corners::<true>(frame, (p, ex, ey), out, lanes),
+    match (lanes == LANES, perspective) {
+        (true, _) => {
+            let kernel = CornerKernel {
+                frame,
+                quads: (p, ex, ey),
+                perspective,
+            };
+            simd.dispatch(kernel, out)
+        }
+        (false, false) => corners::<false>(frame, (p, ex, ey), out, lanes),
+        (false, true) => corners::<true>(frame, (p, ex, ey), out, lanes),
     }
 }
 
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn corners_avx2<const PERSPECTIVE: bool>(
-    frame: (&Mat3, Vec3),
-    quads: (&[Vec3], &[Vec3], &[Vec3]),
-    out: &mut CornerBoxes,
-) {
-    corners::<PERSPECTIVE>(frame, quads, out, LANES)
+/// [`corners`]' arguments over all [`LANES`], as a [`Kernel`].
+struct CornerKernel<'a> {
+    frame: (&'a Mat3, Vec3),
+    quads: (&'a [Vec3], &'a [Vec3], &'a [Vec3]),
+    perspective: bool,
 }
 
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn corners_avx512<const PERSPECTIVE: bool>(
-    frame: (&Mat3, Vec3),
-    quads: (&[Vec3], &[Vec3], &[Vec3]),
-    out: &mut CornerBoxes,
-) {
-    corners::<PERSPECTIVE>(frame, quads, out, LANES)
+impl Kernel for CornerKernel<'_> {
+    type Out = CornerBoxes;
+    type Output = ();
+    #[inline(always)]
+    fn run(self, out: &mut CornerBoxes) {
+        let CornerKernel {
+            frame,
+            quads,
+            perspective,
+        } = self;
+        match perspective {
+            false => corners::<false>(frame, quads, out, LANES),
+            true => corners::<true>(frame, quads, out, LANES),
+        }
+    }
 }
 
 /// The first `lanes` lanes of [`CornerBoxes`] (all [`LANES`], a
@@ -178,33 +168,34 @@ impl ViewLanes {
     /// Adds the shadow-tested entries among `p` (flags `f`, at most
     /// [`LANES`]) to the lanes, `view_forward` the camera's direction.
     pub(super) fn add(&mut self, simd: SimdPath, p: &[Vec3], f: &[u32], view_forward: Vec3) {
-        match (p.len() == LANES, simd) {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `simd` is Avx512 only where the processor has
-            // AVX-512F.
-            (true, SimdPath::Avx512) => unsafe { view_avx512(self, p, f, view_forward) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `simd` is Avx2 only where the processor has AVX2.
-            (true, SimdPath::Avx2) => unsafe { view_avx2(self, p, f, view_forward) },
-            _ => view(self, p, f, view_forward, p.len()),
+        match p.len() == LANES {
+            true => {
+                let kernel = ViewKernel {
+                    p,
+                    f,
+                    forward: view_forward,
+                };
+                simd.dispatch(kernel, self)
+            }
+            false => view(self, p, f, view_forward, p.len()),
         }
     }
 }
 
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn view_avx2(acc: &mut ViewLanes, p: &[Vec3], f: &[u32], forward: Vec3) {
-    view(acc, p, f, forward, LANES)
+/// [`view`]'s arguments over all [`LANES`], as a [`Kernel`].
+struct ViewKernel<'a> {
+    p: &'a [Vec3],
+    f: &'a [u32],
+    forward: Vec3,
 }
 
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn view_avx512(acc: &mut ViewLanes, p: &[Vec3], f: &[u32], forward: Vec3) {
-    view(acc, p, f, forward, LANES)
+impl Kernel for ViewKernel<'_> {
+    type Out = ViewLanes;
+    type Output = ();
+    #[inline(always)]
+    fn run(self, acc: &mut ViewLanes) {
+        view(acc, self.p, self.f, self.forward, LANES)
+    }
 }
 
 /// [`ViewLanes::add`] over the first `lanes` lanes: `ViewBounds::add`'s
@@ -263,33 +254,29 @@ impl LightLanes {
         cascade: &[u32; LANES],
         cascades: usize,
     ) {
-        match simd {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `simd` is Avx512 only where the processor has
-            // AVX-512F.
-            SimdPath::Avx512 => unsafe { light_avx512(self, boxes, cascade, cascades) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `simd` is Avx2 only where the processor has AVX2.
-            SimdPath::Avx2 => unsafe { light_avx2(self, boxes, cascade, cascades) },
-            _ => light(self, boxes, cascade, cascades),
-        }
+        let kernel = LightKernel {
+            boxes,
+            cascade,
+            cascades,
+        };
+        simd.dispatch(kernel, self)
     }
 }
 
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn light_avx2(acc: &mut LightLanes, b: &CornerBoxes, cascade: &[u32; LANES], n: usize) {
-    light(acc, b, cascade, n)
+/// [`light`]'s arguments, as a [`Kernel`].
+struct LightKernel<'a> {
+    boxes: &'a CornerBoxes,
+    cascade: &'a [u32; LANES],
+    cascades: usize,
 }
 
-/// # Safety
-/// The processor has AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn light_avx512(acc: &mut LightLanes, b: &CornerBoxes, cascade: &[u32; LANES], n: usize) {
-    light(acc, b, cascade, n)
+impl Kernel for LightKernel<'_> {
+    type Out = LightLanes;
+    type Output = ();
+    #[inline(always)]
+    fn run(self, acc: &mut LightLanes) {
+        light(acc, self.boxes, self.cascade, self.cascades)
+    }
 }
 
 /// [`LightLanes::add`]: `light_bounds`' operations per receiver, its
