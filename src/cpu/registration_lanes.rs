@@ -88,14 +88,8 @@ impl RegistrationLanes {
         let perspective = setup.projection == Projection::Perspective;
         let quads = (position, ndc);
         match (lanes == LANES, perspective) {
-            (true, _) => {
-                let kernel = FillKernel {
-                    frame,
-                    quads,
-                    perspective,
-                };
-                simd.dispatch(kernel, self)
-            }
+            (true, false) => simd.dispatch(FillKernel::<false> { frame, quads }, self),
+            (true, true) => simd.dispatch(FillKernel::<true> { frame, quads }, self),
             (false, false) => fill::<false>(frame, quads, self, lanes),
             (false, true) => fill::<true>(frame, quads, self, lanes),
         }
@@ -113,26 +107,17 @@ struct Frame<'a> {
 type Quads<'a> = (&'a [Vec3], &'a [(Vec2, Vec2)]);
 
 /// [`fill`]'s arguments over all [`LANES`], as a [`Kernel`].
-struct FillKernel<'a> {
+struct FillKernel<'a, const PERSPECTIVE: bool> {
     frame: Frame<'a>,
     quads: Quads<'a>,
-    perspective: bool,
 }
 
-impl Kernel for FillKernel<'_> {
+impl<const PERSPECTIVE: bool> Kernel for FillKernel<'_, PERSPECTIVE> {
     type Out = RegistrationLanes;
     type Output = ();
     #[inline(always)]
     fn run(self, out: &mut RegistrationLanes) {
-        let FillKernel {
-            frame,
-            quads,
-            perspective,
-        } = self;
-        match perspective {
-            false => fill::<false>(frame, quads, out, LANES),
-            true => fill::<true>(frame, quads, out, LANES),
-        }
+        fill::<PERSPECTIVE>(self.frame, self.quads, out, LANES)
     }
 }
 

@@ -141,12 +141,19 @@ impl SurvivorBatch {
     ) {
         match kernel_width(self.len) {
             KernelWidth::EachAlone => kernel::<POINT>(self, frame, light, out, self.len),
-            width => {
-                let kernel = BatchKernel::<POINT> {
+            KernelWidth::Half => {
+                let kernel = BatchKernel::<POINT, HALF> {
                     batch: self,
                     frame,
                     light,
-                    half: width == KernelWidth::Half,
+                };
+                simd.dispatch(kernel, out)
+            }
+            KernelWidth::Full => {
+                let kernel = BatchKernel::<POINT, LANES> {
+                    batch: self,
+                    frame,
+                    light,
                 };
                 simd.dispatch(kernel, out)
             }
@@ -163,29 +170,20 @@ struct Frame {
     reach: f32,
 }
 
-/// [`kernel`]'s arguments over [`HALF`] or all [`LANES`], as a [`Kernel`].
-struct BatchKernel<'a, const POINT: bool> {
+/// [`kernel`]'s arguments over `N` lanes ([`HALF`] or all [`LANES`]), as
+/// a [`Kernel`].
+struct BatchKernel<'a, const POINT: bool, const N: usize> {
     batch: &'a SurvivorBatch,
     frame: &'a Frame,
     light: Vec3,
-    half: bool,
 }
 
-impl<const POINT: bool> Kernel for BatchKernel<'_, POINT> {
+impl<const POINT: bool, const N: usize> Kernel for BatchKernel<'_, POINT, N> {
     type Out = BatchTests;
     type Output = ();
     #[inline(always)]
     fn run(self, out: &mut BatchTests) {
-        let BatchKernel {
-            batch,
-            frame,
-            light,
-            half,
-        } = self;
-        match half {
-            true => kernel::<POINT>(batch, frame, light, out, HALF),
-            false => kernel::<POINT>(batch, frame, light, out, LANES),
-        }
+        kernel::<POINT>(self.batch, self.frame, self.light, out, N)
     }
 }
 

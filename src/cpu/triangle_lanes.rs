@@ -104,14 +104,8 @@ impl TriangleLanes {
         assert!(lanes <= LANES, "at most {LANES} triangles per call");
         let perspective = setup.projection == Projection::Perspective;
         match (lanes == LANES, perspective) {
-            (true, _) => {
-                let kernel = FillKernel {
-                    frame,
-                    tris,
-                    perspective,
-                };
-                simd.dispatch(kernel, self)
-            }
+            (true, false) => simd.dispatch(FillKernel::<false> { frame, tris }, self),
+            (true, true) => simd.dispatch(FillKernel::<true> { frame, tris }, self),
             (false, false) => fill::<false>(frame, tris, self, lanes),
             (false, true) => fill::<true>(frame, tris, self, lanes),
         }
@@ -127,26 +121,17 @@ struct Frame<'a> {
 }
 
 /// [`fill`]'s arguments over all [`LANES`], as a [`Kernel`].
-struct FillKernel<'a> {
+struct FillKernel<'a, const PERSPECTIVE: bool> {
     frame: Frame<'a>,
     tris: &'a [[Vec3; 3]],
-    perspective: bool,
 }
 
-impl Kernel for FillKernel<'_> {
+impl<const PERSPECTIVE: bool> Kernel for FillKernel<'_, PERSPECTIVE> {
     type Out = TriangleLanes;
     type Output = ();
     #[inline(always)]
     fn run(self, out: &mut TriangleLanes) {
-        let FillKernel {
-            frame,
-            tris,
-            perspective,
-        } = self;
-        match perspective {
-            false => fill::<false>(frame, tris, out, LANES),
-            true => fill::<true>(frame, tris, out, LANES),
-        }
+        fill::<PERSPECTIVE>(self.frame, self.tris, out, LANES)
     }
 }
 

@@ -65,40 +65,37 @@ pub(super) fn corner_boxes(
     let lanes = p.len();
     let perspective = setup.projection == Projection::Perspective;
     match (lanes == LANES, perspective) {
-        (true, _) => {
-            let kernel = CornerKernel {
+        (true, false) => simd.dispatch(
+            CornerKernel::<false> {
                 frame,
                 quads: (p, ex, ey),
-                perspective,
-            };
-            simd.dispatch(kernel, out)
-        }
+            },
+            out,
+        ),
+        (true, true) => simd.dispatch(
+            CornerKernel::<true> {
+                frame,
+                quads: (p, ex, ey),
+            },
+            out,
+        ),
         (false, false) => corners::<false>(frame, (p, ex, ey), out, lanes),
         (false, true) => corners::<true>(frame, (p, ex, ey), out, lanes),
     }
 }
 
 /// [`corners`]' arguments over all [`LANES`], as a [`Kernel`].
-struct CornerKernel<'a> {
+struct CornerKernel<'a, const PERSPECTIVE: bool> {
     frame: (&'a Mat3, Vec3),
     quads: (&'a [Vec3], &'a [Vec3], &'a [Vec3]),
-    perspective: bool,
 }
 
-impl Kernel for CornerKernel<'_> {
+impl<const PERSPECTIVE: bool> Kernel for CornerKernel<'_, PERSPECTIVE> {
     type Out = CornerBoxes;
     type Output = ();
     #[inline(always)]
     fn run(self, out: &mut CornerBoxes) {
-        let CornerKernel {
-            frame,
-            quads,
-            perspective,
-        } = self;
-        match perspective {
-            false => corners::<false>(frame, quads, out, LANES),
-            true => corners::<true>(frame, quads, out, LANES),
-        }
+        corners::<PERSPECTIVE>(self.frame, self.quads, out, LANES)
     }
 }
 
