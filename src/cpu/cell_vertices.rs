@@ -66,6 +66,12 @@ const SEGMENT: usize = 4096;
 /// A segment's length in each plane: its entries and the next [`LANES`].
 const WIDTH: usize = SEGMENT + LANES;
 
+/// How many entries ahead the cache's writing asks for a triangle: the
+/// entries are in cell order, their ids scattered over the triangle array
+/// (courtyard's 31 MB), and the writing waited on each read (courtyard at
+/// 960×540: 11.2 ms a frame without, 9.6 with, on two threads).
+const PREFETCH_AHEAD: usize = 48;
+
 /// A key's triangle id: the bits below the two flags.
 const ID_MASK: u32 = (1 << 30) - 1;
 
@@ -126,6 +132,9 @@ impl CellVertices {
                 let first = j * SEGMENT;
                 let last = (first + WIDTH).min(entries.len());
                 for (o, e) in entries[first..last].iter().enumerate() {
+                    if let Some(next) = entries.get(first + o + PREFETCH_AHEAD) {
+                        super::simd::prefetch(triangles.as_ptr().wrapping_add(next.id as usize));
+                    }
                     keys[o] = e.id
                         | if e.first_column { FIRST_COLUMN } else { 0 }
                         | if e.first_row { FIRST_ROW } else { 0 };
