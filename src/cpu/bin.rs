@@ -38,7 +38,7 @@ use std::cell::OnceCell;
 /// rectangle; a thin diagonal can be tested twice (a staircase of cells),
 /// which ORs the same mask again. The GPU packs both bits above the 28-bit
 /// id.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CellEntry {
     pub id: u32,
     pub first_column: bool,
@@ -142,6 +142,13 @@ pub struct Bins {
     /// The cell lists' vertex cache, when written ([`Bins::cache_vertices`]).
     pub vertices: Option<super::cell_vertices::CellVertices>,
     pub stats: BinStats,
+}
+
+impl Drop for Bins {
+    /// The cell lists' memory goes to the next frame's sort.
+    fn drop(&mut self) {
+        super::counting_sort::keep_lists(std::mem::take(&mut self.cell_triangles));
+    }
 }
 
 /// [`Bins::cover`] of a cell no triangle covers.

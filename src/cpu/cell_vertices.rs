@@ -19,6 +19,7 @@
 //! not understood).
 
 use super::bin::{Bins, CellEntry};
+use super::spare::{reused, Spare};
 use super::survivor_batch::LANES;
 use crate::frustum::max3;
 use crate::settings::VertexCache;
@@ -93,16 +94,12 @@ pub struct CellVertices {
 /// The last cache dropped, its memory for the next one: a renderer's
 /// frames reuse it as a GPU pass reuses its buffers. At most one is kept
 /// (the largest frame's, until a process ends).
-static SPARE: std::sync::Mutex<Option<(Vec<u32>, Vec<f32>)>> = std::sync::Mutex::new(None);
+static SPARE: Spare<(Vec<u32>, Vec<f32>)> = Spare::new();
 
 impl Drop for CellVertices {
     fn drop(&mut self) {
-        if let Ok(mut spare) = SPARE.lock() {
-            *spare = Some((
-                std::mem::take(&mut self.keys),
-                std::mem::take(&mut self.planes),
-            ));
-        }
+        let keys = std::mem::take(&mut self.keys);
+        SPARE.keep((keys, std::mem::take(&mut self.planes)));
     }
 }
 
@@ -114,11 +111,7 @@ impl CellVertices {
             return None;
         }
         let segments = entries.len().div_ceil(SEGMENT).max(1);
-        let (keys, planes) = SPARE
-            .lock()
-            .ok()
-            .and_then(|mut s| s.take())
-            .unwrap_or_default();
+        let (keys, planes) = SPARE.take().unwrap_or_default();
         // Every entry is written below, the padding after the last is
         // never a test: what the spare held there does not matter.
         let (mut keys, mut planes) = (
@@ -187,16 +180,6 @@ impl CellVertices {
         let vertex = |v: usize| Vec3::new(at(3 * v), at(3 * v + 1), at(3 * v + 2)) - p;
         [vertex(0), vertex(1), vertex(2)]
     }
-}
-
-/// `spare` at length `len` where it has the room, else a new vector (a
-/// grown one would copy what it held first).
-fn reused<T: Copy>(mut spare: Vec<T>, len: usize, zero: T) -> Vec<T> {
-    if spare.capacity() < len {
-        return vec![zero; len];
-    }
-    spare.resize(len, zero);
-    spare
 }
 
 /// The [`LANES`] values of `plane` from `o` on.

@@ -12,7 +12,19 @@
 //! split, each thread makes half of them and streams the entries twice.
 
 use super::bin::{CellEntry, NO_COVER};
+use super::spare::{reused, Spare};
 use rayon::prelude::*;
+
+/// The last frame's cell lists, their memory for the next frame's
+/// ([`super::spare`]; handed back when its [`super::bin::Bins`] drops):
+/// fresh, the sort filled all of it on one thread before the scatter
+/// wrote it (courtyard at 960×540: 4.8 of the sort's 13.3 ms).
+static SPARE_LISTS: Spare<Vec<CellEntry>> = Spare::new();
+
+/// Keeps `lists` (a dropped [`super::bin::Bins`]'s) for the next sort.
+pub(super) fn keep_lists(lists: Vec<CellEntry>) {
+    SPARE_LISTS.keep(lists);
+}
 
 /// One entry of a block: (cell, entry, cover floor or −∞).
 pub(super) type BlockEntry = (u32, CellEntry, f32);
@@ -69,15 +81,10 @@ pub(super) fn sort_into_cells(blocks: &[&[BlockEntry]], cells: usize) -> CellLis
         sum += c;
     }
     cell_start.push(sum);
-    // Scatter: each range's lists are one slice of the output.
-    let mut cell_triangles = vec![
-        CellEntry {
-            id: 0,
-            first_column: false,
-            first_row: false
-        };
-        sum as usize
-    ];
+    // Scatter: each range's lists are one slice of the output, every
+    // entry of which it writes.
+    let spare = SPARE_LISTS.take().unwrap_or_default();
+    let mut cell_triangles = reused(spare, sum as usize, CellEntry::default());
     let mut rest = &mut cell_triangles[..];
     let mut ranges = Vec::new();
     for lo in (0..cells).step_by(part) {

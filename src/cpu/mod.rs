@@ -31,6 +31,7 @@ pub mod receivers;
 pub mod registration_lanes;
 mod shadow_map_cover;
 pub mod simd;
+mod spare;
 pub mod survivor_batch;
 #[cfg(test)]
 mod test_random;
@@ -319,7 +320,7 @@ pub fn render_cpu_with(
             edge_surfaces: g.edges.as_ref().map(|e| e.stats.clone()),
             edge_surfaces_high: g.edges_high.as_ref().map(|e| e.stats.clone()),
             light: setup,
-            bin: bins.stats,
+            bin: std::mem::take(&mut bins.stats),
             work_per_pixel: eval_stats.per_pixel(),
             evaluate_ns_per_test_per_thread,
             ns_per_receiver_outside_evaluate_per_thread,
