@@ -7,9 +7,9 @@
 
 use std::sync::Mutex;
 
-/// One allocation kept for the next frame: the last one handed back, so
-/// the largest frame's capacity until the process ends ([`reused`] never
-/// shrinks it).
+/// One allocation kept for the next frame: the last one handed back (in
+/// one stream of frames, the largest capacity so far: [`reused`] never
+/// shrinks it), held until the process ends.
 pub struct Spare<T>(Mutex<Option<T>>);
 
 impl<T> Spare<T> {
