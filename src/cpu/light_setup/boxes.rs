@@ -6,7 +6,6 @@
 
 use super::receiver_lanes::{corner_boxes, CornerBoxes, LANES};
 use super::{CascadeGrid, LightSetup};
-use crate::cpu::simd::SimdPath;
 use crate::cpu::Skips;
 use crate::gbuffer::GBuffer;
 use glam::{Vec2, Vec3};
@@ -82,7 +81,6 @@ impl LightSetup {
     }
 
     fn boxes_of(&self, g: &GBuffer, skips: Skips, coverage: Option<&[u32]>) -> Vec<(Vec2, Vec2)> {
-        let simd = self.simd;
         let receiver_flags = crate::cpu::receiver_flags(skips);
         let n = g.flags.len();
         let mut boxes = Vec::with_capacity(n);
@@ -92,7 +90,7 @@ impl LightSetup {
             .with_min_len(256)
             .for_each_init(ChunkQuads::default, |lanes, (chunk, out)| {
                 let c = chunk * LANES..chunk * LANES + out.len();
-                lanes.receiver_boxes(self, simd, g, c, coverage, receiver_flags, |l, b| {
+                lanes.receiver_boxes(self, g, c, coverage, receiver_flags, |l, b| {
                     out[l].write(b);
                 });
             });
@@ -113,11 +111,10 @@ struct ChunkQuads {
 
 impl ChunkQuads {
     /// The boxes of `g`'s entries `c` (at most [`LANES`]) into
-    /// `self.boxes`, non-receivers' too, on the `simd` path.
+    /// `self.boxes`, non-receivers' too, on the setup's SIMD path.
     fn project(
         &mut self,
         setup: &LightSetup,
-        simd: SimdPath,
         g: &GBuffer,
         c: Range<usize>,
         coverage: Option<&[u32]>,
@@ -140,18 +137,16 @@ impl ChunkQuads {
             let len = c.len();
             quads = (&p[..len], &ex[..len], &ey[..len]);
         }
-        corner_boxes(setup, simd, quads, &mut self.boxes);
+        corner_boxes(setup, setup.simd, quads, &mut self.boxes);
     }
 
     /// Hands `write` each lane's box of `g`'s entries `c` (at most
     /// [`LANES`]): NaN where the entry is not a receiver
     /// (`receiver_flags`). A chunk without receivers (sky, back faces)
     /// is not projected.
-    #[allow(clippy::too_many_arguments)]
     fn receiver_boxes(
         &mut self,
         setup: &LightSetup,
-        simd: SimdPath,
         g: &GBuffer,
         c: Range<usize>,
         coverage: Option<&[u32]>,
@@ -161,7 +156,7 @@ impl ChunkQuads {
         let flags = &g.flags[c.clone()];
         let any = flags.iter().any(|f| f & receiver_flags != 0);
         if any {
-            self.project(setup, simd, g, c, coverage);
+            self.project(setup, g, c, coverage);
         }
         for (l, f) in flags.iter().enumerate() {
             write(
@@ -250,13 +245,12 @@ impl ReceiverBoxes<'_> {
             return;
         };
         let coverage = coverage.filter(|_| covered_only);
-        let simd = setup.simd;
         out.first = band.start;
         out.ndc.clear();
         let BandBoxes { ndc, lanes, .. } = out;
         for first in band.clone().step_by(LANES) {
             let c = first..(first + LANES).min(band.end);
-            lanes.receiver_boxes(setup, simd, g, c, coverage, receiver_flags, |_, b| {
+            lanes.receiver_boxes(setup, g, c, coverage, receiver_flags, |_, b| {
                 ndc.push(b);
             });
         }
